@@ -1,0 +1,149 @@
+//! Independent checks of a mesh: structural invariants and the Delaunay property.
+//!
+//! Tests run [`Mesh::check_invariants`] after every mutation (spade's `sanity_check`); the
+//! refinement runs [`Mesh::is_delaunay`] once at the end, so the reported `delaunay` flag is
+//! verified, never assumed.
+
+use super::mesh::{Mesh, NONE, next};
+use super::predicates::{is_ccw, is_in_circle};
+use std::fmt;
+
+/// A broken mesh invariant, described for a human.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct InvariantError(pub String);
+
+impl fmt::Display for InvariantError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for InvariantError {}
+
+macro_rules! ensure {
+    ($cond:expr, $($msg:tt)+) => {
+        if !$cond {
+            return Err(InvariantError(format!($($msg)+)));
+        }
+    };
+}
+
+impl Mesh {
+    /// Checks every structural invariant; `Err` names the first one broken.
+    ///
+    /// - corners and twins have 3 entries per triangle, every corner is a vertex id;
+    /// - twins are symmetric and run in opposite directions;
+    /// - a half-edge without twin lies on one side of the rectangle;
+    /// - every triangle is strictly counter-clockwise by exact `orient2d`;
+    /// - every vertex lies in the closed rectangle, has a finite value, and its outgoing
+    ///   half-edge starts at it;
+    /// - Euler's relation for a triangulated convex polygon: triangles = 2n − h − 2.
+    pub fn check_invariants(&self) -> Result<(), InvariantError> {
+        let n = self.vertices.len();
+        ensure!(self.corners.len() % 3 == 0, "{} corners is not a multiple of 3", self.corners.len());
+        ensure!(self.twins.len() == self.corners.len(), "twins and corners differ in length");
+        ensure!(self.outgoing.len() == n, "outgoing has {} entries for {n} vertices", self.outgoing.len());
+        for (e, &v) in self.corners.iter().enumerate() {
+            ensure!((v as usize) < n, "half-edge {e} starts at unknown vertex {v}");
+        }
+        for e in 0..self.corners.len() as u32 {
+            let t = self.twin(e);
+            let (a, b) = (self.origin(e), self.dest(e));
+            if t == NONE {
+                let (p, q) = (self.point(a), self.point(b));
+                let r = self.rect;
+                let on_side = (p.x == q.x && (p.x == r.x0() || p.x == r.x1()))
+                    || (p.y == q.y && (p.y == r.y0() || p.y == r.y1()));
+                ensure!(on_side, "boundary half-edge {e} ({a}→{b}) is not on a side of {r}");
+            } else {
+                ensure!((t as usize) < self.twins.len(), "half-edge {e} has twin {t} out of range");
+                ensure!(self.twin(t) == e, "twin of {e} is {t}, whose twin is {}", self.twin(t));
+                ensure!(
+                    self.origin(t) == b && self.dest(t) == a,
+                    "half-edge {e} ({a}→{b}) and its twin {t} ({}→{}) do not run opposite",
+                    self.origin(t),
+                    self.dest(t)
+                );
+            }
+        }
+        for t in 0..self.num_triangles() {
+            let [p, q, r] = self.triangle(t);
+            ensure!(
+                is_ccw(self.point(p), self.point(q), self.point(r)),
+                "triangle {t} ({p}, {q}, {r}) is not strictly counter-clockwise: {:?} {:?} {:?}",
+                self.point(p),
+                self.point(q),
+                self.point(r)
+            );
+        }
+        let r = self.rect;
+        for (v, vertex) in self.vertices.iter().enumerate() {
+            ensure!(vertex.z.is_finite(), "vertex {v} has non-finite value {}", vertex.z);
+            ensure!(
+                r.x0() <= vertex.x && vertex.x <= r.x1() && r.y0() <= vertex.y && vertex.y <= r.y1(),
+                "vertex {v} at ({}, {}) is outside {r}",
+                vertex.x,
+                vertex.y
+            );
+            let e = self.outgoing[v];
+            ensure!(
+                (e as usize) < self.corners.len() && self.origin(e) == v as u32,
+                "outgoing half-edge {e} of vertex {v} does not start there"
+            );
+        }
+        let h = self.num_boundary_vertices();
+        ensure!(
+            self.num_triangles() + h + 2 == 2 * n,
+            "{} triangles, but 2n − h − 2 = {} for n = {n}, h = {h}",
+            self.num_triangles(),
+            2 * n - h - 2
+        );
+        Ok(())
+    }
+
+    /// The first interior half-edge whose far vertex lies strictly inside the circumcircle of
+    /// its triangle, if any.
+    pub fn find_non_delaunay_edge(&self) -> Option<u32> {
+        (0..self.corners.len() as u32).find(|&e| {
+            let f = self.twin(e);
+            f != NONE && e < f && {
+                let (a, b, c) = (self.origin(e), self.dest(e), self.corners[next(next(e)) as usize]);
+                is_in_circle(self.point(a), self.point(b), self.point(c), self.point(self.apex(f)))
+            }
+        })
+    }
+
+    /// Whether every interior edge passes the exact in-circle test (a Delaunay triangulation).
+    pub fn is_delaunay(&self) -> bool {
+        self.find_non_delaunay_edge().is_none()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::{Rect, Vertex};
+
+    #[test]
+    fn check_invariants_catches_a_corrupted_twin_and_a_clockwise_triangle() {
+        let mesh = Mesh::new(Rect::unit(), [0.0; 4]);
+        let mut broken = mesh.clone();
+        broken.twins[2] = 4;
+        assert!(broken.check_invariants().unwrap_err().0.contains("twin"));
+        let mut clockwise = mesh.clone();
+        clockwise.corners.swap(0, 1);
+        assert!(clockwise.check_invariants().is_err());
+        let mut nan = mesh;
+        nan.vertices[3] = Vertex { x: 0.0, y: 1.0, z: f64::NAN };
+        assert!(nan.check_invariants().unwrap_err().0.contains("non-finite"));
+    }
+
+    #[test]
+    fn a_skinny_diagonal_in_a_rectangle_is_still_delaunay_but_a_bad_one_is_not() {
+        let mut mesh = Mesh::new(Rect::unit(), [0.0; 4]);
+        assert!(mesh.is_delaunay(), "the square's corners are cocircular");
+        // Move P4 inwards: P1P3 is then not Delaunay (P4 inside the circle of P1P2P3).
+        mesh.vertices[3] = Vertex { x: 0.1, y: 0.9, z: 0.0 };
+        assert!(!mesh.is_delaunay());
+    }
+}

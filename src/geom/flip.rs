@@ -1,0 +1,96 @@
+//! Lawson flips that restore the Delaunay property around a new vertex.
+
+use super::mesh::{Mesh, NONE, next, prev};
+use super::predicates::is_in_circle;
+
+impl Mesh {
+    /// Flips the edge of half-edge `e` (u→v, apex m) with its twin (v→u, apex w) and returns
+    /// the two new half-edges opposite m: u→w and w→v.
+    ///
+    /// ```text
+    ///         m                 m
+    ///        / \               /|\
+    ///       / t0\             / | \
+    ///      u-----v    ==>    u t0|t1 v
+    ///       \ t1/             \ | /
+    ///        \ /               \|/
+    ///         w                 w
+    /// ```
+    /// t0 = (u, w, m) and t1 = (w, v, m); the caller guarantees the quadrilateral u w v m is
+    /// strictly convex (an in-circle violation implies it).
+    pub(crate) fn flip(&mut self, e: u32) -> [u32; 2] {
+        let f = self.twin(e);
+        debug_assert_ne!(f, NONE, "flip of a boundary edge");
+        let (u, v, m, w) = (self.origin(e), self.dest(e), self.apex(e), self.apex(f));
+        let (out_vm, out_mu) = (self.twin(next(e)), self.twin(prev(e)));
+        let (out_uw, out_wv) = (self.twin(next(f)), self.twin(prev(f)));
+        let (t0, t1) = (e / 3, f / 3);
+        self.set_triangle(t0, [u, w, m], [out_uw, 3 * t1 + 2, out_mu]);
+        self.set_triangle(t1, [w, v, m], [out_wv, out_vm, 3 * t0 + 1]);
+        self.claim_corners(t0);
+        self.claim_corners(t1);
+        debug_assert!(
+            super::predicates::is_ccw(self.point(u), self.point(w), self.point(m))
+                && super::predicates::is_ccw(self.point(w), self.point(v), self.point(m)),
+            "flip produced a non-CCW triangle"
+        );
+        [3 * t0, 3 * t1]
+    }
+
+    /// Lawson's algorithm after an insertion: `stack` holds the half-edges opposite the new
+    /// vertex; each whose far vertex lies strictly inside the circumcircle is flipped, and the
+    /// two edges that then face the new vertex are checked in turn. Returns the number of flips.
+    ///
+    /// `stack` is the caller's scratch space, so the hot loop does not allocate; it is empty on
+    /// return.
+    pub fn legalize(&mut self, stack: &mut Vec<u32>) -> u32 {
+        let mut flips = 0;
+        while let Some(e) = stack.pop() {
+            let f = self.twin(e);
+            if f == NONE {
+                continue;
+            }
+            let (u, v, m) = (self.point(self.origin(e)), self.point(self.dest(e)), self.point(self.apex(e)));
+            if is_in_circle(u, v, m, self.point(self.apex(f))) {
+                stack.extend(self.flip(e));
+                flips += 1;
+            }
+        }
+        flips
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::geom::{Mesh, Point, Rect, Vertex};
+
+    #[test]
+    fn boundary_split_of_p1p2_flips_the_diagonal_into_the_shorter_p5p4() {
+        // The paper's figure: P5 = (0.5, 0) on P1P2; P4 = (0, 1) is inside the circle through
+        // P5, P2, P3 ... so P1P3 gives way to P5P4.
+        let mut mesh = Mesh::new(Rect::unit(), [0.0; 4]);
+        let e = mesh.find_edge(0, 1).unwrap();
+        let split = mesh.split(e, Vertex { x: 0.5, y: 0.0, z: 0.0 });
+        let mut stack = split.link().to_vec();
+        let flips = mesh.legalize(&mut stack);
+        mesh.check_invariants().unwrap();
+        assert_eq!(flips, 1);
+        assert!(mesh.find_edge(0, 2).is_none(), "P1P3 survived");
+        assert!(mesh.find_edge(4, 3).is_some(), "P5P4 missing");
+        assert!(mesh.is_delaunay());
+        assert!(stack.is_empty());
+    }
+
+    #[test]
+    fn cocircular_quadrilaterals_are_not_flipped() {
+        // The centre split of the square leaves four right triangles whose outer quadrilaterals
+        // are cocircular with nothing strictly inside: no flip.
+        let mut mesh = Mesh::new(Rect::unit(), [0.0; 4]);
+        let e = mesh.find_edge(0, 2).unwrap();
+        let split = mesh.split(e, Vertex { x: 0.5, y: 0.5, z: 0.0 });
+        let mut stack = split.link().to_vec();
+        assert_eq!(mesh.legalize(&mut stack), 0);
+        assert_eq!(mesh.point(4), Point::new(0.5, 0.5));
+        assert!(mesh.is_delaunay());
+    }
+}

@@ -1,0 +1,241 @@
+//! Planar geometry: points, the rectangle, the triangle mesh and its exact predicates.
+//!
+//! Pure, synchronous and deterministic: nothing here knows about expressions, threads or I/O.
+
+mod check;
+mod flip;
+mod mesh;
+pub mod predicates;
+mod split;
+
+pub use check::InvariantError;
+pub use mesh::{Edge, Mesh, NONE};
+pub use split::Split;
+
+use std::fmt;
+
+/// A point of the plane.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Point {
+    /// Abscissa.
+    pub x: f64,
+    /// Ordinate.
+    pub y: f64,
+}
+
+impl Point {
+    /// The point (x, y).
+    pub const fn new(x: f64, y: f64) -> Self {
+        Self { x, y }
+    }
+
+    /// The correctly rounded midpoint of `self` and `other`.
+    ///
+    /// `(a + b) * 0.5` rounds once (the halving is exact), so the result is the representable
+    /// point nearest the true midpoint, independent of argument order.
+    pub fn midpoint(self, other: Point) -> Point {
+        Point::new((self.x + other.x) * 0.5, (self.y + other.y) * 0.5)
+    }
+
+    /// Squared Euclidean distance.
+    pub fn distance_sq(self, other: Point) -> f64 {
+        let dx = other.x - self.x;
+        let dy = other.y - self.y;
+        dx * dx + dy * dy
+    }
+}
+
+/// A mesh vertex: its position and the value of F there.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Vertex {
+    /// Abscissa.
+    pub x: f64,
+    /// Ordinate.
+    pub y: f64,
+    /// F(x, y).
+    pub z: f64,
+}
+
+impl Vertex {
+    /// The vertex's position.
+    pub const fn point(self) -> Point {
+        Point::new(self.x, self.y)
+    }
+}
+
+/// The largest coordinate magnitude a rectangle may have.
+///
+/// The in-circle predicate works with fourth powers of coordinate differences; keeping
+/// |coordinate| ≤ 1e60 keeps those finite.
+pub const MAX_COORDINATE: f64 = 1e60;
+
+/// How small a side may be relative to the largest coordinate: below this, midpoints of short
+/// edges round onto their endpoints long before any useful refinement.
+pub const MIN_RELATIVE_SIDE: f64 = 1e-9;
+
+/// The closed rectangle [x0, x1] × [y0, y1] with x0 < x1 and y0 < y1, all finite.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rect {
+    x0: f64,
+    x1: f64,
+    y0: f64,
+    y1: f64,
+}
+
+/// Why a rectangle was rejected.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RectError {
+    /// A bound is NaN or infinite.
+    #[error("domain bound {name} is not finite")]
+    NonFinite {
+        /// Which bound: "a", "b", "c" or "d".
+        name: &'static str,
+    },
+    /// A bound is beyond ±[`MAX_COORDINATE`].
+    #[error("domain bound {name} = {value} is beyond ±1e60")]
+    TooLarge {
+        /// Which bound.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// The interval on one axis is empty or reversed.
+    #[error("domain is empty on {axis}: need {axis}0 < {axis}1, got [{lo}, {hi}]")]
+    Empty {
+        /// "x" or "y".
+        axis: &'static str,
+        /// The lower bound given.
+        lo: f64,
+        /// The upper bound given.
+        hi: f64,
+    },
+    /// One side is too short to refine at the magnitude of its coordinates.
+    #[error(
+        "domain is too narrow on {axis}: the side {side} is below 1e-9 times the coordinates' magnitude"
+    )]
+    TooNarrow {
+        /// "x" or "y".
+        axis: &'static str,
+        /// The side's length.
+        side: f64,
+    },
+}
+
+impl Rect {
+    /// The rectangle [a, b] × [c, d].
+    ///
+    /// # Errors
+    /// When a bound is not finite or beyond ±1e60, when a ≥ b or c ≥ d, or when a side is
+    /// shorter than 1e-9 times the largest coordinate magnitude.
+    pub fn new(a: f64, b: f64, c: f64, d: f64) -> Result<Self, RectError> {
+        for (name, value) in [("a", a), ("b", b), ("c", c), ("d", d)] {
+            if !value.is_finite() {
+                return Err(RectError::NonFinite { name });
+            }
+            if value.abs() > MAX_COORDINATE {
+                return Err(RectError::TooLarge { name, value });
+            }
+        }
+        // `!(a < b)` also catches a == b; NaN is excluded above.
+        if a >= b {
+            return Err(RectError::Empty { axis: "x", lo: a, hi: b });
+        }
+        if c >= d {
+            return Err(RectError::Empty { axis: "y", lo: c, hi: d });
+        }
+        let magnitude = a.abs().max(b.abs()).max(c.abs()).max(d.abs());
+        for (axis, side) in [("x", b - a), ("y", d - c)] {
+            if side < MIN_RELATIVE_SIDE * magnitude || side < f64::MIN_POSITIVE {
+                return Err(RectError::TooNarrow { axis, side });
+            }
+        }
+        Ok(Self { x0: a, x1: b, y0: c, y1: d })
+    }
+
+    /// The unit square [0, 1] × [0, 1].
+    pub const fn unit() -> Self {
+        Self { x0: 0.0, x1: 1.0, y0: 0.0, y1: 1.0 }
+    }
+
+    /// Lower x bound (a).
+    pub const fn x0(&self) -> f64 {
+        self.x0
+    }
+    /// Upper x bound (b).
+    pub const fn x1(&self) -> f64 {
+        self.x1
+    }
+    /// Lower y bound (c).
+    pub const fn y0(&self) -> f64 {
+        self.y0
+    }
+    /// Upper y bound (d).
+    pub const fn y1(&self) -> f64 {
+        self.y1
+    }
+
+    /// The corners P1 = (a, c), P2 = (b, c), P3 = (b, d), P4 = (a, d), counter-clockwise.
+    pub const fn corners(&self) -> [Point; 4] {
+        [
+            Point::new(self.x0, self.y0),
+            Point::new(self.x1, self.y0),
+            Point::new(self.x1, self.y1),
+            Point::new(self.x0, self.y1),
+        ]
+    }
+
+    /// Width × height.
+    pub fn area(&self) -> f64 {
+        (self.x1 - self.x0) * (self.y1 - self.y0)
+    }
+
+    /// Length of the diagonal.
+    pub fn diagonal(&self) -> f64 {
+        (self.x1 - self.x0).hypot(self.y1 - self.y0)
+    }
+
+    /// Whether `p` lies on the rectangle's boundary (exactly).
+    pub fn is_on_boundary(&self, p: Point) -> bool {
+        let in_x = self.x0 <= p.x && p.x <= self.x1;
+        let in_y = self.y0 <= p.y && p.y <= self.y1;
+        ((p.x == self.x0 || p.x == self.x1) && in_y) || ((p.y == self.y0 || p.y == self.y1) && in_x)
+    }
+}
+
+impl fmt::Display for Rect {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "[{}, {}] x [{}, {}]", self.x0, self.x1, self.y0, self.y1)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rect_rejects_empty_reversed_and_non_finite_bounds() {
+        assert!(matches!(Rect::new(1.0, 1.0, 0.0, 1.0), Err(RectError::Empty { axis: "x", .. })));
+        assert!(matches!(Rect::new(0.0, 1.0, 2.0, 1.0), Err(RectError::Empty { axis: "y", .. })));
+        assert!(matches!(
+            Rect::new(f64::NAN, 1.0, 0.0, 1.0),
+            Err(RectError::NonFinite { name: "a" })
+        ));
+        assert!(matches!(
+            Rect::new(0.0, 1e61, 0.0, 1.0),
+            Err(RectError::TooLarge { name: "b", .. })
+        ));
+        assert!(matches!(
+            Rect::new(1e9, 1e9 + 1e-3, 0.0, 1.0),
+            Err(RectError::TooNarrow { axis: "x", .. })
+        ));
+        assert!(Rect::new(-3.0, 3.0, -3.0, 3.0).is_ok());
+    }
+
+    #[test]
+    fn midpoint_is_symmetric_and_exact_for_dyadic_points() {
+        let a = Point::new(0.1, -7.25);
+        let b = Point::new(3.3, 2.0);
+        assert_eq!(a.midpoint(b), b.midpoint(a));
+        assert_eq!(Point::new(0.0, 0.0).midpoint(Point::new(1.0, 0.5)), Point::new(0.5, 0.25));
+    }
+}

@@ -1,0 +1,3 @@
+//! Writing a finished refinement out.
+
+pub mod json;

@@ -1,0 +1,138 @@
+//! Measures of a finished mesh: the variation V_n and an estimate of the error E_n.
+//!
+//! Kept out of the refinement loop: these walk the whole mesh once.
+
+use crate::geom::{Mesh, Point};
+use crate::source::{Grid, Surface};
+
+/// V_n = max |zᵢ − zⱼ| over the edges (i, j) of the mesh.
+///
+/// V_n is not monotone in n: a midpoint value can open a larger gap than the edge it split.
+pub fn variation(mesh: &Mesh) -> f64 {
+    mesh.edges().map(|e| (mesh.vertex(e.a).z - mesh.vertex(e.b).z).abs()).fold(0.0, f64::max)
+}
+
+/// How well the mesh approximates F, estimated by sampling.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ErrorEstimate {
+    /// E_n ≈ max |F − F_n| over the samples.
+    pub max_error: f64,
+    /// Root mean square of F − F_n, each triangle weighted by its area (by node for a grid).
+    pub rms_error: f64,
+    /// The smallest interior angle of any triangle, in degrees.
+    pub min_angle_deg: f64,
+    /// How many points were sampled.
+    pub samples: u64,
+}
+
+/// The order of the barycentric lattice sampled in each triangle.
+const LATTICE: usize = 4;
+
+/// Estimates E_n = max |F − F_n|, where F_n is the piecewise linear interpolant on `mesh`.
+///
+/// An expression is sampled on a fixed barycentric lattice of order 4 in every triangle (the
+/// 9 points inside its edges and 3 inside it; F_n equals F at the corners). A grid is compared
+/// at every grid node exactly, each node once. Samples where F is not finite are skipped.
+pub fn estimate_error<S: Surface + ?Sized>(mesh: &Mesh, surface: &S) -> ErrorEstimate {
+    let min_angle_deg = (0..mesh.num_triangles())
+        .map(|t| min_angle(mesh, t))
+        .fold(f64::INFINITY, f64::min)
+        .to_degrees();
+    let (max_error, rms_error, samples) = match surface.grid() {
+        Some(grid) => grid_error(mesh, grid),
+        None => lattice_error(mesh, surface),
+    };
+    ErrorEstimate { max_error, rms_error, min_angle_deg, samples }
+}
+
+fn corners(mesh: &Mesh, t: usize) -> [(Point, f64); 3] {
+    mesh.triangle(t).map(|v| {
+        let v = mesh.vertex(v);
+        (v.point(), v.z)
+    })
+}
+
+fn min_angle(mesh: &Mesh, t: usize) -> f64 {
+    let [(a, _), (b, _), (c, _)] = corners(mesh, t);
+    let angle = |p: Point, q: Point, r: Point| {
+        let (u, v) = ((q.x - p.x, q.y - p.y), (r.x - p.x, r.y - p.y));
+        (u.0 * v.1 - u.1 * v.0).abs().atan2(u.0 * v.0 + u.1 * v.1)
+    };
+    angle(a, b, c).min(angle(b, c, a)).min(angle(c, a, b))
+}
+
+fn lattice_error<S: Surface + ?Sized>(mesh: &Mesh, surface: &S) -> (f64, f64, u64) {
+    let (mut max, mut weighted_sq, mut area_sum, mut samples) = (0.0f64, 0.0, 0.0, 0u64);
+    for t in 0..mesh.num_triangles() {
+        let [(a, za), (b, zb), (c, zc)] = corners(mesh, t);
+        let area = 0.5 * ((b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x));
+        let (mut sum_sq, mut count) = (0.0, 0u32);
+        for i in 0..=LATTICE {
+            for j in 0..=LATTICE - i {
+                let k = LATTICE - i - j;
+                if i == LATTICE || j == LATTICE || k == LATTICE {
+                    continue;
+                }
+                let (wa, wb, wc) = (i as f64 / 4.0, j as f64 / 4.0, k as f64 / 4.0);
+                let p = Point::new(wa * a.x + wb * b.x + wc * c.x, wa * a.y + wb * b.y + wc * c.y);
+                let exact = surface.eval(p);
+                if !exact.is_finite() {
+                    continue;
+                }
+                let err = (exact - (wa * za + wb * zb + wc * zc)).abs();
+                max = max.max(err);
+                sum_sq += err * err;
+                count += 1;
+            }
+        }
+        if count > 0 {
+            weighted_sq += area * sum_sq / f64::from(count);
+            area_sum += area;
+            samples += u64::from(count);
+        }
+    }
+    let rms = if area_sum > 0.0 { (weighted_sq / area_sum).sqrt() } else { 0.0 };
+    (max, rms, samples)
+}
+
+/// Rasterises every triangle over the grid nodes it covers (in grid coordinates, with a hair
+/// of slack so nodes on edges are not lost to rounding) and compares each node once.
+fn grid_error(mesh: &Mesh, grid: &Grid) -> (f64, f64, u64) {
+    let (nx, ny) = (grid.nx(), grid.ny());
+    let mut seen = vec![0u64; (nx * ny).div_ceil(64)];
+    let (mut max, mut sum_sq, mut samples) = (0.0f64, 0.0, 0u64);
+    const SLACK: f64 = 1e-9;
+    for t in 0..mesh.num_triangles() {
+        let [(a, za), (b, zb), (c, zc)] = corners(mesh, t).map(|(p, z)| {
+            let (u, v) = grid.to_grid(p);
+            (Point::new(u, v), z)
+        });
+        let det = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+        let lo_i = a.x.min(b.x).min(c.x).ceil().max(0.0) as usize;
+        let hi_i = (a.x.max(b.x).max(c.x).floor() as usize).min(nx - 1);
+        let lo_j = a.y.min(b.y).min(c.y).ceil().max(0.0) as usize;
+        let hi_j = (a.y.max(b.y).max(c.y).floor() as usize).min(ny - 1);
+        for j in lo_j..=hi_j {
+            for i in lo_i..=hi_i {
+                let index = j * nx + i;
+                if seen[index / 64] & (1 << (index % 64)) != 0 {
+                    continue;
+                }
+                let p = Point::new(i as f64, j as f64);
+                let wb = ((p.x - a.x) * (c.y - a.y) - (p.y - a.y) * (c.x - a.x)) / det;
+                let wc = ((b.x - a.x) * (p.y - a.y) - (b.y - a.y) * (p.x - a.x)) / det;
+                let wa = 1.0 - wb - wc;
+                if wa < -SLACK || wb < -SLACK || wc < -SLACK {
+                    continue;
+                }
+                seen[index / 64] |= 1 << (index % 64);
+                let err = (grid.value(i, j) - (wa * za + wb * zb + wc * zc)).abs();
+                max = max.max(err);
+                sum_sq += err * err;
+                samples += 1;
+            }
+        }
+    }
+    let rms = if samples > 0 { (sum_sq / samples as f64).sqrt() } else { 0.0 };
+    (max, rms, samples)
+}

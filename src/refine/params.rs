@@ -1,0 +1,175 @@
+//! What a refinement is asked to do: method, criterion and stop rules.
+
+use std::fmt;
+use std::str::FromStr;
+use std::time::Duration;
+
+/// Whether edges are flipped after each insertion.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Method {
+    /// No flips: old vertices and edges never move; the split edge becomes its halves.
+    Recursive,
+    /// Lawson flips after each insertion keep the mesh a Delaunay triangulation.
+    #[default]
+    SemiRecursive,
+}
+
+/// How the worst edge is chosen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Criterion {
+    /// The paper's: the edge with the largest |zᵢ − zⱼ|.
+    #[default]
+    Variation,
+}
+
+/// The largest vertex budget the engine accepts: vertex and half-edge ids are `u32`, and a
+/// mesh of n vertices has up to 6n half-edges.
+pub const MAX_VERTICES: usize = 400_000_000;
+
+/// Refinement parameters, validated by [`Params::new`] and the `with_*` setters.
+///
+/// ```
+/// use meshfit::refine::{Method, Params};
+/// let params = Params::new(10_000).unwrap().with_method(Method::Recursive).with_tolerance(1e-3).unwrap();
+/// assert_eq!(params.max_vertices(), 10_000);
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct Params {
+    method: Method,
+    criterion: Criterion,
+    max_vertices: usize,
+    tolerance: Option<f64>,
+    time_limit: Option<Duration>,
+}
+
+/// A parameter out of range.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ParamsError {
+    /// The budget is below 4 (the corners) or above [`MAX_VERTICES`].
+    #[error("max_vertices must be between 4 and {MAX_VERTICES}, got {0}")]
+    MaxVertices(usize),
+    /// The tolerance is negative or not finite.
+    #[error("tolerance must be a finite number >= 0, got {0}")]
+    Tolerance(f64),
+}
+
+impl Params {
+    /// Semi-recursive refinement by variation up to `max_vertices` vertices (the paper's n).
+    ///
+    /// # Errors
+    /// When `max_vertices` is below 4 or above [`MAX_VERTICES`].
+    pub fn new(max_vertices: usize) -> Result<Self, ParamsError> {
+        if !(4..=MAX_VERTICES).contains(&max_vertices) {
+            return Err(ParamsError::MaxVertices(max_vertices));
+        }
+        Ok(Self {
+            method: Method::default(),
+            criterion: Criterion::default(),
+            max_vertices,
+            tolerance: None,
+            time_limit: None,
+        })
+    }
+
+    /// Sets the method.
+    pub fn with_method(mut self, method: Method) -> Self {
+        self.method = method;
+        self
+    }
+
+    /// Sets the criterion.
+    pub fn with_criterion(mut self, criterion: Criterion) -> Self {
+        self.criterion = criterion;
+        self
+    }
+
+    /// Stops once the worst edge's criterion value is at most `tolerance`.
+    ///
+    /// # Errors
+    /// When `tolerance` is negative, NaN or infinite.
+    pub fn with_tolerance(mut self, tolerance: f64) -> Result<Self, ParamsError> {
+        if !(tolerance.is_finite() && tolerance >= 0.0) {
+            return Err(ParamsError::Tolerance(tolerance));
+        }
+        self.tolerance = Some(tolerance);
+        Ok(self)
+    }
+
+    /// Stops once this much time has passed.
+    pub fn with_time_limit(mut self, limit: Duration) -> Self {
+        self.time_limit = Some(limit);
+        self
+    }
+
+    /// The method.
+    pub fn method(&self) -> Method {
+        self.method
+    }
+    /// The criterion.
+    pub fn criterion(&self) -> Criterion {
+        self.criterion
+    }
+    /// The vertex budget n.
+    pub fn max_vertices(&self) -> usize {
+        self.max_vertices
+    }
+    /// The tolerance, if any.
+    pub fn tolerance(&self) -> Option<f64> {
+        self.tolerance
+    }
+    /// The time limit, if any.
+    pub fn time_limit(&self) -> Option<Duration> {
+        self.time_limit
+    }
+}
+
+/// Parses the kebab-case names used on the command line and in the API.
+macro_rules! names {
+    ($ty:ty, $what:literal, $($name:literal => $variant:path),+) => {
+        impl FromStr for $ty {
+            type Err = String;
+            fn from_str(s: &str) -> Result<Self, String> {
+                match s {
+                    $($name => Ok($variant),)+
+                    _ => Err(format!(concat!("unknown ", $what, " `{}`; expected one of: {}"), s, [$($name),+].join(", "))),
+                }
+            }
+        }
+        impl fmt::Display for $ty {
+            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                let name = match self { $($variant => $name,)+ };
+                f.write_str(name)
+            }
+        }
+    };
+}
+
+names!(Method, "method", "recursive" => Method::Recursive, "semi-recursive" => Method::SemiRecursive);
+names!(Criterion, "criterion", "variation" => Criterion::Variation);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn out_of_range_parameters_are_refused() {
+        assert_eq!(Params::new(3), Err(ParamsError::MaxVertices(3)));
+        assert!(Params::new(4).is_ok());
+        assert!(Params::new(MAX_VERTICES + 1).is_err());
+        let p = Params::new(10).unwrap();
+        assert!(p.clone().with_tolerance(-1.0).is_err());
+        assert!(p.clone().with_tolerance(f64::NAN).is_err());
+        assert_eq!(p.with_tolerance(0.0).unwrap().tolerance(), Some(0.0));
+    }
+
+    #[test]
+    fn names_round_trip_and_unknown_names_list_the_choices() {
+        for m in [Method::Recursive, Method::SemiRecursive] {
+            assert_eq!(m.to_string().parse::<Method>(), Ok(m));
+        }
+        let err = "semi".parse::<Method>().unwrap_err();
+        assert_eq!(err, "unknown method `semi`; expected one of: recursive, semi-recursive");
+    }
+}

@@ -1,0 +1,361 @@
+//! Tests of the refinement loop: the paper's figures, invariants after every insertion,
+//! oracles for the queue and V_n, stop rules and determinism.
+
+use super::*;
+use crate::geom::{NONE, Point, Rect, predicates::is_ccw};
+use crate::source::{Expression, Grid, Source};
+use proptest::prelude::*;
+use std::collections::BTreeSet;
+
+fn params(n: usize, method: Method) -> Params {
+    Params::new(n).unwrap().with_method(method)
+}
+
+fn edge_set(mesh: &Mesh) -> BTreeSet<(u32, u32)> {
+    mesh.edges().map(|e| (e.a.min(e.b), e.a.max(e.b))).collect()
+}
+
+// ---- The paper's figures -------------------------------------------------------------------
+
+#[test]
+fn a_budget_of_four_returns_the_primary_mesh_s4() {
+    let f = |x: f64, y: f64| x * y;
+    for method in [Method::Recursive, Method::SemiRecursive] {
+        let r = refine(&f, Rect::unit(), &params(4, method), &mut ()).unwrap();
+        assert_eq!(r.mesh.triangles().collect::<Vec<_>>(), [[0, 1, 2], [0, 2, 3]]);
+        let corners: Vec<_> = r.mesh.vertices().iter().map(|v| (v.x, v.y)).collect();
+        assert_eq!(corners, [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]);
+        assert_eq!(r.stats.stop, StopReason::MaxVertices);
+        assert_eq!(r.stats.variation, 1.0);
+    }
+}
+
+#[test]
+fn worst_edge_p1p3_gives_an_interior_knot_at_the_centre() {
+    // F = x + y: |Δz| is 2 on the diagonal P1P3 and 1 on every side.
+    let f = |x: f64, y: f64| x + y;
+    for method in [Method::Recursive, Method::SemiRecursive] {
+        let r = refine(&f, Rect::unit(), &params(5, method), &mut ()).unwrap();
+        r.mesh.check_invariants().unwrap();
+        assert_eq!(r.mesh.point(4), Point::new(0.5, 0.5), "{method}");
+        assert_eq!(r.mesh.num_triangles(), 4);
+        assert_eq!(r.mesh.num_edges(), 8, "5 edges − P1P3 + 2 halves + 2 new");
+        assert_eq!(r.stats.flips, 0, "the four right triangles are cocircular pairs");
+        assert!(!edge_set(&r.mesh).contains(&(0, 2)));
+    }
+}
+
+#[test]
+fn worst_edge_p1p2_gives_a_boundary_knot_and_semi_recursive_flips_p1p3_into_p5p4() {
+    // F = x(3 − 2y): |Δz| is 3 on P1P2, 2 on P2P3, 1 on P1P3 and P3P4, 0 on P4P1.
+    let f = |x: f64, y: f64| x * (3.0 - 2.0 * y);
+    let recursive = refine(&f, Rect::unit(), &params(5, Method::Recursive), &mut ()).unwrap();
+    recursive.mesh.check_invariants().unwrap();
+    assert_eq!(recursive.mesh.point(4), Point::new(0.5, 0.0));
+    assert_eq!(recursive.mesh.num_triangles(), 3);
+    assert_eq!(recursive.mesh.num_edges(), 7, "5 edges − P1P2 + 2 halves + 1 new");
+    assert!(edge_set(&recursive.mesh).contains(&(0, 2)), "recursive keeps P1P3");
+
+    let semi = refine(&f, Rect::unit(), &params(5, Method::SemiRecursive), &mut ()).unwrap();
+    semi.mesh.check_invariants().unwrap();
+    assert_eq!(semi.stats.flips, 1);
+    let edges = edge_set(&semi.mesh);
+    assert!(!edges.contains(&(0, 2)), "P1P3 should be flipped");
+    assert!(edges.contains(&(3, 4)), "P5P4 should replace it");
+    assert!(semi.stats.delaunay);
+}
+
+// ---- Stop rules and outcomes ---------------------------------------------------------------
+
+#[test]
+fn constant_f_refines_uniformly_into_the_dyadic_grid() {
+    // Every |Δz| ties at 0, so longer-edge-first must spread the vertices evenly:
+    // 25 vertices are the 5 × 5 grid, 81 the 9 × 9 grid.
+    let f = |_: f64, _: f64| 7.0;
+    for method in [Method::Recursive, Method::SemiRecursive] {
+        for k in [4u32, 8] {
+            let n = ((k + 1) * (k + 1)) as usize;
+            let r = refine(&f, Rect::unit(), &params(n, method), &mut ()).unwrap();
+            let got: BTreeSet<_> = r.mesh.vertices().iter().map(|v| (v.x.to_bits(), v.y.to_bits())).collect();
+            let want: BTreeSet<_> = (0..=k)
+                .flat_map(|i| (0..=k).map(move |j| (i, j)))
+                .map(|(i, j)| ((f64::from(i) / f64::from(k)).to_bits(), (f64::from(j) / f64::from(k)).to_bits()))
+                .collect();
+            assert_eq!(got, want, "{method}, n = {n}");
+        }
+    }
+}
+
+#[test]
+fn constant_f_with_zero_tolerance_stops_at_once() {
+    let f = |_: f64, _: f64| 1.0;
+    let p = Params::new(1_000).unwrap().with_tolerance(0.0).unwrap();
+    let r = refine(&f, Rect::unit(), &p, &mut ()).unwrap();
+    assert_eq!((r.stats.stop, r.stats.vertices), (StopReason::Tolerance, 4));
+}
+
+#[test]
+fn tolerance_stops_once_every_edge_varies_by_at_most_the_tolerance() {
+    let f = |x: f64, y: f64| x * x + y.sin();
+    for method in [Method::Recursive, Method::SemiRecursive] {
+        let p = params(1_000_000, method).with_tolerance(0.01).unwrap();
+        let r = refine(&f, Rect::unit(), &p, &mut ()).unwrap();
+        assert_eq!(r.stats.stop, StopReason::Tolerance);
+        assert_eq!(r.stats.retired_edges, 0);
+        assert!(r.stats.variation <= 0.01, "V_n = {}", r.stats.variation);
+        assert!(r.stats.vertices > 100, "stopped suspiciously early: {}", r.stats.vertices);
+    }
+}
+
+struct CancelAfter(usize, usize);
+
+impl Observer for CancelAfter {
+    fn is_cancelled(&self) -> bool {
+        self.1 >= self.0
+    }
+    fn inserted(&mut self, _: &Mesh, _: u32) {
+        self.1 += 1;
+    }
+}
+
+#[test]
+fn cancellation_stops_before_the_next_insertion() {
+    let f = |x: f64, y: f64| (3.0 * x).sin() * y;
+    let r = refine(&f, Rect::unit(), &Params::new(10_000).unwrap(), &mut CancelAfter(37, 0)).unwrap();
+    assert_eq!(r.stats.stop, StopReason::Cancelled);
+    assert_eq!(r.stats.vertices, 4 + 37);
+    r.mesh.check_invariants().unwrap();
+}
+
+#[test]
+fn a_zero_time_limit_stops_at_the_first_look_at_the_clock() {
+    let f = |x: f64, y: f64| x * y;
+    let p = Params::new(1_000_000).unwrap().with_time_limit(Duration::ZERO);
+    let r = refine(&f, Rect::unit(), &p, &mut ()).unwrap();
+    assert_eq!(r.stats.stop, StopReason::TimeLimit);
+    assert!(r.stats.vertices < 4 + CLOCK_EVERY as usize);
+}
+
+#[test]
+fn non_finite_f_is_an_error_that_names_the_point() {
+    let ln = Expression::parse("ln(x)").unwrap();
+    let err = refine(&ln, Rect::unit(), &Params::new(100).unwrap(), &mut ()).unwrap_err();
+    assert_eq!(err, RefineError::NonFinite { point: Point::new(0.0, 0.0), value: f64::NEG_INFINITY });
+
+    // Finite at the corners, infinite on the line x = 0.5 that the first split reaches.
+    let pole = Expression::parse("1 / (x - 0.5)").unwrap();
+    let err = refine(&pole, Rect::unit(), &Params::new(100).unwrap(), &mut ()).unwrap_err();
+    let RefineError::NonFinite { point, value } = err;
+    assert_eq!(point.x, 0.5);
+    assert!(value.is_infinite());
+    assert!(err.to_string().starts_with("F is not finite at (0.5, "));
+}
+
+#[test]
+fn a_cone_with_a_hundred_thousand_vertices_finishes_with_a_valid_mesh() {
+    let cone = Expression::parse("sqrt(x^2 + y^2)").unwrap();
+    let rect = Rect::new(-1.0, 1.0, -1.0, 1.0).unwrap();
+    for method in [Method::Recursive, Method::SemiRecursive] {
+        let r = refine(&cone, rect, &params(100_000, method), &mut ()).unwrap();
+        r.mesh.check_invariants().unwrap();
+        assert_eq!(r.stats.vertices, 100_000);
+        assert_eq!(method == Method::SemiRecursive, r.stats.delaunay, "{method}");
+        assert!(r.mesh.vertices().iter().all(|v| !v.x.is_subnormal() && !v.y.is_subnormal()));
+    }
+}
+
+#[test]
+fn the_same_input_gives_the_same_mesh_bit_for_bit() {
+    let f = Expression::parse("0.75*exp(-((9*x-2)^2 + (9*y-2)^2)/4) + 0.5*exp(-((9*x-7)^2 + (9*y-3)^2)/4)").unwrap();
+    for method in [Method::Recursive, Method::SemiRecursive] {
+        let run = || {
+            let r = refine(&f, Rect::unit(), &params(5_000, method), &mut ()).unwrap();
+            let mut json = Vec::new();
+            crate::output::json::write_mesh(&Refinement { stats: Stats { elapsed: Duration::ZERO, ..r.stats.clone() }, ..r }, &mut json).unwrap();
+            json
+        };
+        assert_eq!(run(), run(), "{method}");
+    }
+}
+
+#[test]
+fn a_grid_surface_refines_with_values_equal_to_its_interpolant() {
+    let grid = Grid::new(3, 2, vec![0.0, 5.0, 1.0, 2.0, -3.0, 4.0]).unwrap();
+    let source = Source::Grid(grid.clone());
+    let r = refine(&source, source.default_domain(), &Params::new(200).unwrap(), &mut ()).unwrap();
+    r.mesh.check_invariants().unwrap();
+    assert_eq!(r.mesh.rect(), Rect::new(0.0, 2.0, 0.0, 1.0).unwrap());
+    for v in r.mesh.vertices() {
+        assert_eq!(v.z, grid.eval(v.point()));
+    }
+    let estimate = estimate_error(&r.mesh, &source);
+    assert_eq!(estimate.samples, 6, "every grid node once");
+}
+
+#[test]
+fn error_estimate_is_zero_for_a_linear_function_and_positive_for_a_curved_one() {
+    let linear = |x: f64, y: f64| 2.0 * x - y + 1.0;
+    let r = refine(&linear, Rect::unit(), &Params::new(50).unwrap(), &mut ()).unwrap();
+    let e = estimate_error(&r.mesh, &linear);
+    assert!(e.max_error < 1e-12 && e.rms_error < 1e-12, "{e:?}");
+    assert_eq!(e.samples, 12 * r.mesh.num_triangles() as u64);
+
+    let bowl = |x: f64, y: f64| x * x + y * y;
+    let r = refine(&bowl, Rect::unit(), &Params::new(4).unwrap(), &mut ()).unwrap();
+    let e = estimate_error(&r.mesh, &bowl);
+    // On S4 the worst lattice point of x² + y² is a quarter of the way along P1P3 or in a
+    // triangle's middle; the true E_4 is 0.5 (at the centre), the estimate is below it.
+    assert!(e.max_error > 0.3 && e.max_error <= 0.5, "{e:?}");
+    assert_eq!(e.min_angle_deg.round(), 45.0);
+}
+
+// ---- Properties over random rectangles, surfaces and budgets --------------------------------
+
+const EXPRESSIONS: &[&str] = &[
+    "sin(3*x) * cos(2*y)",
+    "x^2 + y^3",
+    "exp(-10*((x-0.3)^2 + (y-0.6)^2))",
+    "sqrt(x^2 + y^2)",
+    "tanh(5*(x+y))",
+    "abs(x - y)",
+    "floor(3*x) + y",
+    "1",
+];
+
+fn rect() -> impl Strategy<Value = Rect> {
+    (-50.0..50.0f64, 1e-2..1e2f64, -50.0..50.0f64, 1e-2..1e2f64)
+        .prop_map(|(a, w, c, h)| Rect::new(a, a + w, c, c + h).unwrap())
+}
+
+fn source() -> impl Strategy<Value = Source> {
+    let expr = prop::sample::select(EXPRESSIONS).prop_map(|e| Source::Expression(Expression::parse(e).unwrap()));
+    let grid = (2usize..7, 2usize..7).prop_flat_map(|(nx, ny)| {
+        // Small integers, so ties between edges are common.
+        prop::collection::vec(-3i8..4, nx * ny)
+            .prop_map(move |v| Source::Grid(Grid::new(nx, ny, v.into_iter().map(f64::from).collect()).unwrap()))
+    });
+    prop_oneof![expr, grid]
+}
+
+fn method() -> impl Strategy<Value = Method> {
+    prop_oneof![Just(Method::Recursive), Just(Method::SemiRecursive)]
+}
+
+/// Checks invariants after every step of a run and compares the queue with brute force.
+struct Checker {
+    method: Method,
+    retired: BTreeSet<(u32, u32)>,
+    before: BTreeSet<(u32, u32)>,
+    selected: Option<(u32, u32)>,
+    failure: Option<String>,
+}
+
+impl Checker {
+    fn new(method: Method) -> Self {
+        Self { method, retired: BTreeSet::new(), before: BTreeSet::new(), selected: None, failure: None }
+    }
+
+    fn fail(&mut self, message: String) {
+        self.failure.get_or_insert(message);
+    }
+}
+
+impl Observer for Checker {
+    fn selected(&mut self, mesh: &Mesh, a: u32, b: u32) {
+        // Oracle: the largest candidate among all current edges that were not retired.
+        let best = mesh
+            .edges()
+            .map(|e| candidate(mesh, e.a, e.b))
+            .filter(|c| !self.retired.contains(&(c.a, c.b)))
+            .max()
+            .map(|c| (c.a, c.b));
+        if best != Some((a, b)) {
+            self.fail(format!("queue chose ({a}, {b}) but brute force says {best:?} at n = {}", mesh.num_vertices()));
+        }
+        self.before = edge_set(mesh);
+        self.selected = Some((a, b));
+    }
+
+    fn retired(&mut self, a: u32, b: u32) {
+        self.retired.insert((a, b));
+    }
+
+    fn inserted(&mut self, mesh: &Mesh, vertex: u32) {
+        if let Err(e) = mesh.check_invariants() {
+            return self.fail(format!("after inserting vertex {vertex}: {e}"));
+        }
+        match self.method {
+            Method::SemiRecursive => {
+                if let Some(e) = mesh.find_non_delaunay_edge() {
+                    let (p, q) = (mesh.origin(e), mesh.dest(e));
+                    let (r, s) = (mesh.apex(e), mesh.apex(mesh.twin(e)));
+                    self.fail(format!(
+                        "after inserting vertex {vertex}, edge ({p}, {q}) fails in-circle: {:?}",
+                        [p, q, r, s].map(|v| mesh.point(v))
+                    ));
+                }
+            }
+            Method::Recursive => {
+                let after = edge_set(mesh);
+                let split = self.selected.expect("a split follows a selection");
+                if let Some(lost) = self.before.iter().find(|e| **e != split && !after.contains(e)) {
+                    self.fail(format!("recursive split of {split:?} removed edge {lost:?}"));
+                }
+            }
+        }
+        // Retired edges stay retired only while they exist; forget the ones flipped away.
+        self.retired.retain(|&(a, b)| mesh.find_edge(a, b).is_some());
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    #[test]
+    fn every_insertion_keeps_the_mesh_valid_and_splits_the_true_worst_edge(
+        rect in rect(), source in source(), method in method(), n in 4usize..120
+    ) {
+        let source = match source {
+            Source::Grid(g) => Source::Grid(g.with_domain(rect)),
+            s => s,
+        };
+        let mut checker = Checker::new(method);
+        let r = refine(&source, rect, &params(n, method), &mut checker).unwrap();
+        prop_assert!(checker.failure.is_none(), "{}", checker.failure.unwrap());
+        prop_assert_eq!(r.stats.vertices, n);
+        prop_assert_eq!(r.stats.triangles, r.mesh.num_triangles());
+        prop_assert!(method == Method::Recursive || r.stats.delaunay);
+    }
+
+    #[test]
+    fn finished_meshes_tile_the_rectangle_with_ccw_triangles_and_true_values(
+        rect in rect(), source in source(), method in method(), n in 4usize..2_000
+    ) {
+        let source = match source {
+            Source::Grid(g) => Source::Grid(g.with_domain(rect)),
+            s => s,
+        };
+        let r = refine(&source, rect, &params(n, method), &mut ()).unwrap();
+        let mesh = &r.mesh;
+        let mut area = 0.0;
+        for [p, q, s] in mesh.triangles() {
+            let (a, b, c) = (mesh.point(p), mesh.point(q), mesh.point(s));
+            prop_assert!(is_ccw(a, b, c), "triangle ({p}, {q}, {s}) is not CCW");
+            area += 0.5 * ((b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x));
+        }
+        let relative = (area - rect.area()).abs() / rect.area();
+        prop_assert!(relative < 1e-9, "areas sum to {area}, rectangle is {}", rect.area());
+        let h = mesh.num_boundary_vertices();
+        prop_assert_eq!(mesh.num_triangles(), 2 * mesh.num_vertices() - h - 2);
+        for (i, v) in mesh.vertices().iter().enumerate() {
+            prop_assert_eq!(v.z.to_bits(), source.eval(v.point()).to_bits(), "vertex {}", i);
+        }
+        // V_n recomputed longhand, from the triangles rather than the edge list.
+        let naive = mesh.triangles().flat_map(|[p, q, s]| [(p, q), (q, s), (s, p)])
+            .map(|(i, j)| (mesh.vertex(i).z - mesh.vertex(j).z).abs())
+            .fold(0.0, f64::max);
+        prop_assert_eq!(r.stats.variation, naive);
+        prop_assert_eq!(r.stats.delaunay, mesh.find_non_delaunay_edge().is_none());
+        prop_assert!(mesh.edges().all(|e| mesh.twin(e.halfedge) == NONE || e.a != e.b));
+    }
+}

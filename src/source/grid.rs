@@ -1,0 +1,192 @@
+//! A function sampled on a regular grid, bilinear between nodes.
+
+use super::Surface;
+use crate::geom::{Point, Rect};
+
+/// nx × ny samples of F on a rectangle, row-major with x fastest:
+/// `values[j·nx + i] = F(x_i, y_j)` with `x_i = a + i·(b−a)/(nx−1)` and `y_j` likewise.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Grid {
+    nx: usize,
+    ny: usize,
+    values: Vec<f64>,
+    rect: Rect,
+}
+
+/// Why a grid was rejected.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GridError {
+    /// Fewer than two nodes on an axis.
+    #[error("grid needs nx >= 2 and ny >= 2, got nx = {nx}, ny = {ny}")]
+    TooSmall {
+        /// Nodes along x.
+        nx: usize,
+        /// Nodes along y.
+        ny: usize,
+    },
+    /// `values` does not hold nx·ny numbers.
+    #[error("grid has {got} values, but nx * ny = {expected}")]
+    LengthMismatch {
+        /// nx·ny.
+        expected: usize,
+        /// values.len().
+        got: usize,
+    },
+    /// A value is NaN or infinite.
+    #[error("grid value at index [{i}, {j}] (values[{index}]) is not finite")]
+    NonFinite {
+        /// Column (x index).
+        i: usize,
+        /// Row (y index).
+        j: usize,
+        /// Position in `values`.
+        index: usize,
+    },
+}
+
+impl Grid {
+    /// A grid over its default domain [0, nx−1] × [0, ny−1].
+    ///
+    /// # Errors
+    /// When nx or ny is below 2, when `values.len() != nx·ny`, or when a value is not finite
+    /// (the error names its (i, j)).
+    pub fn new(nx: usize, ny: usize, values: Vec<f64>) -> Result<Self, GridError> {
+        if nx < 2 || ny < 2 {
+            return Err(GridError::TooSmall { nx, ny });
+        }
+        let expected = nx.checked_mul(ny).unwrap_or(usize::MAX);
+        if values.len() != expected {
+            return Err(GridError::LengthMismatch { expected, got: values.len() });
+        }
+        if let Some(index) = values.iter().position(|v| !v.is_finite()) {
+            return Err(GridError::NonFinite { i: index % nx, j: index / nx, index });
+        }
+        let rect = Rect::new(0.0, (nx - 1) as f64, 0.0, (ny - 1) as f64)
+            .expect("nx, ny >= 2 give a valid rectangle");
+        Ok(Self { nx, ny, values, rect })
+    }
+
+    /// The same samples spread over `rect` instead.
+    pub fn with_domain(mut self, rect: Rect) -> Self {
+        self.rect = rect;
+        self
+    }
+
+    /// [0, nx−1] × [0, ny−1].
+    pub fn default_domain(&self) -> Rect {
+        Rect::new(0.0, (self.nx - 1) as f64, 0.0, (self.ny - 1) as f64).expect("valid grid size")
+    }
+
+    /// The rectangle the samples cover.
+    pub fn rect(&self) -> Rect {
+        self.rect
+    }
+
+    /// Nodes along x.
+    pub fn nx(&self) -> usize {
+        self.nx
+    }
+
+    /// Nodes along y.
+    pub fn ny(&self) -> usize {
+        self.ny
+    }
+
+    /// The sample at node (i, j).
+    #[inline]
+    pub fn value(&self, i: usize, j: usize) -> f64 {
+        self.values[j * self.nx + i]
+    }
+
+    /// Position of node (i, j).
+    #[inline]
+    pub fn node(&self, i: usize, j: usize) -> Point {
+        let r = self.rect;
+        let hx = (r.x1() - r.x0()) / (self.nx - 1) as f64;
+        let hy = (r.y1() - r.y0()) / (self.ny - 1) as f64;
+        Point::new(r.x0() + i as f64 * hx, r.y0() + j as f64 * hy)
+    }
+
+    /// Continuous grid coordinates of `p`: node (i, j) is at (i, j).
+    #[inline]
+    pub fn to_grid(&self, p: Point) -> (f64, f64) {
+        let r = self.rect;
+        let u = (p.x - r.x0()) / (r.x1() - r.x0()) * (self.nx - 1) as f64;
+        let v = (p.y - r.y0()) / (r.y1() - r.y0()) * (self.ny - 1) as f64;
+        (u, v)
+    }
+}
+
+/// Splits a continuous grid coordinate into a cell index in [0, n−2] and a fraction.
+#[inline]
+fn cell(u: f64, n: usize) -> (usize, f64) {
+    let u = u.clamp(0.0, (n - 1) as f64);
+    let i = (u.floor() as usize).min(n - 2);
+    (i, u - i as f64)
+}
+
+impl Surface for Grid {
+    /// Bilinear interpolation in the cell that holds `p` (clamped to the grid).
+    #[inline]
+    fn eval(&self, p: Point) -> f64 {
+        let (u, v) = self.to_grid(p);
+        let (i, fx) = cell(u, self.nx);
+        let (j, fy) = cell(v, self.ny);
+        let row = j * self.nx + i;
+        let (z00, z10) = (self.values[row], self.values[row + 1]);
+        let (z01, z11) = (self.values[row + self.nx], self.values[row + self.nx + 1]);
+        let bottom = z00 + (z10 - z00) * fx;
+        let top = z01 + (z11 - z01) * fx;
+        bottom + (top - bottom) * fy
+    }
+
+    fn grid(&self) -> Option<&Grid> {
+        Some(self)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn grid_errors_name_the_problem_and_the_bad_index() {
+        assert_eq!(Grid::new(1, 5, vec![0.0; 5]), Err(GridError::TooSmall { nx: 1, ny: 5 }));
+        assert_eq!(
+            Grid::new(3, 2, vec![0.0; 5]),
+            Err(GridError::LengthMismatch { expected: 6, got: 5 })
+        );
+        let mut values = vec![0.0; 6];
+        values[5] = f64::INFINITY;
+        let err = Grid::new(3, 2, values).unwrap_err();
+        assert_eq!(err, GridError::NonFinite { i: 2, j: 1, index: 5 });
+        assert_eq!(err.to_string(), "grid value at index [2, 1] (values[5]) is not finite");
+    }
+
+    #[test]
+    fn bilinear_interpolation_hits_nodes_and_is_exact_on_bilinear_data() {
+        // F(x, y) = 1 + 2x + 3y + 4xy sampled on [0, 2] x [0, 1] with 5 x 3 nodes.
+        let f = |x: f64, y: f64| 1.0 + 2.0 * x + 3.0 * y + 4.0 * x * y;
+        let (nx, ny) = (5, 3);
+        let rect = Rect::new(0.0, 2.0, 0.0, 1.0).unwrap();
+        let values = (0..ny)
+            .flat_map(|j| (0..nx).map(move |i| f(i as f64 * 0.5, j as f64 * 0.5)))
+            .collect();
+        let grid = Grid::new(nx, ny, values).unwrap().with_domain(rect);
+        for j in 0..ny {
+            for i in 0..nx {
+                assert_eq!(grid.eval(grid.node(i, j)), grid.value(i, j), "node ({i}, {j})");
+            }
+        }
+        for p in [Point::new(0.3, 0.7), Point::new(1.99, 0.01), Point::new(2.0, 1.0)] {
+            assert!((grid.eval(p) - f(p.x, p.y)).abs() < 1e-12, "at {p:?}");
+        }
+    }
+
+    #[test]
+    fn default_domain_is_the_index_range() {
+        let grid = Grid::new(4, 3, vec![0.0; 12]).unwrap();
+        assert_eq!(grid.rect(), Rect::new(0.0, 3.0, 0.0, 2.0).unwrap());
+        assert_eq!(grid.node(3, 2), Point::new(3.0, 2.0));
+    }
+}
