@@ -1,1 +1,137 @@
-fn main() {}
+//! The `meshfit` command line: `meshfit mesh ...` writes a mesh document to stdout.
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, Parser, Subcommand};
+use meshfit::geom::Rect;
+use meshfit::output::json;
+use meshfit::refine::{Criterion, Method, Params, estimate_error, refine};
+use meshfit::source::{Expression, Grid, Source};
+use std::io::{BufWriter, Write};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Duration;
+
+#[derive(Parser)]
+#[command(version, about = "Piecewise linear approximation of F(x, y) by dividing the worst segment")]
+#[command(arg_required_else_help = true)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Refine a mesh for F and write it as JSON to stdout.
+    Mesh(MeshArgs),
+}
+
+#[derive(Args)]
+#[command(group(clap::ArgGroup::new("source").required(true).args(["function", "grid"])))]
+struct MeshArgs {
+    /// F as a meval expression in x and y, e.g. "sin(x)*cos(y)".
+    #[arg(long, value_name = "EXPR")]
+    function: Option<String>,
+    /// F as a JSON file {"nx": .., "ny": .., "values": [..]}, row-major with x fastest.
+    #[arg(long, value_name = "FILE.json")]
+    grid: Option<PathBuf>,
+    /// The rectangle a,b,c,d = [a,b]×[c,d]; default [0,1]² for a function, [0,nx−1]×[0,ny−1]
+    /// for a grid. Write negative bounds as --domain=-3,3,-3,3.
+    #[arg(long, value_name = "a,b,c,d", value_parser = parse_domain)]
+    domain: Option<Rect>,
+    /// The vertex budget n (at least 4).
+    #[arg(long, value_name = "N", default_value_t = 10_000)]
+    max_vertices: usize,
+    /// recursive (no flips) or semi-recursive (Delaunay flips after each insertion).
+    #[arg(long, default_value_t = Method::SemiRecursive)]
+    method: Method,
+    /// How the worst edge is chosen.
+    #[arg(long, default_value_t = Criterion::Variation)]
+    criterion: Criterion,
+    /// Stop once the worst edge's criterion value is at most T.
+    #[arg(long, value_name = "T")]
+    tolerance: Option<f64>,
+    /// Stop after this many milliseconds.
+    #[arg(long, value_name = "MS")]
+    time_limit_ms: Option<u64>,
+    /// Print only the stats and the E_n estimate.
+    #[arg(long)]
+    stats: bool,
+}
+
+fn parse_domain(s: &str) -> Result<Rect, String> {
+    let bounds: Vec<f64> = s
+        .split(',')
+        .map(|b| b.trim().parse::<f64>().map_err(|_| format!("`{}` is not a number", b.trim())))
+        .collect::<Result<_, _>>()?;
+    let [a, b, c, d] = bounds[..] else {
+        return Err(format!("expected four numbers a,b,c,d, got {}", bounds.len()));
+    };
+    Rect::new(a, b, c, d).map_err(|e| e.to_string())
+}
+
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GridFile {
+    nx: usize,
+    ny: usize,
+    values: Vec<f64>,
+}
+
+fn load_source(args: &MeshArgs) -> Result<Source> {
+    if let Some(text) = &args.function {
+        let expr = Expression::parse(text)
+            .map_err(|e| anyhow::anyhow!("--function: {e}\n  {text}\n  {:>1$}", "^", e.column))?;
+        return Ok(Source::Expression(expr));
+    }
+    let Some(path) = &args.grid else { bail!("give --function or --grid") };
+    let file =
+        std::fs::File::open(path).with_context(|| format!("cannot open grid file {}", path.display()))?;
+    let grid: GridFile = serde_json::from_reader(std::io::BufReader::new(file)).with_context(|| {
+        format!("grid file {} is not {{\"nx\": .., \"ny\": .., \"values\": [..]}}", path.display())
+    })?;
+    let grid =
+        Grid::new(grid.nx, grid.ny, grid.values).with_context(|| format!("grid file {}", path.display()))?;
+    Ok(Source::Grid(grid))
+}
+
+fn mesh(args: &MeshArgs) -> Result<()> {
+    let source = load_source(args)?;
+    let rect = args.domain.unwrap_or_else(|| source.default_domain());
+    let source = match source {
+        Source::Grid(g) => Source::Grid(g.with_domain(rect)),
+        s => s,
+    };
+    let mut params = Params::new(args.max_vertices)
+        .context("--max-vertices")?
+        .with_method(args.method)
+        .with_criterion(args.criterion);
+    if let Some(t) = args.tolerance {
+        params = params.with_tolerance(t).context("--tolerance")?;
+    }
+    if let Some(ms) = args.time_limit_ms {
+        params = params.with_time_limit(Duration::from_millis(ms));
+    }
+    let result = refine(&source, rect, &params, &mut ())?;
+    let mut out = BufWriter::new(std::io::stdout().lock());
+    if args.stats {
+        json::write_stats(&result.stats, estimate_error(&result.mesh, &source), &mut out)?;
+    } else {
+        json::write_mesh(&result, &mut out)?;
+    }
+    writeln!(out)?;
+    out.flush().context("writing to stdout")
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let outcome = match &cli.command {
+        Command::Mesh(args) => mesh(args),
+    };
+    match outcome {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -4,7 +4,7 @@
 //! refinement runs [`Mesh::is_delaunay`] once at the end, so the reported `delaunay` flag is
 //! verified, never assumed.
 
-use super::mesh::{Mesh, NONE, next};
+use super::mesh::{Mesh, NONE};
 use super::predicates::{is_ccw, is_in_circle};
 use std::fmt;
 
@@ -40,13 +40,12 @@ impl Mesh {
     /// - Euler's relation for a triangulated convex polygon: triangles = 2n − h − 2.
     pub fn check_invariants(&self) -> Result<(), InvariantError> {
         let n = self.vertices.len();
-        ensure!(self.corners.len() % 3 == 0, "{} corners is not a multiple of 3", self.corners.len());
-        ensure!(self.twins.len() == self.corners.len(), "twins and corners differ in length");
+        ensure!(self.half.len() % 3 == 0, "{} half-edges is not a multiple of 3", self.half.len());
         ensure!(self.outgoing.len() == n, "outgoing has {} entries for {n} vertices", self.outgoing.len());
-        for (e, &v) in self.corners.iter().enumerate() {
+        for (e, v) in self.half.iter().map(|h| h.origin).enumerate() {
             ensure!((v as usize) < n, "half-edge {e} starts at unknown vertex {v}");
         }
-        for e in 0..self.corners.len() as u32 {
+        for e in 0..self.half.len() as u32 {
             let t = self.twin(e);
             let (a, b) = (self.origin(e), self.dest(e));
             if t == NONE {
@@ -56,7 +55,7 @@ impl Mesh {
                     || (p.y == q.y && (p.y == r.y0() || p.y == r.y1()));
                 ensure!(on_side, "boundary half-edge {e} ({a}→{b}) is not on a side of {r}");
             } else {
-                ensure!((t as usize) < self.twins.len(), "half-edge {e} has twin {t} out of range");
+                ensure!((t as usize) < self.half.len(), "half-edge {e} has twin {t} out of range");
                 ensure!(self.twin(t) == e, "twin of {e} is {t}, whose twin is {}", self.twin(t));
                 ensure!(
                     self.origin(t) == b && self.dest(t) == a,
@@ -87,7 +86,7 @@ impl Mesh {
             );
             let e = self.outgoing[v];
             ensure!(
-                (e as usize) < self.corners.len() && self.origin(e) == v as u32,
+                (e as usize) < self.half.len() && self.origin(e) == v as u32,
                 "outgoing half-edge {e} of vertex {v} does not start there"
             );
         }
@@ -104,10 +103,10 @@ impl Mesh {
     /// The first interior half-edge whose far vertex lies strictly inside the circumcircle of
     /// its triangle, if any.
     pub fn find_non_delaunay_edge(&self) -> Option<u32> {
-        (0..self.corners.len() as u32).find(|&e| {
+        (0..self.half.len() as u32).find(|&e| {
             let f = self.twin(e);
             f != NONE && e < f && {
-                let (a, b, c) = (self.origin(e), self.dest(e), self.corners[next(next(e)) as usize]);
+                let (a, b, c) = (self.origin(e), self.dest(e), self.apex(e));
                 is_in_circle(self.point(a), self.point(b), self.point(c), self.point(self.apex(f)))
             }
         })
@@ -128,10 +127,10 @@ mod tests {
     fn check_invariants_catches_a_corrupted_twin_and_a_clockwise_triangle() {
         let mesh = Mesh::new(Rect::unit(), [0.0; 4]);
         let mut broken = mesh.clone();
-        broken.twins[2] = 4;
+        broken.half[2].twin = 4;
         assert!(broken.check_invariants().unwrap_err().0.contains("twin"));
         let mut clockwise = mesh.clone();
-        clockwise.corners.swap(0, 1);
+        clockwise.half.swap(0, 1);
         assert!(clockwise.check_invariants().is_err());
         let mut nan = mesh;
         nan.vertices[3] = Vertex { x: 0.0, y: 1.0, z: f64::NAN };

@@ -110,9 +110,7 @@ pub enum RectError {
         hi: f64,
     },
     /// One side is too short to refine at the magnitude of its coordinates.
-    #[error(
-        "domain is too narrow on {axis}: the side {side} is below 1e-9 times the coordinates' magnitude"
-    )]
+    #[error("domain is too narrow on {axis}: the side {side} is below 1e-9 times the coordinates' magnitude")]
     TooNarrow {
         /// "x" or "y".
         axis: &'static str,
@@ -216,18 +214,9 @@ mod tests {
     fn rect_rejects_empty_reversed_and_non_finite_bounds() {
         assert!(matches!(Rect::new(1.0, 1.0, 0.0, 1.0), Err(RectError::Empty { axis: "x", .. })));
         assert!(matches!(Rect::new(0.0, 1.0, 2.0, 1.0), Err(RectError::Empty { axis: "y", .. })));
-        assert!(matches!(
-            Rect::new(f64::NAN, 1.0, 0.0, 1.0),
-            Err(RectError::NonFinite { name: "a" })
-        ));
-        assert!(matches!(
-            Rect::new(0.0, 1e61, 0.0, 1.0),
-            Err(RectError::TooLarge { name: "b", .. })
-        ));
-        assert!(matches!(
-            Rect::new(1e9, 1e9 + 1e-3, 0.0, 1.0),
-            Err(RectError::TooNarrow { axis: "x", .. })
-        ));
+        assert!(matches!(Rect::new(f64::NAN, 1.0, 0.0, 1.0), Err(RectError::NonFinite { name: "a" })));
+        assert!(matches!(Rect::new(0.0, 1e61, 0.0, 1.0), Err(RectError::TooLarge { name: "b", .. })));
+        assert!(matches!(Rect::new(1e9, 1e9 + 1e-3, 0.0, 1.0), Err(RectError::TooNarrow { axis: "x", .. })));
         assert!(Rect::new(-3.0, 3.0, -3.0, 3.0).is_ok());
     }
 

@@ -166,3 +166,42 @@ mod tests {
         assert!(!mesh.can_split(diagonal, Point::new(0.5, 0.5), 0.5));
     }
 }
+
+#[cfg(test)]
+mod properties {
+    use crate::geom::{Mesh, Rect, Vertex};
+    use proptest::prelude::*;
+
+    proptest! {
+        /// Any sequence of midpoint splits, with or without flips, leaves a valid mesh whose
+        /// edge count grows by 2 (boundary) or 3 (interior) per split, and Lawson flips after
+        /// each split keep it Delaunay.
+        #[test]
+        fn any_sequence_of_splits_leaves_the_mesh_valid(
+            picks in prop::collection::vec(any::<u32>(), 1..150),
+            flip in any::<bool>(),
+            (a, w, c, h) in (-10.0..10.0f64, 0.1..10.0f64, -10.0..10.0f64, 0.1..10.0f64),
+        ) {
+            let mut mesh = Mesh::new(Rect::new(a, a + w, c, c + h).unwrap(), [0.0; 4]);
+            let mut stack = Vec::new();
+            for pick in picks {
+                let e = pick % mesh.num_halfedges() as u32;
+                let m = mesh.point(mesh.origin(e)).midpoint(mesh.point(mesh.dest(e)));
+                if !mesh.can_split(e, m, 0.0) {
+                    continue;
+                }
+                let (edges, boundary) = (mesh.num_edges(), mesh.twin(e) == super::NONE);
+                let split = mesh.split(e, Vertex { x: m.x, y: m.y, z: 0.0 });
+                prop_assert_eq!(mesh.num_edges(), edges + if boundary { 2 } else { 3 });
+                if flip {
+                    stack.extend_from_slice(split.link());
+                    mesh.legalize(&mut stack);
+                    prop_assert!(mesh.is_delaunay(), "not Delaunay after inserting {}", split.vertex);
+                }
+                if let Err(err) = mesh.check_invariants() {
+                    prop_assert!(false, "after inserting {}: {}", split.vertex, err);
+                }
+            }
+        }
+    }
+}

@@ -34,10 +34,8 @@ const LATTICE: usize = 4;
 /// 9 points inside its edges and 3 inside it; F_n equals F at the corners). A grid is compared
 /// at every grid node exactly, each node once. Samples where F is not finite are skipped.
 pub fn estimate_error<S: Surface + ?Sized>(mesh: &Mesh, surface: &S) -> ErrorEstimate {
-    let min_angle_deg = (0..mesh.num_triangles())
-        .map(|t| min_angle(mesh, t))
-        .fold(f64::INFINITY, f64::min)
-        .to_degrees();
+    let min_angle_deg =
+        (0..mesh.num_triangles()).map(|t| min_angle(mesh, t)).fold(f64::INFINITY, f64::min).to_degrees();
     let (max_error, rms_error, samples) = match surface.grid() {
         Some(grid) => grid_error(mesh, grid),
         None => lattice_error(mesh, surface),

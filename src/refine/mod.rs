@@ -168,7 +168,12 @@ const CLOCK_EVERY: u64 = 64;
 ///
 /// # Errors
 /// [`RefineError::NonFinite`] when F is not finite at a corner or at a midpoint to insert.
-pub fn refine<S, O>(surface: &S, rect: Rect, params: &Params, observer: &mut O) -> Result<Refinement, RefineError>
+pub fn refine<S, O>(
+    surface: &S,
+    rect: Rect,
+    params: &Params,
+    observer: &mut O,
+) -> Result<Refinement, RefineError>
 where
     S: Surface + ?Sized,
     O: Observer,
@@ -187,7 +192,7 @@ where
     // About three edges per vertex are queued over a run.
     let mut queue = WorstEdgeQueue::with_capacity(3 * n.min(1 << 24) + 8);
     for edge in mesh.edges() {
-        queue.push(candidate(&mesh, edge.a, edge.b));
+        queue.push(candidate(&mesh, edge.a, edge.b), mesh.vertices());
     }
     let floor_sq = (LENGTH_FLOOR * rect.diagonal()).powi(2);
     let min_area_x2 = 2.0 * AREA_FLOOR * rect.area();
@@ -225,16 +230,16 @@ where
         };
         let Some(e) = mesh.find_edge(worst.a, worst.b) else {
             // Flipped away since it was queued.
-            queue.pop();
+            queue.pop(mesh.vertices());
             continue;
         };
         if params.tolerance().is_some_and(|tolerance| worst.value <= tolerance) {
             break StopReason::Tolerance;
         }
-        queue.pop();
+        queue.pop(mesh.vertices());
         observer.selected(&mesh, worst.a, worst.b);
         let m = mesh.point(worst.a).midpoint(mesh.point(worst.b));
-        if worst.len_sq < floor_sq || !mesh.can_split(e, m, min_area_x2) {
+        if worst.len_sq(mesh.vertices()) < floor_sq || !mesh.can_split(e, m, min_area_x2) {
             retired += 1;
             observer.retired(worst.a, worst.b);
             continue;
@@ -247,7 +252,9 @@ where
         }
         // Every edge this step created ends at the new vertex: its halves, the edges to the
         // apexes, and each flip's new diagonal.
-        mesh.for_each_neighbour(split.vertex, |other, _| queue.push(candidate(&mesh, split.vertex, other)));
+        mesh.for_each_neighbour(split.vertex, |other, _| {
+            queue.push(candidate(&mesh, split.vertex, other), mesh.vertices());
+        });
         observer.inserted(&mesh, split.vertex);
     };
 
@@ -268,8 +275,7 @@ where
 /// The queue entry for the edge (p, q) under the variation criterion.
 #[inline]
 fn candidate(mesh: &Mesh, p: u32, q: u32) -> Candidate {
-    let (a, b) = (mesh.vertex(p.min(q)), mesh.vertex(p.max(q)));
-    Candidate::new((a.z - b.z).abs(), a.point().distance_sq(b.point()), p, q)
+    Candidate::new((mesh.vertex(p).z - mesh.vertex(q).z).abs(), p, q)
 }
 
 #[cfg(test)]

@@ -167,13 +167,10 @@ impl Expression {
                 let found = text[byte..].chars().next().map_or_else(String::new, String::from);
                 ExprError { column, kind: ExprErrorKind::UnexpectedToken(found) }
             }
-            ParseError::MissingRParen(n) => ExprError {
-                column: at_end,
-                kind: ExprErrorKind::MissingClosingParens(n.max(1) as usize),
-            },
-            ParseError::MissingArgument => {
-                ExprError { column: at_end, kind: ExprErrorKind::MissingOperand }
+            ParseError::MissingRParen(n) => {
+                ExprError { column: at_end, kind: ExprErrorKind::MissingClosingParens(n.max(1) as usize) }
             }
+            ParseError::MissingArgument => ExprError { column: at_end, kind: ExprErrorKind::MissingOperand },
         })?;
         let starts = token_starts(text);
         // Our scanner mirrors meval's; should they ever disagree, point at the start.

@@ -1,0 +1,131 @@
+//! The `meshfit mesh` command, run as a user would: real process, real files, JSON on stdout.
+
+use serde_json::Value;
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn meshfit(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_meshfit")).args(args).output().expect("meshfit runs")
+}
+
+fn document(args: &[&str]) -> Value {
+    let out = meshfit(args);
+    assert!(out.status.success(), "meshfit {args:?} failed: {}", String::from_utf8_lossy(&out.stderr));
+    serde_json::from_slice(&out.stdout).expect("stdout is JSON")
+}
+
+fn stderr_of_failure(args: &[&str]) -> String {
+    let out = meshfit(args);
+    assert!(!out.status.success(), "meshfit {args:?} should fail");
+    assert!(out.stdout.is_empty(), "a failure writes nothing to stdout");
+    String::from_utf8(out.stderr).unwrap()
+}
+
+fn temp_file(name: &str, contents: &str) -> PathBuf {
+    let path = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
+    std::fs::write(&path, contents).unwrap();
+    path
+}
+
+#[test]
+fn mesh_writes_vertices_triangles_and_stats_for_an_expression() {
+    let doc = document(&[
+        "mesh",
+        "--function",
+        "sin(3*x)*cos(2*y)",
+        "--max-vertices",
+        "300",
+        "--method",
+        "recursive",
+    ]);
+    let vertices = doc["vertices"].as_array().unwrap();
+    let triangles = doc["triangles"].as_array().unwrap();
+    assert_eq!(vertices.len(), 300);
+    assert_eq!(doc["stats"]["vertices"], 300);
+    assert_eq!(doc["stats"]["triangles"].as_u64().unwrap() as usize, triangles.len());
+    assert_eq!(doc["stats"]["stop"], "max_vertices");
+    assert_eq!(doc["stats"]["flips"], 0, "recursive never flips");
+    // The first four vertices are the corners of the default domain, with F's values.
+    assert_eq!(vertices[2], serde_json::json!([1.0, 1.0, 3f64.sin() * 2f64.cos()]));
+    for t in triangles {
+        assert!(t.as_array().unwrap().iter().all(|i| (i.as_u64().unwrap() as usize) < vertices.len()));
+    }
+}
+
+#[test]
+fn mesh_reads_a_grid_file_and_accepts_negative_domain_bounds() {
+    let grid = temp_file("grid_3x2.json", r#"{"nx": 3, "ny": 2, "values": [0, 1, 4, 1, 2, 5]}"#);
+    let doc =
+        document(&["mesh", "--grid", grid.to_str().unwrap(), "--domain=-3,3,-1,1", "--max-vertices", "40"]);
+    let vertices = doc["vertices"].as_array().unwrap();
+    assert_eq!(vertices[0], serde_json::json!([-3.0, -1.0, 0.0]));
+    assert_eq!(vertices[2], serde_json::json!([3.0, 1.0, 5.0]));
+    assert_eq!(doc["stats"]["delaunay"], true);
+}
+
+#[test]
+fn stats_flag_prints_only_the_stats_and_the_error_estimate() {
+    let doc = document(&["mesh", "--function", "x^2 + y^2", "--max-vertices", "200", "--stats"]);
+    assert!(doc.get("vertices").is_none());
+    assert_eq!(doc["stats"]["vertices"], 200);
+    let max_error = doc["error"]["max_error"].as_f64().unwrap();
+    assert!(max_error > 0.0 && max_error < 0.1, "E_n = {max_error}");
+    assert!(doc["error"]["min_angle_deg"].as_f64().unwrap() > 0.0);
+}
+
+#[test]
+fn tolerance_stops_the_run_early() {
+    let doc = document(&[
+        "mesh",
+        "--function",
+        "x*y",
+        "--max-vertices",
+        "100000",
+        "--tolerance",
+        "0.05",
+        "--stats",
+    ]);
+    assert_eq!(doc["stats"]["stop"], "tolerance");
+    assert!(doc["stats"]["variation"].as_f64().unwrap() <= 0.05);
+}
+
+#[test]
+fn the_same_command_gives_the_same_mesh_twice() {
+    let args = ["mesh", "--function", "exp(-10*((x-0.3)^2+(y-0.6)^2))", "--max-vertices", "2000"];
+    let (a, b) = (document(&args), document(&args));
+    assert_eq!(a["vertices"], b["vertices"]);
+    assert_eq!(a["triangles"], b["triangles"]);
+}
+
+#[test]
+fn a_bad_expression_is_reported_with_its_column() {
+    let err = stderr_of_failure(&["mesh", "--function", "sin(x) + q"]);
+    assert!(err.contains("unknown variable `q`"), "{err}");
+    assert!(err.contains("column 10"), "{err}");
+}
+
+#[test]
+fn a_non_finite_value_of_f_names_the_point() {
+    let err = stderr_of_failure(&["mesh", "--function", "ln(x)"]);
+    assert!(err.contains("F is not finite at (0, 0)"), "{err}");
+}
+
+#[test]
+fn bad_grids_and_domains_say_what_to_fix() {
+    let short = temp_file("grid_short.json", r#"{"nx": 3, "ny": 2, "values": [0, 1, 4, 1, 2]}"#);
+    let err = stderr_of_failure(&["mesh", "--grid", short.to_str().unwrap()]);
+    assert!(err.contains("5 values, but nx * ny = 6"), "{err}");
+
+    let typo = temp_file("grid_typo.json", r#"{"nx": 2, "ny": 2, "valeus": [0, 1, 2, 3]}"#);
+    let err = stderr_of_failure(&["mesh", "--grid", typo.to_str().unwrap()]);
+    assert!(err.contains("unknown field `valeus`"), "{err}");
+
+    let err = stderr_of_failure(&["mesh", "--function", "x", "--domain", "0,1,1,1"]);
+    assert!(err.contains("domain is empty on y"), "{err}");
+
+    let err = stderr_of_failure(&["mesh", "--function", "x", "--max-vertices", "3"]);
+    assert!(err.contains("max_vertices must be between 4"), "{err}");
+
+    let err = stderr_of_failure(&["mesh", "--max-vertices", "10"]);
+    assert!(err.contains("--function") && err.contains("--grid"), "{err}");
+}
