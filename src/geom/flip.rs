@@ -37,26 +37,58 @@ impl Mesh {
         [3 * t0, 3 * t1]
     }
 
-    /// Lawson's algorithm after an insertion: `stack` holds the half-edges opposite the new
-    /// vertex; each whose far vertex lies strictly inside the circumcircle is flipped, and the
-    /// two edges that then face the new vertex are checked in turn. Returns the number of flips.
+    /// Lawson's algorithm after inserting a vertex *exactly* on an edge or inside a triangle:
+    /// `stack` holds the half-edges opposite the new vertex; each whose far vertex lies
+    /// strictly inside the circumcircle is flipped, and the two edges that then face the new
+    /// vertex are checked in turn. Returns the number of flips.
+    ///
+    /// That only link edges can be illegal relies on the new vertex lying inside the
+    /// circumcircles of the triangles it split; a rounded midpoint a hair off its edge may
+    /// not, and needs [`Mesh::legalize_all`].
     ///
     /// `stack` is the caller's scratch space, so the hot loop does not allocate; it is empty on
     /// return.
     pub fn legalize(&mut self, stack: &mut Vec<u32>) -> u32 {
         let mut flips = 0;
         while let Some(e) = stack.pop() {
-            let f = self.twin(e);
-            if f == NONE {
-                continue;
-            }
-            let (u, v, m) = (self.point(self.origin(e)), self.point(self.dest(e)), self.point(self.apex(e)));
-            if is_in_circle(u, v, m, self.point(self.apex(f))) {
+            if self.is_illegal(e) {
                 stack.extend(self.flip(e));
                 flips += 1;
             }
         }
         flips
+    }
+
+    /// Lawson's algorithm for any set of suspect edges: `stack` holds half-edges that may be
+    /// illegal; every flip puts the four outer edges of its quadrilateral on the stack. Ends
+    /// with a Delaunay mesh when every edge not on the stack was legal, because each flip
+    /// lowers the lifted surface (Lawson 1977; de Berg et al., *Computational Geometry*, 9.1).
+    ///
+    /// Unlike [`Mesh::legalize`], a flip here may create an edge that does not end at the new
+    /// vertex; `created(a, b)` is told of every diagonal a flip makes.
+    pub fn legalize_all(&mut self, stack: &mut Vec<u32>, mut created: impl FnMut(&Self, u32, u32)) -> u32 {
+        let mut flips = 0;
+        while let Some(e) = stack.pop() {
+            if self.is_illegal(e) {
+                let [p, q] = self.flip(e);
+                created(self, self.origin(q), self.apex(q));
+                // p = u→w and q = w→v face the apex; next(q) = v→m and prev(p) = m→u don't.
+                stack.extend([p, q, super::mesh::next(q), super::mesh::prev(p)]);
+                flips += 1;
+            }
+        }
+        flips
+    }
+
+    /// Whether the edge of `e` is interior and its far vertex lies strictly inside the
+    /// circumcircle of `e`'s triangle.
+    #[inline]
+    fn is_illegal(&self, e: u32) -> bool {
+        let f = self.twin(e);
+        f != NONE && {
+            let (u, v, m) = (self.point(self.origin(e)), self.point(self.dest(e)), self.point(self.apex(e)));
+            is_in_circle(u, v, m, self.point(self.apex(f)))
+        }
     }
 }
 

@@ -1,7 +1,7 @@
 //! Splitting an edge at a new vertex: 2 → 4 triangles inside, 1 → 2 on the boundary.
 
 use super::mesh::{Mesh, NONE, next, prev};
-use super::predicates::signed_area_x2;
+use super::predicates::{Orientation, orientation, signed_area_x2};
 use super::{Point, Vertex};
 
 /// What a split changed: the new vertex and the half-edges of its link (the edges opposite
@@ -14,12 +14,21 @@ pub struct Split {
     pub link: [u32; 4],
     /// 4 for an interior edge, 2 for a boundary edge.
     pub link_len: usize,
+    /// Whether the new vertex lies exactly on the split edge (exact `orient2d`); a rounded
+    /// midpoint of a slanted edge may not.
+    pub on_edge: bool,
 }
 
 impl Split {
     /// The used part of [`Split::link`].
     pub fn link(&self) -> &[u32] {
         &self.link[..self.link_len]
+    }
+
+    /// Every half-edge of the new triangles that has a twin candidate: the link edges and the
+    /// spokes from the new vertex, for [`Mesh::legalize_all`].
+    pub fn suspects(&self) -> impl Iterator<Item = u32> + '_ {
+        self.link().iter().flat_map(|&e| [e, e + 1, e + 2])
     }
 }
 
@@ -72,6 +81,7 @@ impl Mesh {
     pub fn split(&mut self, e: u32, m: Vertex) -> Split {
         debug_assert!(self.can_split(e, m.point(), 0.0), "split would create a non-positive triangle");
         let (a, b, c) = (self.origin(e), self.dest(e), self.apex(e));
+        let on_edge = orientation(self.point(a), self.point(b), m.point()) == Orientation::Collinear;
         let t0 = e / 3;
         let (out_bc, out_ca) = (self.twin(next(e)), self.twin(prev(e)));
         let f = self.twin(e);
@@ -85,7 +95,7 @@ impl Mesh {
             self.set_triangle(t2, [b, c, mv], [out_bc, 3 * t0 + 2, NONE]);
             self.claim_corners(t0);
             self.claim_corners(t2);
-            return Split { vertex: mv, link: [3 * t0, 3 * t2, NONE, NONE], link_len: 2 };
+            return Split { vertex: mv, link: [3 * t0, 3 * t2, NONE, NONE], link_len: 2, on_edge };
         }
 
         let d = self.apex(f);
@@ -99,7 +109,7 @@ impl Mesh {
         for t in [t0, t1, t2, t3] {
             self.claim_corners(t);
         }
-        Split { vertex: mv, link: [3 * t0, 3 * t2, 3 * t1, 3 * t3], link_len: 4 }
+        Split { vertex: mv, link: [3 * t0, 3 * t2, 3 * t1, 3 * t3], link_len: 4, on_edge }
     }
 }
 
@@ -194,8 +204,13 @@ mod properties {
                 let split = mesh.split(e, Vertex { x: m.x, y: m.y, z: 0.0 });
                 prop_assert_eq!(mesh.num_edges(), edges + if boundary { 2 } else { 3 });
                 if flip {
-                    stack.extend_from_slice(split.link());
-                    mesh.legalize(&mut stack);
+                    if split.on_edge {
+                        stack.extend_from_slice(split.link());
+                        mesh.legalize(&mut stack);
+                    } else {
+                        stack.extend(split.suspects());
+                        mesh.legalize_all(&mut stack, |_, _, _| {});
+                    }
                     prop_assert!(mesh.is_delaunay(), "not Delaunay after inserting {}", split.vertex);
                 }
                 if let Err(err) = mesh.check_invariants() {

@@ -247,11 +247,22 @@ where
         let z = eval(m)?;
         let split = mesh.split(e, Vertex { x: m.x, y: m.y, z });
         if semi_recursive {
-            stack.extend_from_slice(split.link());
-            flips += u64::from(mesh.legalize(&mut stack));
+            flips += u64::from(if split.on_edge {
+                stack.extend_from_slice(split.link());
+                mesh.legalize(&mut stack)
+            } else {
+                // Flips may now make edges away from the new vertex: queue those here (an
+                // edge flipped again later in the same pass goes stale and is skipped).
+                stack.extend(split.suspects());
+                mesh.legalize_all(&mut stack, |mesh, p, q| {
+                    if p != split.vertex && q != split.vertex {
+                        queue.push(candidate(mesh, p, q), mesh.vertices());
+                    }
+                })
+            });
         }
-        // Every edge this step created ends at the new vertex: its halves, the edges to the
-        // apexes, and each flip's new diagonal.
+        // The other edges this step created end at the new vertex: its halves, the edges to
+        // the apexes, and the diagonals of flips around it.
         mesh.for_each_neighbour(split.vertex, |other, _| {
             queue.push(candidate(&mesh, split.vertex, other), mesh.vertices());
         });
