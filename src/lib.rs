@@ -12,16 +12,82 @@
 //! - [`refine`]: the refinement loop, its parameters, the worst-edge queue and the measures
 //!   of a finished mesh (V_n, E_n). Depends on `geom` and `source`.
 //! - [`output`]: the mesh document (JSON) shared by the command line and the API.
+//! - [`jobs`]: validated, hashed job specs, the bounded worker pool, progress, cancellation
+//!   and the cache of finished meshes. The only bridge between async code and the engine.
+//! - [`http`]: routes, handlers, problem documents, server-sent events.
+//! - [`api`]: the wire types; [`config`], [`metrics`] and [`telemetry`] support the service.
 //!
 //! ```text
-//! output ──▶ refine ──▶ geom
-//!              │
-//!              └──────▶ source ──▶ geom
+//! http ──▶ jobs ──▶ refine ──▶ geom
+//!   │        │        └──────▶ source ──▶ geom
+//!   └──▶ api ┴──▶ output ──▶ refine
 //! ```
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod api;
+pub mod config;
 pub mod geom;
+pub mod http;
+pub mod jobs;
+pub mod metrics;
 pub mod output;
 pub mod refine;
 pub mod source;
+pub mod telemetry;
+
+use config::Config;
+use std::future::Future;
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::net::TcpListener;
+
+/// Serves the API on `listener` until `shutdown` resolves, then stops taking jobs, lets
+/// running ones finish for `config.shutdown_grace`, cancels the rest and returns.
+///
+/// The caller binds the listener (tests bind port 0) and chooses the shutdown signal, as in
+/// mini-redis's `server::run`.
+///
+/// # Errors
+/// When the cache directory cannot be created or the listener fails.
+pub async fn serve(
+    listener: TcpListener,
+    config: Config,
+    shutdown: impl Future<Output = ()> + Send + 'static,
+) -> std::io::Result<()> {
+    let metrics = Arc::new(metrics::Metrics::default());
+    let cache = jobs::Cache::new(config.cache_bytes, config.cache_dir.clone())?;
+    let jobs = jobs::Jobs::new(config.workers.get(), config.queue, cache, metrics);
+    let limits = jobs::Limits {
+        max_vertices: config.max_vertices,
+        max_grid_points: config.max_grid_points,
+        max_expression_len: config.max_expression_len,
+        job_time_limit: config.job_time_limit,
+    };
+    let app = http::router(http::AppState { jobs: jobs.clone(), limits }, config.max_body_bytes);
+    let on_signal = jobs.clone();
+    let grace = config.shutdown_grace;
+    axum::serve(listener, app)
+        .with_graceful_shutdown(async move {
+            shutdown.await;
+            tracing::info!(grace_ms = grace.as_millis() as u64, "shutting down: no new jobs");
+            on_signal.close();
+            // Open requests and streams end when their jobs do; past the grace period, make
+            // them end.
+            tokio::spawn(async move {
+                tokio::time::sleep(grace).await;
+                on_signal.cancel_all();
+            });
+        })
+        .await?;
+    // Detached jobs have no connection to wait on: give them the same grace.
+    let deadline = tokio::time::Instant::now() + grace;
+    while jobs.is_busy() {
+        if tokio::time::Instant::now() >= deadline {
+            jobs.cancel_all();
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    tracing::info!("stopped");
+    Ok(())
+}

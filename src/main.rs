@@ -1,7 +1,9 @@
-//! The `meshfit` command line: `meshfit mesh ...` writes a mesh document to stdout.
+//! The `meshfit` command line: with no arguments (or `serve`) it runs the HTTP service;
+//! `meshfit mesh ...` writes one mesh document to stdout.
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
+use meshfit::config::{Config, RawConfig};
 use meshfit::geom::Rect;
 use meshfit::output::json;
 use meshfit::refine::{Criterion, Method, Params, estimate_error, refine};
@@ -13,16 +15,121 @@ use std::time::Duration;
 
 #[derive(Parser)]
 #[command(version, about = "Piecewise linear approximation of F(x, y) by dividing the worst segment")]
-#[command(arg_required_else_help = true)]
 struct Cli {
+    /// Without a command, `meshfit` serves the HTTP API with its defaults.
     #[command(subcommand)]
-    command: Command,
+    command: Option<Command>,
 }
 
 #[derive(Subcommand)]
 enum Command {
+    /// Serve the HTTP API (the default). Flags override MESHFIT_* variables.
+    Serve(ServeArgs),
     /// Refine a mesh for F and write it as JSON to stdout.
     Mesh(MeshArgs),
+}
+
+/// Each flag sets the MESHFIT_* variable named in its help; see the README's table.
+#[derive(Args, Default)]
+struct ServeArgs {
+    /// MESHFIT_ADDR: where to listen [default: 0.0.0.0:8080].
+    #[arg(long, value_name = "HOST:PORT")]
+    addr: Option<String>,
+    /// MESHFIT_WORKERS: refinements at once [default: available cores].
+    #[arg(long, value_name = "N")]
+    workers: Option<String>,
+    /// MESHFIT_QUEUE: jobs that may wait for a worker [default: 64].
+    #[arg(long, value_name = "N")]
+    queue: Option<String>,
+    /// MESHFIT_MAX_VERTICES: largest max_vertices per job [default: 2000000].
+    #[arg(long, value_name = "N")]
+    max_vertices: Option<String>,
+    /// MESHFIT_MAX_GRID_POINTS: largest nx*ny [default: 16777216].
+    #[arg(long, value_name = "N")]
+    max_grid_points: Option<String>,
+    /// MESHFIT_MAX_BODY_BYTES: largest request body [default: 268435456].
+    #[arg(long, value_name = "BYTES")]
+    max_body_bytes: Option<String>,
+    /// MESHFIT_MAX_EXPRESSION_LEN: longest expression in characters [default: 4096].
+    #[arg(long, value_name = "N")]
+    max_expression_len: Option<String>,
+    /// MESHFIT_JOB_TIME_LIMIT_MS: longest a job may run [default: 60000].
+    #[arg(long, value_name = "MS")]
+    job_time_limit_ms: Option<String>,
+    /// MESHFIT_CACHE_BYTES: memory for finished meshes [default: 1073741824].
+    #[arg(long, value_name = "BYTES")]
+    cache_bytes: Option<String>,
+    /// MESHFIT_CACHE_DIR: also keep finished meshes here, across restarts [default: unset].
+    #[arg(long, value_name = "DIR")]
+    cache_dir: Option<String>,
+    /// MESHFIT_SHUTDOWN_GRACE_MS: time running jobs get after SIGTERM [default: 10000].
+    #[arg(long, value_name = "MS")]
+    shutdown_grace_ms: Option<String>,
+    /// MESHFIT_LOG_FORMAT: text or json [default: text].
+    #[arg(long, value_name = "FORMAT")]
+    log_format: Option<String>,
+}
+
+impl ServeArgs {
+    fn config(&self) -> Result<Config> {
+        let mut raw = RawConfig::from_env();
+        let flags = [
+            ("MESHFIT_ADDR", &self.addr),
+            ("MESHFIT_WORKERS", &self.workers),
+            ("MESHFIT_QUEUE", &self.queue),
+            ("MESHFIT_MAX_VERTICES", &self.max_vertices),
+            ("MESHFIT_MAX_GRID_POINTS", &self.max_grid_points),
+            ("MESHFIT_MAX_BODY_BYTES", &self.max_body_bytes),
+            ("MESHFIT_MAX_EXPRESSION_LEN", &self.max_expression_len),
+            ("MESHFIT_JOB_TIME_LIMIT_MS", &self.job_time_limit_ms),
+            ("MESHFIT_CACHE_BYTES", &self.cache_bytes),
+            ("MESHFIT_CACHE_DIR", &self.cache_dir),
+            ("MESHFIT_SHUTDOWN_GRACE_MS", &self.shutdown_grace_ms),
+            ("MESHFIT_LOG_FORMAT", &self.log_format),
+        ];
+        for (name, value) in flags {
+            if let Some(v) = value {
+                raw.set(name, v.clone());
+            }
+        }
+        Ok(Config::try_from(raw)?)
+    }
+}
+
+fn serve(args: &ServeArgs) -> Result<()> {
+    let config = args.config()?;
+    meshfit::telemetry::init(config.log_format);
+    let runtime =
+        tokio::runtime::Builder::new_multi_thread().enable_all().build().context("starting tokio")?;
+    runtime.block_on(async {
+        let listener = tokio::net::TcpListener::bind(config.addr)
+            .await
+            .with_context(|| format!("cannot listen on {}", config.addr))?;
+        tracing::info!(addr = %listener.local_addr()?, workers = config.workers, queue = config.queue, "meshfit listening");
+        meshfit::serve(listener, config, shutdown_signal()).await.context("serving")
+    })
+}
+
+/// Ctrl-C or SIGTERM.
+async fn shutdown_signal() {
+    let ctrl_c = async {
+        let _ = tokio::signal::ctrl_c().await;
+    };
+    #[cfg(unix)]
+    let term = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(_) => std::future::pending().await,
+        }
+    };
+    #[cfg(not(unix))]
+    let term = std::future::pending::<()>();
+    tokio::select! {
+        () = ctrl_c => {}
+        () = term => {}
+    }
 }
 
 #[derive(Args)]
@@ -125,7 +232,9 @@ fn mesh(args: &MeshArgs) -> Result<()> {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let outcome = match &cli.command {
-        Command::Mesh(args) => mesh(args),
+        None => serve(&ServeArgs::default()),
+        Some(Command::Serve(args)) => serve(args),
+        Some(Command::Mesh(args)) => mesh(args),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,

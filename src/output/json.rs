@@ -8,16 +8,35 @@ use serde::Serialize;
 use serde::ser::{SerializeStruct, Serializer};
 use std::io::{self, Write};
 
-/// Borrowed view of a refinement that serialises as the mesh document without copying it.
-pub struct MeshDocument<'a>(pub &'a Refinement);
+/// Borrowed view of a refinement that serialises as the mesh document without copying it;
+/// the API's document starts with the job id.
+pub struct MeshDocument<'a> {
+    refinement: &'a Refinement,
+    id: Option<&'a str>,
+}
+
+impl<'a> MeshDocument<'a> {
+    /// The document without an id (the command line's).
+    pub fn new(refinement: &'a Refinement) -> Self {
+        Self { refinement, id: None }
+    }
+
+    /// The document with `"id"` first (the API's).
+    pub fn with_id(refinement: &'a Refinement, id: &'a str) -> Self {
+        Self { refinement, id: Some(id) }
+    }
+}
 
 impl Serialize for MeshDocument<'_> {
     fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        let mesh = &self.0.mesh;
-        let mut doc = serializer.serialize_struct("MeshDocument", 3)?;
+        let mesh = &self.refinement.mesh;
+        let mut doc = serializer.serialize_struct("MeshDocument", 4)?;
+        if let Some(id) = self.id {
+            doc.serialize_field("id", id)?;
+        }
         doc.serialize_field("vertices", &Vertices(mesh.vertices()))?;
         doc.serialize_field("triangles", &Triangles(mesh))?;
-        doc.serialize_field("stats", &self.0.stats)?;
+        doc.serialize_field("stats", &self.refinement.stats)?;
         doc.end()
     }
 }
@@ -43,7 +62,7 @@ impl Serialize for Triangles<'_> {
 /// # Errors
 /// Whatever writing to `out` returns.
 pub fn write_mesh(refinement: &Refinement, out: &mut impl Write) -> io::Result<()> {
-    serde_json::to_writer(&mut *out, &MeshDocument(refinement)).map_err(io::Error::from)
+    serde_json::to_writer(&mut *out, &MeshDocument::new(refinement)).map_err(io::Error::from)
 }
 
 /// The stats-only document: `{"stats": {...}, "error": {...}}`.

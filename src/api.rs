@@ -1,0 +1,187 @@
+//! Wire types of the HTTP API (serde only). Field docs here are the ones in openapi.yaml.
+
+use crate::refine::{Criterion, Method};
+use serde::de::{self, Deserializer, IgnoredAny, SeqAccess, Visitor};
+use serde::{Deserialize, Serialize};
+use std::fmt;
+
+/// The body of `POST /v1/meshes` and `POST /v1/jobs`. Unknown fields are rejected, so a typo
+/// never falls back to a default silently.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JobRequest {
+    /// F as a meval expression in x and y. Exactly one of `function` and `grid`.
+    pub function: Option<String>,
+    /// F sampled on a grid. Exactly one of `function` and `grid`.
+    pub grid: Option<GridInput>,
+    /// The rectangle; default [0,1]² for a function, [0,nx−1]×[0,ny−1] for a grid.
+    pub domain: Option<DomainInput>,
+    /// The vertex budget n (default 10000, at least 4).
+    pub max_vertices: Option<u64>,
+    /// Stop when the worst edge's criterion value is at most this.
+    pub tolerance: Option<f64>,
+    /// `semi-recursive` (default) or `recursive`.
+    pub method: Option<Method>,
+    /// `variation` (default).
+    pub criterion: Option<Criterion>,
+    /// Stop after this many milliseconds; capped by the server's job time limit.
+    pub time_limit_ms: Option<u64>,
+}
+
+/// A sampled grid: `values[j*nx + i] = F(x_i, y_j)`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GridInput {
+    /// Nodes along x (at least 2).
+    pub nx: u64,
+    /// Nodes along y (at least 2).
+    pub ny: u64,
+    /// nx·ny numbers, row-major with x fastest.
+    pub values: GridValues,
+}
+
+/// `{"x": [a, b], "y": [c, d]}`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DomainInput {
+    /// [a, b] with a < b.
+    pub x: [f64; 2],
+    /// [c, d] with c < d.
+    pub y: [f64; 2],
+}
+
+/// Grid values as parsed, remembering where the first non-number was, so the error can name
+/// its (i, j) once nx is known (serde alone would only give a line and column of the body).
+#[derive(Debug, Clone, Default)]
+pub struct GridValues {
+    /// The numbers (a non-number is stored as NaN).
+    pub values: Vec<f64>,
+    /// Position and JSON kind of the first element that is not a number.
+    pub first_bad: Option<(usize, &'static str)>,
+}
+
+enum Element {
+    Number(f64),
+    Bad(&'static str),
+}
+
+impl<'de> Deserialize<'de> for Element {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = Element;
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str("a number")
+            }
+            fn visit_f64<E>(self, v: f64) -> Result<Element, E> {
+                Ok(Element::Number(v))
+            }
+            fn visit_i64<E>(self, v: i64) -> Result<Element, E> {
+                Ok(Element::Number(v as f64))
+            }
+            fn visit_u64<E>(self, v: u64) -> Result<Element, E> {
+                Ok(Element::Number(v as f64))
+            }
+            fn visit_unit<E>(self) -> Result<Element, E> {
+                Ok(Element::Bad("null"))
+            }
+            fn visit_bool<E>(self, _: bool) -> Result<Element, E> {
+                Ok(Element::Bad("a boolean"))
+            }
+            fn visit_str<E>(self, _: &str) -> Result<Element, E> {
+                Ok(Element::Bad("a string"))
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Element, A::Error> {
+                while seq.next_element::<IgnoredAny>()?.is_some() {}
+                Ok(Element::Bad("an array"))
+            }
+            fn visit_map<A: de::MapAccess<'de>>(self, mut map: A) -> Result<Element, A::Error> {
+                while map.next_entry::<IgnoredAny, IgnoredAny>()?.is_some() {}
+                Ok(Element::Bad("an object"))
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+impl<'de> Deserialize<'de> for GridValues {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = GridValues;
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str("an array of numbers")
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<GridValues, A::Error> {
+                let mut out = GridValues::default();
+                while let Some(element) = seq.next_element::<Element>()? {
+                    match element {
+                        Element::Number(v) => out.values.push(v),
+                        Element::Bad(kind) => {
+                            out.first_bad.get_or_insert((out.values.len(), kind));
+                            out.values.push(f64::NAN);
+                        }
+                    }
+                }
+                Ok(out)
+            }
+        }
+        d.deserialize_seq(V)
+    }
+}
+
+/// `GET /v1/jobs/{id}` and the body of `POST /v1/jobs`.
+#[derive(Debug, Clone, Serialize)]
+pub struct JobStatus {
+    /// The job id: the hex SHA-256 of the canonical request.
+    pub id: String,
+    /// `queued`, `running`, `succeeded`, `failed` or `cancelled`.
+    pub status: &'static str,
+    /// The latest progress report, once running.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub progress: Option<ProgressEvent>,
+    /// The run's stats, once succeeded.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stats: Option<serde_json::Value>,
+    /// The problem document, once failed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub problem: Option<serde_json::Value>,
+    /// Where to find the job's resources.
+    pub links: Links,
+}
+
+/// Links of a job.
+#[derive(Debug, Clone, Serialize)]
+pub struct Links {
+    /// `/v1/jobs/{id}`.
+    #[serde(rename = "self")]
+    pub this: String,
+    /// `/v1/jobs/{id}/events`.
+    pub events: String,
+    /// `/v1/jobs/{id}/mesh`.
+    pub mesh: String,
+}
+
+impl Links {
+    /// The links of job `id`.
+    pub fn of(id: &str) -> Self {
+        Self {
+            this: format!("/v1/jobs/{id}"),
+            events: format!("/v1/jobs/{id}/events"),
+            mesh: format!("/v1/jobs/{id}/mesh"),
+        }
+    }
+}
+
+/// A `progress` server-sent event.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ProgressEvent {
+    /// Vertices so far.
+    pub vertices: usize,
+    /// Triangles so far.
+    pub triangles: usize,
+    /// The current worst criterion value (V_n for variation).
+    pub worst: f64,
+    /// Milliseconds since the job started running.
+    pub elapsed_ms: f64,
+}

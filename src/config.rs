@@ -1,0 +1,198 @@
+//! Service settings: environment variables (`MESHFIT_*`) over safe defaults, validated once.
+//!
+//! Two stages, as ripgrep's LowArgs/HiArgs: [`RawConfig`] holds the strings as given,
+//! [`Config`] the typed values. Nothing downstream parses a string.
+
+use std::collections::BTreeMap;
+use std::net::SocketAddr;
+use std::num::NonZeroUsize;
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// Log output format.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LogFormat {
+    /// Human-readable lines.
+    Text,
+    /// One JSON object per line.
+    Json,
+}
+
+/// Validated service settings. Every field has a default; see the README's table.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Config {
+    /// Where to listen (`MESHFIT_ADDR`, default 0.0.0.0:8080).
+    pub addr: SocketAddr,
+    /// Refinements running at once (`MESHFIT_WORKERS`, default: available cores).
+    pub workers: NonZeroUsize,
+    /// Jobs that may wait for a worker (`MESHFIT_QUEUE`, default 64); more get 503.
+    pub queue: usize,
+    /// Largest `max_vertices` a request may ask for (`MESHFIT_MAX_VERTICES`, default 2,000,000).
+    pub max_vertices: usize,
+    /// Largest nx·ny of a grid (`MESHFIT_MAX_GRID_POINTS`, default 16,777,216).
+    pub max_grid_points: usize,
+    /// Largest request body (`MESHFIT_MAX_BODY_BYTES`, default 256 MiB, room for the largest grid).
+    pub max_body_bytes: usize,
+    /// Longest expression in characters (`MESHFIT_MAX_EXPRESSION_LEN`, default 4096).
+    pub max_expression_len: usize,
+    /// Longest a job may run (`MESHFIT_JOB_TIME_LIMIT_MS`, default 60 s); caps `time_limit_ms`.
+    pub job_time_limit: Duration,
+    /// Memory for finished meshes (`MESHFIT_CACHE_BYTES`, default 1 GiB).
+    pub cache_bytes: u64,
+    /// Where finished meshes are also written, to survive restarts (`MESHFIT_CACHE_DIR`, unset).
+    pub cache_dir: Option<PathBuf>,
+    /// How long running jobs may finish after SIGTERM before they are cancelled
+    /// (`MESHFIT_SHUTDOWN_GRACE_MS`, default 10 s).
+    pub shutdown_grace: Duration,
+    /// `MESHFIT_LOG_FORMAT`: `text` (default) or `json`.
+    pub log_format: LogFormat,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self {
+            addr: SocketAddr::from(([0, 0, 0, 0], 8080)),
+            workers: std::thread::available_parallelism().unwrap_or(NonZeroUsize::MIN),
+            queue: 64,
+            max_vertices: 2_000_000,
+            max_grid_points: 16_777_216,
+            max_body_bytes: 256 << 20,
+            max_expression_len: 4096,
+            job_time_limit: Duration::from_secs(60),
+            cache_bytes: 1 << 30,
+            cache_dir: None,
+            shutdown_grace: Duration::from_secs(10),
+            log_format: LogFormat::Text,
+        }
+    }
+}
+
+/// The settings as strings, keyed by variable name, before validation.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct RawConfig(pub BTreeMap<String, String>);
+
+impl RawConfig {
+    /// Every `MESHFIT_*` variable of the process environment.
+    pub fn from_env() -> Self {
+        Self(std::env::vars().filter(|(k, _)| k.starts_with("MESHFIT_")).collect())
+    }
+
+    /// Sets one variable (for command-line flags, which override the environment).
+    pub fn set(&mut self, name: &str, value: impl Into<String>) {
+        self.0.insert(name.to_owned(), value.into());
+    }
+}
+
+/// Every invalid setting, each naming its variable and value.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("invalid configuration:\n  {}", .0.join("\n  "))]
+pub struct ConfigError(pub Vec<String>);
+
+impl TryFrom<RawConfig> for Config {
+    type Error = ConfigError;
+
+    fn try_from(raw: RawConfig) -> Result<Self, ConfigError> {
+        let mut config = Config::default();
+        let mut problems = Vec::new();
+        for (name, value) in &raw.0 {
+            let v = value.trim();
+            let number = || v.replace('_', "").parse::<u64>().map_err(|_| "expected a whole number");
+            let outcome: Result<(), &str> = match name.as_str() {
+                "MESHFIT_ADDR" => {
+                    v.parse().map(|a| config.addr = a).map_err(|_| "expected host:port, e.g. 0.0.0.0:8080")
+                }
+                "MESHFIT_WORKERS" => number().and_then(|n| {
+                    NonZeroUsize::new(n as usize).map(|n| config.workers = n).ok_or("must be at least 1")
+                }),
+                "MESHFIT_QUEUE" => number().map(|n| config.queue = n as usize),
+                "MESHFIT_MAX_VERTICES" => number().and_then(|n| {
+                    (4..=crate::refine::MAX_VERTICES as u64)
+                        .contains(&n)
+                        .then(|| config.max_vertices = n as usize)
+                        .ok_or("must be between 4 and 400000000")
+                }),
+                "MESHFIT_MAX_GRID_POINTS" => number().and_then(|n| {
+                    (n >= 4).then(|| config.max_grid_points = n as usize).ok_or("must be at least 4")
+                }),
+                "MESHFIT_MAX_BODY_BYTES" => number().and_then(|n| {
+                    (n >= 1024).then(|| config.max_body_bytes = n as usize).ok_or("must be at least 1024")
+                }),
+                "MESHFIT_MAX_EXPRESSION_LEN" => number().and_then(|n| {
+                    (n >= 1).then(|| config.max_expression_len = n as usize).ok_or("must be at least 1")
+                }),
+                "MESHFIT_JOB_TIME_LIMIT_MS" => number().and_then(|n| {
+                    (n >= 1)
+                        .then(|| config.job_time_limit = Duration::from_millis(n))
+                        .ok_or("must be at least 1")
+                }),
+                "MESHFIT_CACHE_BYTES" => number().map(|n| config.cache_bytes = n),
+                "MESHFIT_CACHE_DIR" => {
+                    config.cache_dir = (!v.is_empty()).then(|| PathBuf::from(v));
+                    Ok(())
+                }
+                "MESHFIT_SHUTDOWN_GRACE_MS" => {
+                    number().map(|n| config.shutdown_grace = Duration::from_millis(n))
+                }
+                "MESHFIT_LOG_FORMAT" => match v {
+                    "text" => Ok(LogFormat::Text),
+                    "json" => Ok(LogFormat::Json),
+                    _ => Err("expected text or json"),
+                }
+                .map(|f| config.log_format = f),
+                // RUST_LOG-style filtering is read by the tracing subscriber itself.
+                "MESHFIT_LOG" => Ok(()),
+                _ => Err("unknown setting"),
+            };
+            if let Err(why) = outcome {
+                problems.push(format!("{name}={value:?}: {why}"));
+            }
+        }
+        if problems.is_empty() { Ok(config) } else { Err(ConfigError(problems)) }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn raw(pairs: &[(&str, &str)]) -> RawConfig {
+        RawConfig(pairs.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect())
+    }
+
+    #[test]
+    fn no_variables_give_the_documented_defaults() {
+        let c = Config::try_from(RawConfig::default()).unwrap();
+        assert_eq!(c.addr.to_string(), "0.0.0.0:8080");
+        assert_eq!((c.queue, c.max_vertices, c.max_grid_points), (64, 2_000_000, 16_777_216));
+        assert_eq!(c.cache_dir, None);
+    }
+
+    #[test]
+    fn variables_override_defaults() {
+        let c = Config::try_from(raw(&[
+            ("MESHFIT_ADDR", "127.0.0.1:9000"),
+            ("MESHFIT_WORKERS", "3"),
+            ("MESHFIT_MAX_VERTICES", "1_000"),
+            ("MESHFIT_CACHE_DIR", "/tmp/x"),
+            ("MESHFIT_LOG_FORMAT", "json"),
+        ]))
+        .unwrap();
+        assert_eq!(c.addr.port(), 9000);
+        assert_eq!((c.workers.get(), c.max_vertices), (3, 1000));
+        assert_eq!(c.cache_dir, Some(PathBuf::from("/tmp/x")));
+        assert_eq!(c.log_format, LogFormat::Json);
+    }
+
+    #[test]
+    fn every_bad_setting_is_reported_at_once_with_its_name_and_value() {
+        let err = Config::try_from(raw(&[
+            ("MESHFIT_WORKERS", "0"),
+            ("MESHFIT_ADDR", "localhost"),
+            ("MESHFIT_QEUE", "3"),
+        ]))
+        .unwrap_err();
+        assert_eq!(err.0.len(), 3, "{err}");
+        assert!(err.0.iter().any(|p| p.starts_with("MESHFIT_WORKERS=\"0\"")), "{err}");
+        assert!(err.0.iter().any(|p| p.contains("MESHFIT_QEUE") && p.contains("unknown")), "{err}");
+    }
+}

@@ -1,0 +1,39 @@
+//! Liveness, readiness, metrics and the API description.
+
+use super::AppState;
+use axum::Json;
+use axum::extract::State;
+use axum::http::{StatusCode, header};
+use axum::response::IntoResponse;
+use serde_json::json;
+
+/// `GET /healthz`: the process answers. Never touches the job machinery, so it stays fast
+/// while every worker is busy.
+pub async fn healthz() -> impl IntoResponse {
+    Json(json!({"status": "ok"}))
+}
+
+/// `GET /readyz`: 200 while the server takes jobs, 503 when its queue is full or it is
+/// shutting down.
+pub async fn readyz(State(state): State<AppState>) -> impl IntoResponse {
+    if state.jobs.is_ready() {
+        (StatusCode::OK, Json(json!({"status": "ready"})))
+    } else {
+        (StatusCode::SERVICE_UNAVAILABLE, Json(json!({"status": "busy"})))
+    }
+}
+
+/// `GET /metrics`: Prometheus text format.
+pub async fn metrics(State(state): State<AppState>) -> impl IntoResponse {
+    let metrics = state.jobs.metrics();
+    metrics.cache_bytes.set(i64::try_from(state.jobs.cache_bytes()).unwrap_or(i64::MAX));
+    ([(header::CONTENT_TYPE, "application/openmetrics-text; version=1.0.0; charset=utf-8")], metrics.encode())
+}
+
+/// The OpenAPI description, compiled into the binary so it always matches it.
+pub const OPENAPI: &str = include_str!("../../openapi.yaml");
+
+/// `GET /openapi.yaml`.
+pub async fn openapi() -> impl IntoResponse {
+    ([(header::CONTENT_TYPE, "application/yaml")], OPENAPI)
+}

@@ -1,0 +1,83 @@
+//! The HTTP API: routes, shared state and the layers around them.
+
+mod extract;
+mod health;
+mod jobs;
+pub mod problem;
+
+use crate::jobs::{Jobs, Limits};
+use crate::metrics::RequestLabels;
+use axum::extract::{DefaultBodyLimit, Request, State};
+use axum::middleware::{self, Next};
+use axum::response::Response;
+use axum::routing::{get, post};
+use axum::{Extension, Router};
+use extract::BodyLimit;
+use problem::ApiError;
+use std::time::Instant;
+use tower::ServiceBuilder;
+use tower_http::request_id::{MakeRequestUuid, PropagateRequestIdLayer, SetRequestIdLayer};
+use tower_http::trace::TraceLayer;
+
+/// What every handler can reach.
+#[derive(Clone)]
+pub struct AppState {
+    /// The job registry.
+    pub jobs: Jobs,
+    /// Request limits.
+    pub limits: Limits,
+}
+
+/// The API's routes, as listed in openapi.yaml.
+pub const ROUTES: &[(&str, &str)] = &[
+    ("post", "/v1/meshes"),
+    ("post", "/v1/jobs"),
+    ("get", "/v1/jobs/{id}"),
+    ("delete", "/v1/jobs/{id}"),
+    ("get", "/v1/jobs/{id}/events"),
+    ("get", "/v1/jobs/{id}/mesh"),
+    ("get", "/healthz"),
+    ("get", "/readyz"),
+    ("get", "/metrics"),
+    ("get", "/openapi.yaml"),
+];
+
+/// The router with all layers; tests drive it through a real listener.
+pub fn router(state: AppState, max_body_bytes: usize) -> Router {
+    // Layers run outside-in: request id first, so the trace span and every log line carry it.
+    let layers = ServiceBuilder::new()
+        .layer(SetRequestIdLayer::x_request_id(MakeRequestUuid))
+        .layer(TraceLayer::new_for_http().make_span_with(|req: &Request| {
+            let id = req.headers().get("x-request-id").and_then(|v| v.to_str().ok()).unwrap_or("");
+            tracing::info_span!("request", method = %req.method(), path = %req.uri().path(), request_id = %id, job_id = tracing::field::Empty)
+        }))
+        .layer(PropagateRequestIdLayer::x_request_id())
+        .layer(middleware::from_fn_with_state(state.clone(), record_metrics))
+        .layer(Extension(BodyLimit(max_body_bytes)))
+        .layer(DefaultBodyLimit::max(max_body_bytes));
+    Router::new()
+        .route("/v1/meshes", post(jobs::meshes_create))
+        .route("/v1/jobs", post(jobs::jobs_create))
+        .route("/v1/jobs/{id}", get(jobs::jobs_show).delete(jobs::jobs_cancel))
+        .route("/v1/jobs/{id}/events", get(jobs::jobs_events))
+        .route("/v1/jobs/{id}/mesh", get(jobs::jobs_mesh))
+        .route("/healthz", get(health::healthz))
+        .route("/readyz", get(health::readyz))
+        .route("/metrics", get(health::metrics))
+        .route("/openapi.yaml", get(health::openapi))
+        .fallback(|| async { ApiError::NotFound("no such route; see GET /openapi.yaml".into()) })
+        .method_not_allowed_fallback(|| async { ApiError::MethodNotAllowed })
+        .layer(layers)
+        .with_state(state)
+}
+
+/// Counts requests by method and status and records latency to the response head.
+async fn record_metrics(State(state): State<AppState>, req: Request, next: Next) -> Response {
+    let start = Instant::now();
+    let method = req.method().to_string();
+    let response = next.run(req).await;
+    let metrics = state.jobs.metrics();
+    metrics.http_latency.observe(start.elapsed().as_secs_f64());
+    metrics.http_requests.get_or_create(&RequestLabels { method, status: response.status().as_u16() }).inc();
+    response
+}

@@ -1,0 +1,177 @@
+//! ApiError: every failure the API reports, written as RFC 9457 `application/problem+json`.
+
+use crate::jobs::{JobError, SpecError, SubmitError};
+use crate::refine::RefineError;
+use axum::http::{HeaderValue, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use serde_json::{Map, Value, json};
+
+/// The media type of problem documents.
+pub const PROBLEM_JSON: &str = "application/problem+json";
+
+/// An API failure. Each variant's status and `type` are listed in openapi.yaml; the `type`
+/// URIs are relative references (`/problems/<slug>`), as RFC 9457 allows.
+#[derive(Debug)]
+pub enum ApiError {
+    /// 400 `malformed-json`: the body is not JSON.
+    MalformedJson(String),
+    /// 422 `invalid-request`: JSON of the wrong shape (a wrong type, an unknown field).
+    InvalidRequest(String),
+    /// 422 (or the variant's own): the request is well-formed but not a valid job.
+    Spec(SpecError),
+    /// 413 `limit-exceeded`: the body is larger than `MESHFIT_MAX_BODY_BYTES`.
+    BodyTooLarge(usize),
+    /// 422 `non-finite-value`: F is NaN or infinite at a point the refinement needs.
+    NonFinite(RefineError),
+    /// 404 `not-found`.
+    NotFound(String),
+    /// 405 `method-not-allowed`.
+    MethodNotAllowed,
+    /// 409 `not-finished`: the job has no mesh yet.
+    NotFinished(&'static str),
+    /// 409 `job-cancelled`: the job was cancelled before it finished.
+    Cancelled,
+    /// 503 `queue-full`, with `Retry-After`.
+    QueueFull(usize),
+    /// 503 `shutting-down`.
+    ShuttingDown,
+    /// 500 `internal`: the detail is logged, never sent.
+    Internal(String),
+}
+
+impl From<SpecError> for ApiError {
+    fn from(e: SpecError) -> Self {
+        ApiError::Spec(e)
+    }
+}
+
+impl From<SubmitError> for ApiError {
+    fn from(e: SubmitError) -> Self {
+        match e {
+            SubmitError::QueueFull { waiting } => ApiError::QueueFull(waiting),
+            SubmitError::ShuttingDown => ApiError::ShuttingDown,
+        }
+    }
+}
+
+impl From<JobError> for ApiError {
+    fn from(e: JobError) -> Self {
+        match e {
+            JobError::Refine(e) => ApiError::NonFinite(e),
+            JobError::Internal(detail) => ApiError::Internal(detail),
+        }
+    }
+}
+
+impl ApiError {
+    /// Status, `type` slug, title, detail and extension members.
+    fn parts(&self) -> (StatusCode, &'static str, &'static str, String, Map<String, Value>) {
+        let mut ext = Map::new();
+        let unprocessable = StatusCode::UNPROCESSABLE_ENTITY;
+        let (status, slug, title, detail) = match self {
+            ApiError::MalformedJson(d) => {
+                (StatusCode::BAD_REQUEST, "malformed-json", "Body is not valid JSON", d.clone())
+            }
+            ApiError::InvalidRequest(d) => {
+                (unprocessable, "invalid-request", "Request does not match the schema", d.clone())
+            }
+            ApiError::BodyTooLarge(limit) => {
+                ext.insert("limit".into(), json!({"name": "MESHFIT_MAX_BODY_BYTES", "value": limit}));
+                let detail = format!("the body is larger than this server's limit of {limit} bytes");
+                (StatusCode::PAYLOAD_TOO_LARGE, "limit-exceeded", "Request exceeds a limit", detail)
+            }
+            ApiError::Spec(e) => {
+                let (slug, title) = match e {
+                    SpecError::Source(_) => ("invalid-source", "Give exactly one of function and grid"),
+                    SpecError::Expression(x) => {
+                        ext.insert("column".into(), json!(x.column));
+                        ("invalid-expression", "Expression does not parse")
+                    }
+                    SpecError::Grid { index, .. } => {
+                        if let Some(index) = index {
+                            ext.insert("index".into(), json!(index));
+                        }
+                        ("invalid-grid", "Grid is malformed")
+                    }
+                    SpecError::Domain(_) => ("invalid-domain", "Domain is not a rectangle"),
+                    SpecError::Parameter(_) => ("invalid-parameter", "Parameter out of range"),
+                    SpecError::Limit { setting, limit, .. } => {
+                        ext.insert("limit".into(), json!({"name": setting, "value": limit}));
+                        ("limit-exceeded", "Request exceeds a limit")
+                    }
+                };
+                (unprocessable, slug, title, e.to_string())
+            }
+            ApiError::NonFinite(e) => {
+                let RefineError::NonFinite { point, .. } = e;
+                ext.insert("point".into(), json!([point.x, point.y]));
+                (unprocessable, "non-finite-value", "F is not finite where the mesh needs it", e.to_string())
+            }
+            ApiError::NotFound(d) => (StatusCode::NOT_FOUND, "not-found", "Not found", d.clone()),
+            ApiError::MethodNotAllowed => (
+                StatusCode::METHOD_NOT_ALLOWED,
+                "method-not-allowed",
+                "Method not allowed",
+                "this resource does not support that method".into(),
+            ),
+            ApiError::NotFinished(status) => {
+                ext.insert("job_status".into(), json!(status));
+                (StatusCode::CONFLICT, "not-finished", "Job has no mesh yet", format!("the job is {status}"))
+            }
+            ApiError::Cancelled => {
+                let detail = "the job was cancelled before it finished; submit it again to rerun it".into();
+                (StatusCode::CONFLICT, "job-cancelled", "Job was cancelled", detail)
+            }
+            ApiError::QueueFull(waiting) => {
+                let detail = format!("{waiting} jobs are already waiting for a worker; retry shortly");
+                (StatusCode::SERVICE_UNAVAILABLE, "queue-full", "Server is busy", detail)
+            }
+            ApiError::ShuttingDown => (
+                StatusCode::SERVICE_UNAVAILABLE,
+                "shutting-down",
+                "Server is shutting down",
+                "the server takes no new jobs while it shuts down".into(),
+            ),
+            ApiError::Internal(_) => (
+                StatusCode::INTERNAL_SERVER_ERROR,
+                "internal",
+                "Internal server error",
+                "an internal error occurred; it has been logged with this request's id".into(),
+            ),
+        };
+        (status, slug, title, detail, ext)
+    }
+
+    /// The HTTP status.
+    pub fn status(&self) -> StatusCode {
+        self.parts().0
+    }
+
+    /// The problem document.
+    pub fn to_json(&self) -> Value {
+        let (status, slug, title, detail, ext) = self.parts();
+        let mut doc = Map::new();
+        doc.insert("type".into(), json!(format!("/problems/{slug}")));
+        doc.insert("title".into(), json!(title));
+        doc.insert("status".into(), json!(status.as_u16()));
+        doc.insert("detail".into(), json!(detail));
+        doc.extend(ext);
+        Value::Object(doc)
+    }
+}
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        if let ApiError::Internal(detail) = &self {
+            // Inside the request's span, so the log line carries its id.
+            tracing::error!(%detail, "internal error");
+        }
+        let mut response = (self.status(), self.to_json().to_string()).into_response();
+        let headers = response.headers_mut();
+        headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(PROBLEM_JSON));
+        if matches!(self, ApiError::QueueFull(_) | ApiError::ShuttingDown) {
+            headers.insert(header::RETRY_AFTER, HeaderValue::from_static("1"));
+        }
+        response
+    }
+}

@@ -1,0 +1,449 @@
+//! Jobs: the one bridge between async handlers and the synchronous engine.
+//!
+//! A submitted [`JobSpec`] gets an id (its canonical hash). A cached result answers at once;
+//! an identical job already queued or running is joined; otherwise a new job waits for one of
+//! `workers` semaphore permits and then refines on tokio's blocking pool. The tokio docs for
+//! `spawn_blocking` recommend exactly this: the blocking pool itself is large, so CPU-bound
+//! work needs its own bound.
+
+mod cache;
+mod key;
+mod spec;
+
+pub use cache::{Cache, Finished, Hit};
+pub use key::{ENGINE_VERSION, job_id};
+pub use spec::{DEFAULT_MAX_VERTICES, JobSpec, Limits, SpecError};
+
+use crate::api::ProgressEvent;
+use crate::metrics::{Metrics, StateLabel};
+use crate::output::json::MeshDocument;
+use crate::refine::{Observer, Progress, RefineError, StopReason, refine};
+use bytes::Bytes;
+use std::collections::{HashMap, VecDeque};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+use tokio::sync::{Notify, Semaphore, watch};
+
+/// Where a job is in its life.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Status {
+    /// Waiting for a worker.
+    Queued,
+    /// Refining.
+    Running,
+    /// Finished with a mesh.
+    Succeeded,
+    /// Finished with an error.
+    Failed,
+    /// Stopped before finishing.
+    Cancelled,
+}
+
+impl Status {
+    /// The name used in the API.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Status::Queued => "queued",
+            Status::Running => "running",
+            Status::Succeeded => "succeeded",
+            Status::Failed => "failed",
+            Status::Cancelled => "cancelled",
+        }
+    }
+}
+
+/// Why a job failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum JobError {
+    /// The engine refused the input (F not finite at a point).
+    #[error(transparent)]
+    Refine(RefineError),
+    /// Something went wrong inside the server; the detail is logged, not sent.
+    #[error("internal error: {0}")]
+    Internal(String),
+}
+
+/// How a job ended.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Outcome {
+    /// With a mesh.
+    Succeeded(Arc<Finished>),
+    /// With an error.
+    Failed(JobError),
+    /// Cancelled by a client, by every waiting client leaving, or by shutdown.
+    Cancelled,
+}
+
+/// A job's state as watchers see it. `seq` grows with every change, so server-sent events
+/// can carry it as their id and a reconnecting client can skip what it has seen.
+#[derive(Debug, Clone)]
+pub struct Snapshot {
+    /// Increases with every progress report and with the outcome.
+    pub seq: u64,
+    /// Where the job is.
+    pub status: Status,
+    /// The latest progress report.
+    pub progress: Option<ProgressEvent>,
+    /// Set once finished.
+    pub outcome: Option<Outcome>,
+}
+
+/// One refinement, shared by everyone waiting on it.
+pub struct Job {
+    id: String,
+    /// The latest state wins: a slow watcher skips snapshots and the worker never waits on it
+    /// (a watch channel, not a queue).
+    state: watch::Sender<Snapshot>,
+    cancel: AtomicBool,
+    cancel_notify: Notify,
+    /// Created through `POST /v1/jobs`: runs on even when no client is waiting.
+    detached: AtomicBool,
+    waiters: AtomicUsize,
+}
+
+impl Job {
+    /// The job id.
+    pub fn id(&self) -> &str {
+        &self.id
+    }
+
+    /// The current state.
+    pub fn snapshot(&self) -> Snapshot {
+        self.state.borrow().clone()
+    }
+
+    /// A receiver of state changes.
+    pub fn subscribe(&self) -> watch::Receiver<Snapshot> {
+        self.state.subscribe()
+    }
+
+    /// Asks the job to stop: a queued job ends at once, a running one within one insertion.
+    pub fn cancel(&self) {
+        self.cancel.store(true, Ordering::Relaxed);
+        self.cancel_notify.notify_one();
+    }
+
+    /// Registers a waiting client; when the last one leaves a job that nobody detached, the
+    /// job is cancelled (a synchronous request or stream whose client hung up).
+    pub fn attach(self: &Arc<Self>) -> Waiter {
+        self.waiters.fetch_add(1, Ordering::SeqCst);
+        Waiter { job: self.clone() }
+    }
+
+    /// Waits for the outcome.
+    pub async fn outcome(&self) -> Outcome {
+        let mut rx = self.subscribe();
+        loop {
+            if let Some(outcome) = rx.borrow_and_update().outcome.clone() {
+                return outcome;
+            }
+            // The sender lives as long as the job, which we hold.
+            if rx.changed().await.is_err() {
+                return Outcome::Failed(JobError::Internal("job state dropped".into()));
+            }
+        }
+    }
+
+    fn is_finished(&self) -> bool {
+        self.state.borrow().outcome.is_some()
+    }
+
+    fn finish(&self, outcome: Outcome) {
+        self.state.send_modify(|s| {
+            s.seq += 1;
+            s.status = match outcome {
+                Outcome::Succeeded(_) => Status::Succeeded,
+                Outcome::Failed(_) => Status::Failed,
+                Outcome::Cancelled => Status::Cancelled,
+            };
+            s.outcome = Some(outcome);
+        });
+    }
+}
+
+/// A client waiting on a job; dropping it may cancel the job (see [`Job::attach`]).
+pub struct Waiter {
+    job: Arc<Job>,
+}
+
+impl Waiter {
+    /// The job waited on.
+    pub fn job(&self) -> &Arc<Job> {
+        &self.job
+    }
+}
+
+impl Drop for Waiter {
+    fn drop(&mut self) {
+        let last = self.job.waiters.fetch_sub(1, Ordering::SeqCst) == 1;
+        if last && !self.job.detached.load(Ordering::SeqCst) && !self.job.is_finished() {
+            tracing::info!(job = %self.job.id, "last client left; cancelling");
+            self.job.cancel();
+        }
+    }
+}
+
+/// What a submission found or started.
+pub enum Ticket {
+    /// The result was cached.
+    Cached(Arc<Finished>),
+    /// A job to wait on: new, or an identical one already under way.
+    Job(Arc<Job>),
+}
+
+/// Why a submission was refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum SubmitError {
+    /// `queue` jobs are already waiting for a worker.
+    #[error("{waiting} jobs are waiting for a worker, the most this server queues")]
+    QueueFull {
+        /// How many wait.
+        waiting: usize,
+    },
+    /// The server is shutting down.
+    #[error("the server is shutting down")]
+    ShuttingDown,
+}
+
+/// A job or a cached result, for status queries.
+pub enum Found {
+    /// A job this server ran or runs.
+    Job(Arc<Job>),
+    /// A result from the cache with no job record (e.g. after a restart).
+    Cached(Arc<Finished>),
+}
+
+/// How many finished job records are kept for status queries (results live in the cache).
+const FINISHED_KEPT: usize = 10_000;
+
+/// The job registry, its workers and its cache. Cheap to clone.
+#[derive(Clone)]
+pub struct Jobs {
+    inner: Arc<Inner>,
+}
+
+struct Inner {
+    permits: Arc<Semaphore>,
+    queue: usize,
+    waiting: AtomicUsize,
+    /// A std Mutex: held only for map operations, never across an `.await`.
+    table: Mutex<Table>,
+    cache: Cache,
+    metrics: Arc<Metrics>,
+    closed: AtomicBool,
+}
+
+#[derive(Default)]
+struct Table {
+    jobs: HashMap<String, Arc<Job>>,
+    finished: VecDeque<String>,
+}
+
+impl Jobs {
+    /// A registry running at most `workers` refinements at once, with at most `queue` jobs
+    /// waiting.
+    pub fn new(workers: usize, queue: usize, cache: Cache, metrics: Arc<Metrics>) -> Self {
+        Self {
+            inner: Arc::new(Inner {
+                permits: Arc::new(Semaphore::new(workers)),
+                queue,
+                waiting: AtomicUsize::new(0),
+                table: Mutex::new(Table::default()),
+                cache,
+                metrics,
+                closed: AtomicBool::new(false),
+            }),
+        }
+    }
+
+    /// The metrics the registry updates.
+    pub fn metrics(&self) -> &Arc<Metrics> {
+        &self.inner.metrics
+    }
+
+    /// Bytes of meshes cached in memory.
+    pub fn cache_bytes(&self) -> u64 {
+        self.inner.cache.memory_bytes()
+    }
+
+    /// Whether a new job would be accepted now.
+    pub fn is_ready(&self) -> bool {
+        !self.inner.closed.load(Ordering::SeqCst)
+            && self.inner.waiting.load(Ordering::SeqCst) < self.inner.queue
+    }
+
+    /// Answers from the cache, joins an identical job, or starts a new one. `detached` jobs
+    /// (from `POST /v1/jobs`) run to the end even when nobody waits.
+    ///
+    /// # Errors
+    /// When the queue is full or the server is shutting down.
+    pub async fn submit(&self, id: String, spec: JobSpec, detached: bool) -> Result<Ticket, SubmitError> {
+        let inner = &self.inner;
+        if let Some(finished) = self.cached(&id).await {
+            inner.metrics.cache_hits.inc();
+            return Ok(Ticket::Cached(finished));
+        }
+        inner.metrics.cache_misses.inc();
+        let mut table = inner.table.lock().expect("job table poisoned");
+        if let Some(job) = table.jobs.get(&id) {
+            let status = job.snapshot().status;
+            // Join anything under way; a failure is deterministic, so it is the answer again.
+            // A cancelled job, or a success whose mesh was evicted, runs again.
+            if matches!(status, Status::Queued | Status::Running | Status::Failed) {
+                if detached {
+                    job.detached.store(true, Ordering::SeqCst);
+                }
+                return Ok(Ticket::Job(job.clone()));
+            }
+        }
+        if inner.closed.load(Ordering::SeqCst) {
+            return Err(SubmitError::ShuttingDown);
+        }
+        let waiting = inner.waiting.load(Ordering::SeqCst);
+        if waiting >= inner.queue {
+            return Err(SubmitError::QueueFull { waiting });
+        }
+        inner.waiting.fetch_add(1, Ordering::SeqCst);
+        inner.metrics.jobs_queued.inc();
+        let (state, _) =
+            watch::channel(Snapshot { seq: 0, status: Status::Queued, progress: None, outcome: None });
+        let job = Arc::new(Job {
+            id: id.clone(),
+            state,
+            cancel: AtomicBool::new(false),
+            cancel_notify: Notify::new(),
+            detached: AtomicBool::new(detached),
+            waiters: AtomicUsize::new(0),
+        });
+        table.jobs.insert(id, job.clone());
+        drop(table);
+        tokio::spawn(run(self.inner.clone(), job.clone(), spec));
+        Ok(Ticket::Job(job))
+    }
+
+    /// The job or cached result with this id.
+    pub async fn find(&self, id: &str) -> Option<Found> {
+        let job = self.inner.table.lock().expect("job table poisoned").jobs.get(id).cloned();
+        match job {
+            Some(job) => Some(Found::Job(job)),
+            None => self.cached(id).await.map(Found::Cached),
+        }
+    }
+
+    /// The cached mesh with this id, if any.
+    pub async fn cached(&self, id: &str) -> Option<Arc<Finished>> {
+        let cache = &self.inner.cache;
+        if let Some(f) = cache.get_memory(id) {
+            return Some(f);
+        }
+        if !cache.has_disk() {
+            return None;
+        }
+        let (cache, id) = (cache.clone(), id.to_owned());
+        tokio::task::spawn_blocking(move || cache.get(&id).map(|(f, _)| f)).await.ok().flatten()
+    }
+
+    /// Refuses new jobs from now on.
+    pub fn close(&self) {
+        self.inner.closed.store(true, Ordering::SeqCst);
+    }
+
+    /// Cancels every job not yet finished.
+    pub fn cancel_all(&self) {
+        for job in self.inner.table.lock().expect("job table poisoned").jobs.values() {
+            job.cancel();
+        }
+    }
+
+    /// Whether any job is queued or running.
+    pub fn is_busy(&self) -> bool {
+        self.inner.table.lock().expect("job table poisoned").jobs.values().any(|j| !j.is_finished())
+    }
+}
+
+/// Waits for a permit, refines on the blocking pool, stores the result and finishes the job.
+async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec) {
+    let permit = tokio::select! {
+        permit = inner.permits.clone().acquire_owned() => permit.ok(),
+        () = job.cancel_notify.notified() => None,
+    };
+    inner.waiting.fetch_sub(1, Ordering::SeqCst);
+    inner.metrics.jobs_queued.dec();
+    let outcome = match permit {
+        Some(permit) if !job.cancel.load(Ordering::Relaxed) => {
+            job.state.send_modify(|s| s.status = Status::Running);
+            inner.metrics.jobs_running.inc();
+            inner.metrics.engine_runs.inc();
+            let (worker_job, cache) = (job.clone(), inner.cache.clone());
+            let outcome = tokio::task::spawn_blocking(move || compute(&worker_job, &spec, &cache))
+                .await
+                .unwrap_or_else(|e| {
+                    tracing::error!(job = %job.id, error = %e, "refinement panicked");
+                    Outcome::Failed(JobError::Internal("the refinement panicked".into()))
+                });
+            inner.metrics.jobs_running.dec();
+            drop(permit);
+            outcome
+        }
+        _ => Outcome::Cancelled,
+    };
+    let state = match &outcome {
+        Outcome::Succeeded(_) => "succeeded",
+        Outcome::Failed(_) => "failed",
+        Outcome::Cancelled => "cancelled",
+    };
+    inner.metrics.jobs_finished.get_or_create(&StateLabel { state }).inc();
+    tracing::info!(job = %job.id, state, "job finished");
+    job.finish(outcome);
+    let mut table = inner.table.lock().expect("job table poisoned");
+    table.finished.push_back(job.id.clone());
+    while table.finished.len() > FINISHED_KEPT {
+        let oldest = table.finished.pop_front().expect("non-empty");
+        if table.jobs.get(&oldest).is_some_and(|j| j.is_finished()) {
+            table.jobs.remove(&oldest);
+        }
+    }
+}
+
+/// Reports progress into the job's watch channel and reads its cancel flag.
+struct JobObserver<'a> {
+    job: &'a Job,
+}
+
+impl Observer for JobObserver<'_> {
+    fn progress(&mut self, p: &Progress) {
+        let event = ProgressEvent {
+            vertices: p.vertices,
+            triangles: p.triangles,
+            worst: p.worst,
+            elapsed_ms: p.elapsed.as_secs_f64() * 1e3,
+        };
+        self.job.state.send_modify(|s| {
+            s.seq += 1;
+            s.progress = Some(event);
+        });
+    }
+
+    fn is_cancelled(&self) -> bool {
+        self.job.cancel.load(Ordering::Relaxed)
+    }
+}
+
+/// The blocking part: refine, write the document, cache it.
+fn compute(job: &Job, spec: &JobSpec, cache: &Cache) -> Outcome {
+    let result = match refine(&*spec.source, spec.domain, &spec.params, &mut JobObserver { job }) {
+        Ok(r) => r,
+        Err(e) => return Outcome::Failed(JobError::Refine(e)),
+    };
+    if result.stats.stop == StopReason::Cancelled {
+        return Outcome::Cancelled;
+    }
+    let body = match serde_json::to_vec(&MeshDocument::with_id(&result, &job.id)) {
+        Ok(body) => Bytes::from(body),
+        Err(e) => return Outcome::Failed(JobError::Internal(e.to_string())),
+    };
+    let stats = serde_json::to_value(&result.stats).expect("stats serialize");
+    let finished = Arc::new(Finished { body, stats });
+    cache.insert(&job.id, finished.clone());
+    Outcome::Succeeded(finished)
+}

@@ -1,0 +1,164 @@
+//! JobSpec: a request validated against the server's limits, in canonical form.
+
+use crate::api::JobRequest;
+use crate::geom::Rect;
+use crate::refine::{Params, ParamsError};
+use crate::source::{ExprError, Expression, Grid, GridError, Source};
+use std::sync::Arc;
+use std::time::Duration;
+
+/// The limits a request is checked against (from the server's config).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Limits {
+    /// Largest `max_vertices`.
+    pub max_vertices: usize,
+    /// Largest nx·ny.
+    pub max_grid_points: usize,
+    /// Longest expression, in characters.
+    pub max_expression_len: usize,
+    /// Longest run; also the default time limit.
+    pub job_time_limit: Duration,
+}
+
+/// The budget a request gets when it names none.
+pub const DEFAULT_MAX_VERTICES: u64 = 10_000;
+
+/// A validated request: what to mesh and how. Built only by [`JobSpec::from_request`].
+#[derive(Debug, Clone)]
+pub struct JobSpec {
+    /// F.
+    pub source: Arc<Source>,
+    /// The rectangle.
+    pub domain: Rect,
+    /// Method, criterion and stop rules, with the time limit already capped.
+    pub params: Params,
+}
+
+/// Why a request is not a valid job. Each variant says where the problem is.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SpecError {
+    /// Neither or both of `function` and `grid`.
+    #[error("give exactly one of `function` and `grid`{0}")]
+    Source(&'static str),
+    /// The expression does not parse.
+    #[error("function: {0}")]
+    Expression(ExprError),
+    /// The grid is malformed; `index` is its (i, j) when one value is at fault.
+    #[error("grid: {detail}")]
+    Grid {
+        /// What is wrong.
+        detail: String,
+        /// [i, j] of the bad value.
+        index: Option<[usize; 2]>,
+    },
+    /// The domain is empty, reversed or not finite.
+    #[error("domain: {0}")]
+    Domain(String),
+    /// A parameter out of its range.
+    #[error("{0}")]
+    Parameter(ParamsError),
+    /// A server limit is exceeded.
+    #[error("{name} is {value}, above this server's limit of {limit}")]
+    Limit {
+        /// The request field.
+        name: &'static str,
+        /// The configuration variable that sets the limit.
+        setting: &'static str,
+        /// The limit.
+        limit: u64,
+        /// What the request asked for.
+        value: u64,
+    },
+}
+
+impl JobSpec {
+    /// Validates `request`: fills in defaults, checks limits, parses the expression.
+    ///
+    /// # Errors
+    /// The first problem found, in field order: source, limits, expression or grid, domain,
+    /// parameters.
+    pub fn from_request(request: JobRequest, limits: &Limits) -> Result<Self, SpecError> {
+        let source = match (request.function, request.grid) {
+            (None, None) => return Err(SpecError::Source(", none given")),
+            (Some(_), Some(_)) => return Err(SpecError::Source(", not both")),
+            (Some(text), None) => {
+                let len = text.chars().count();
+                if len > limits.max_expression_len {
+                    return Err(SpecError::Limit {
+                        name: "function length",
+                        setting: "MESHFIT_MAX_EXPRESSION_LEN",
+                        limit: limits.max_expression_len as u64,
+                        value: len as u64,
+                    });
+                }
+                Source::Expression(Expression::parse(&text).map_err(SpecError::Expression)?)
+            }
+            (None, Some(grid)) => {
+                let points = grid.nx.saturating_mul(grid.ny);
+                if points > limits.max_grid_points as u64 {
+                    return Err(SpecError::Limit {
+                        name: "grid nx*ny",
+                        setting: "MESHFIT_MAX_GRID_POINTS",
+                        limit: limits.max_grid_points as u64,
+                        value: points,
+                    });
+                }
+                let (nx, ny) = (grid.nx as usize, grid.ny as usize);
+                let mut values = grid.values.values;
+                if let Some((k, kind)) = grid.values.first_bad
+                    && nx >= 2
+                    && values.len() == nx * ny
+                {
+                    return Err(SpecError::Grid {
+                        detail: format!(
+                            "value at index [{}, {}] (values[{k}]) is {kind}, not a number",
+                            k % nx,
+                            k / nx
+                        ),
+                        index: Some([k % nx, k / nx]),
+                    });
+                }
+                // -0.0 and 0.0 are one value: one canonical form, one cache entry.
+                values.iter_mut().for_each(|v| *v += 0.0);
+                let grid = Grid::new(nx, ny, values).map_err(|e| SpecError::Grid {
+                    index: match e {
+                        GridError::NonFinite { i, j, .. } => Some([i, j]),
+                        _ => None,
+                    },
+                    detail: e.to_string(),
+                })?;
+                Source::Grid(grid)
+            }
+        };
+        let domain = match request.domain {
+            None => source.default_domain(),
+            Some(d) => Rect::new(d.x[0] + 0.0, d.x[1] + 0.0, d.y[0] + 0.0, d.y[1] + 0.0)
+                .map_err(|e| SpecError::Domain(e.to_string()))?,
+        };
+        let source = match source {
+            Source::Grid(g) => Source::Grid(g.with_domain(domain)),
+            s => s,
+        };
+        let max_vertices = request.max_vertices.unwrap_or(DEFAULT_MAX_VERTICES);
+        if max_vertices > limits.max_vertices as u64 {
+            return Err(SpecError::Limit {
+                name: "max_vertices",
+                setting: "MESHFIT_MAX_VERTICES",
+                limit: limits.max_vertices as u64,
+                value: max_vertices,
+            });
+        }
+        let time_limit = request
+            .time_limit_ms
+            .map_or(limits.job_time_limit, |ms| Duration::from_millis(ms).min(limits.job_time_limit));
+        let mut params = Params::new(max_vertices as usize)
+            .map_err(SpecError::Parameter)?
+            .with_method(request.method.unwrap_or_default())
+            .with_criterion(request.criterion.unwrap_or_default())
+            .with_time_limit(time_limit);
+        if let Some(t) = request.tolerance {
+            params = params.with_tolerance(t + 0.0).map_err(SpecError::Parameter)?;
+        }
+        Ok(Self { source: Arc::new(source), domain, params })
+    }
+}

@@ -1,0 +1,91 @@
+//! Prometheus metrics, served as text at `GET /metrics`.
+//!
+//! prometheus-client is the Prometheus project's own Rust client: typed metric families and
+//! the text exposition format, without a global registry.
+
+use prometheus_client::encoding::EncodeLabelSet;
+use prometheus_client::metrics::counter::Counter;
+use prometheus_client::metrics::family::Family;
+use prometheus_client::metrics::gauge::Gauge;
+use prometheus_client::metrics::histogram::{Histogram, exponential_buckets};
+use prometheus_client::registry::Registry;
+
+/// Labels of finished jobs.
+#[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
+pub struct StateLabel {
+    /// succeeded, failed or cancelled.
+    pub state: &'static str,
+}
+
+/// Labels of HTTP requests.
+#[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
+pub struct RequestLabels {
+    /// The HTTP method.
+    pub method: String,
+    /// The status code.
+    pub status: u16,
+}
+
+/// Every metric the service exports.
+pub struct Metrics {
+    registry: Registry,
+    /// Jobs waiting for a worker.
+    pub jobs_queued: Gauge,
+    /// Jobs refining now.
+    pub jobs_running: Gauge,
+    /// Jobs finished, by final state.
+    pub jobs_finished: Family<StateLabel, Counter>,
+    /// Refinements started (a cache hit or a joined job starts none).
+    pub engine_runs: Counter,
+    /// Requests answered from the cache.
+    pub cache_hits: Counter,
+    /// Requests that had to compute (or join a computation).
+    pub cache_misses: Counter,
+    /// Bytes of meshes held in memory.
+    pub cache_bytes: Gauge,
+    /// Requests, by method and status.
+    pub http_requests: Family<RequestLabels, Counter>,
+    /// Request latency until the response head, in seconds.
+    pub http_latency: Histogram,
+}
+
+impl Default for Metrics {
+    fn default() -> Self {
+        let mut registry = Registry::with_prefix("meshfit");
+        let m = Self {
+            jobs_queued: Gauge::default(),
+            jobs_running: Gauge::default(),
+            jobs_finished: Family::default(),
+            engine_runs: Counter::default(),
+            cache_hits: Counter::default(),
+            cache_misses: Counter::default(),
+            cache_bytes: Gauge::default(),
+            http_requests: Family::default(),
+            http_latency: Histogram::new(exponential_buckets(0.0005, 4.0, 10)),
+            registry: Registry::default(),
+        };
+        registry.register("jobs_queued", "Jobs waiting for a worker", m.jobs_queued.clone());
+        registry.register("jobs_running", "Jobs refining now", m.jobs_running.clone());
+        registry.register("jobs_finished", "Jobs finished, by final state", m.jobs_finished.clone());
+        registry.register("engine_runs", "Refinements started", m.engine_runs.clone());
+        registry.register("cache_hits", "Requests answered from the cache", m.cache_hits.clone());
+        registry.register("cache_misses", "Requests not answered from the cache", m.cache_misses.clone());
+        registry.register("cache_bytes", "Bytes of meshes held in memory", m.cache_bytes.clone());
+        registry.register("http_requests", "HTTP requests by method and status", m.http_requests.clone());
+        registry.register(
+            "http_request_duration_seconds",
+            "Time to the response head",
+            m.http_latency.clone(),
+        );
+        Self { registry, ..m }
+    }
+}
+
+impl Metrics {
+    /// The text exposition format.
+    pub fn encode(&self) -> String {
+        let mut out = String::new();
+        prometheus_client::encoding::text::encode(&mut out, &self.registry).expect("writing to a String");
+        out
+    }
+}
