@@ -44,10 +44,10 @@ pub struct GridInput {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DomainInput {
-    /// [a, b] with a < b.
-    pub x: [f64; 2],
+    /// [a, b] with a < b (a list, so a wrong length gets a clear message, not serde's).
+    pub x: Vec<f64>,
     /// [c, d] with c < d.
-    pub y: [f64; 2],
+    pub y: Vec<f64>,
 }
 
 /// Grid values as parsed, remembering where the first non-number was, so the error can name

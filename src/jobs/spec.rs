@@ -71,6 +71,14 @@ pub enum SpecError {
     },
 }
 
+/// The two bounds of one axis, with -0.0 made 0.0 (one value, one cache key).
+fn pair(axis: &str, bounds: &[f64]) -> Result<[f64; 2], SpecError> {
+    match bounds {
+        &[lo, hi] => Ok([lo + 0.0, hi + 0.0]),
+        _ => Err(SpecError::Domain(format!("{axis} must be [low, high], got {} numbers", bounds.len()))),
+    }
+}
+
 impl JobSpec {
     /// Validates `request`: fills in defaults, checks limits, parses the expression.
     ///
@@ -132,8 +140,10 @@ impl JobSpec {
         };
         let domain = match request.domain {
             None => source.default_domain(),
-            Some(d) => Rect::new(d.x[0] + 0.0, d.x[1] + 0.0, d.y[0] + 0.0, d.y[1] + 0.0)
-                .map_err(|e| SpecError::Domain(e.to_string()))?,
+            Some(d) => {
+                let ([a, b], [c, e]) = (pair("x", &d.x)?, pair("y", &d.y)?);
+                Rect::new(a, b, c, e).map_err(|e| SpecError::Domain(e.to_string()))?
+            }
         };
         let source = match source {
             Source::Grid(g) => Source::Grid(g.with_domain(domain)),

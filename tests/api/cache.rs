@@ -1,0 +1,58 @@
+//! The disk cache: results survive a restart; a corrupt file is recomputed, never served.
+
+use crate::helpers::{spawn_with, temp_dir, test_config};
+use serde_json::{Value, json};
+
+fn with_dir(dir: &std::path::Path) -> meshfit::config::Config {
+    let mut config = test_config();
+    config.cache_dir = Some(dir.to_owned());
+    config
+}
+
+#[tokio::test]
+async fn a_restart_with_a_cache_dir_serves_the_old_result_without_recomputing() {
+    let dir = temp_dir("restart");
+    let body = json!({"function": "cos(4*x*y)", "max_vertices": 5000});
+    let first = spawn_with(with_dir(&dir)).await;
+    let original = first.post("/v1/meshes", &body).await.bytes().await.unwrap();
+    first.shutdown().await;
+
+    let second = spawn_with(with_dir(&dir)).await;
+    let response = second.post("/v1/meshes", &body).await;
+    assert_eq!(response.headers()["x-cache"], "hit");
+    assert_eq!(response.bytes().await.unwrap(), original);
+    assert_eq!(second.metric("meshfit_engine_runs_total").await, 0.0);
+    // Status and mesh endpoints find it too, with no job record in this process.
+    let id = serde_json::from_slice::<Value>(&original).unwrap()["id"].as_str().unwrap().to_owned();
+    let status: Value = second.get(&format!("/v1/jobs/{id}")).await.json().await.unwrap();
+    assert_eq!(status["status"], "succeeded");
+    second.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_corrupt_cache_file_is_recomputed_not_served() {
+    let dir = temp_dir("corrupt");
+    let body = json!({"function": "x^3 - y", "max_vertices": 3000});
+    let first = spawn_with(with_dir(&dir)).await;
+    let original: Value = first.post("/v1/meshes", &body).await.json().await.unwrap();
+    first.shutdown().await;
+
+    let file = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|e| e == "mesh"))
+        .unwrap();
+    let mut bytes = std::fs::read(&file).unwrap();
+    let n = bytes.len();
+    bytes[n - 20] ^= 0x20;
+    std::fs::write(&file, bytes).unwrap();
+
+    let second = spawn_with(with_dir(&dir)).await;
+    let response = second.post("/v1/meshes", &body).await;
+    assert_eq!(response.headers()["x-cache"], "miss");
+    let recomputed: Value = response.json().await.unwrap();
+    assert_eq!(second.metric("meshfit_engine_runs_total").await, 1.0);
+    assert_eq!(recomputed["vertices"], original["vertices"]);
+    assert_eq!(recomputed["triangles"], original["triangles"]);
+    second.shutdown().await;
+}

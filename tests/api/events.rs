@@ -1,0 +1,109 @@
+//! Server-sent events: order, ids, the final event, reconnection.
+
+use crate::helpers::{read_events, spawn_app};
+use serde_json::{Value, json};
+
+#[tokio::test]
+async fn the_stream_sends_progress_before_one_result_equal_to_the_stored_mesh() {
+    let app = spawn_app().await;
+    let body = json!({"function": "sin(9*x)*cos(7*y) + x", "max_vertices": 600_000});
+    let response = app
+        .client
+        .post(app.url("/v1/meshes"))
+        .header("accept", "text/event-stream")
+        .json(&body)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 200);
+    let events = read_events(response).await;
+    let (last, progress) = events.split_last().expect("at least the result");
+    assert_eq!(last.event, "result", "the stream ends with the result");
+    assert!(!progress.is_empty(), "a 600k-vertex job reports progress");
+    assert!(progress.iter().all(|e| e.event == "progress"), "only progress before the result");
+    let ids: Vec<u64> = events.iter().map(|e| e.id.expect("every event has an id")).collect();
+    assert!(ids.windows(2).all(|w| w[0] < w[1]), "ids increase: {ids:?}");
+    let counts: Vec<(u64, u64)> = progress
+        .iter()
+        .map(|e| {
+            let p: Value = serde_json::from_str(&e.data).unwrap();
+            (p["vertices"].as_u64().unwrap(), p["triangles"].as_u64().unwrap())
+        })
+        .collect();
+    assert!(counts.windows(2).all(|w| w[0].0 <= w[1].0 && w[0].1 <= w[1].1), "{counts:?}");
+
+    let result: Value = serde_json::from_str(&last.data).unwrap();
+    let id = result["id"].as_str().unwrap();
+    let stored: Value = app.get(&format!("/v1/jobs/{id}/mesh")).await.json().await.unwrap();
+    assert_eq!(result, stored);
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_finished_job_sends_its_final_event_at_once_and_last_event_id_skips_it() {
+    let app = spawn_app().await;
+    let status: Value =
+        app.post("/v1/jobs", &json!({"function": "x*y", "max_vertices": 100})).await.json().await.unwrap();
+    let id = status["id"].as_str().unwrap();
+    app.wait_finished(id).await;
+    let events = read_events(app.get(&format!("/v1/jobs/{id}/events")).await).await;
+    assert_eq!(events.len(), 1, "{events:?}");
+    assert_eq!(events[0].event, "result");
+    let seen = events[0].id.unwrap();
+    let again = app
+        .client
+        .get(app.url(&format!("/v1/jobs/{id}/events")))
+        .header("last-event-id", seen.to_string())
+        .send()
+        .await
+        .unwrap();
+    assert!(read_events(again).await.is_empty(), "nothing new after the final event");
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_reconnecting_client_is_not_sent_progress_it_has_seen() {
+    let app = spawn_app().await;
+    let status: Value = app
+        .post("/v1/jobs", &json!({"function": "sin(21*x)*y", "max_vertices": 600_000}))
+        .await
+        .json()
+        .await
+        .unwrap();
+    let id = status["id"].as_str().unwrap();
+    app.wait_finished(id).await;
+    // Progress ids of a finished job are all below the final id; resuming after id 1 sends
+    // only the final event (the job's progress is history).
+    let events = read_events(
+        app.client
+            .get(app.url(&format!("/v1/jobs/{id}/events")))
+            .header("last-event-id", "1")
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(events.len(), 1);
+    assert!(events[0].id.unwrap() > 1);
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_failing_job_streams_an_error_event_with_the_problem() {
+    let app = spawn_app().await;
+    let response = app
+        .client
+        .post(app.url("/v1/meshes"))
+        .header("accept", "text/event-stream")
+        .json(&json!({"function": "ln(x - 0.5)"}))
+        .send()
+        .await
+        .unwrap();
+    let events = read_events(response).await;
+    let last = events.last().unwrap();
+    assert_eq!(last.event, "error");
+    let problem: Value = serde_json::from_str(&last.data).unwrap();
+    assert_eq!(problem["type"], "/problems/non-finite-value");
+    assert_eq!(problem["status"], 422);
+    app.shutdown().await;
+}

@@ -1,0 +1,248 @@
+//! Meshes and jobs: results, ids, the cache, joining, cancellation, the queue.
+
+use crate::helpers::spawn_app;
+use serde_json::{Value, json};
+use std::time::{Duration, Instant};
+
+#[tokio::test]
+async fn post_meshes_returns_the_mesh_document_with_its_id_as_etag() {
+    let app = spawn_app().await;
+    let response = app.post("/v1/meshes", &json!({"function": "sin(x)*cos(y)", "max_vertices": 500})).await;
+    assert_eq!(response.status(), 200);
+    assert_eq!(response.headers()["content-type"], "application/json");
+    assert_eq!(response.headers()["x-cache"], "miss");
+    let etag = response.headers()["etag"].to_str().unwrap().to_owned();
+    let doc: Value = response.json().await.unwrap();
+    assert_eq!(etag, format!("\"{}\"", doc["id"].as_str().unwrap()));
+    assert_eq!(doc["id"].as_str().unwrap().len(), 64);
+    assert_eq!(doc["vertices"].as_array().unwrap().len(), 500);
+    assert_eq!(doc["stats"]["vertices"], 500);
+    assert_eq!(doc["stats"]["delaunay"], true);
+    let triangles = doc["triangles"].as_array().unwrap();
+    assert_eq!(doc["stats"]["triangles"].as_u64().unwrap() as usize, triangles.len());
+    // The corner P3 = (1, 1) carries F(1, 1).
+    assert_eq!(doc["vertices"][2], json!([1.0, 1.0, 1f64.sin() * 1f64.cos()]));
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_repeated_request_is_a_cache_hit_with_the_same_id_and_bytes() {
+    let app = spawn_app().await;
+    let body = json!({"function": "x^2 - y", "max_vertices": 2000, "method": "recursive"});
+    let first = app.post("/v1/meshes", &body).await;
+    let first_etag = first.headers()["etag"].clone();
+    let first_bytes = first.bytes().await.unwrap();
+    let second = app.post("/v1/meshes", &body).await;
+    assert_eq!(second.headers()["x-cache"], "hit");
+    assert_eq!(second.headers()["etag"], first_etag);
+    assert_eq!(second.bytes().await.unwrap(), first_bytes, "byte-identical body");
+    assert_eq!(app.metric("meshfit_engine_runs_total").await, 1.0);
+    assert_eq!(app.metric("meshfit_cache_hits_total").await, 1.0);
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn key_order_number_spelling_and_defaults_do_not_change_the_id() {
+    let app = spawn_app().await;
+    let id = |doc: Value| doc["id"].as_str().unwrap().to_owned();
+    let short: Value =
+        app.post("/v1/meshes", &json!({"function": "x*y", "tolerance": 1})).await.json().await.unwrap();
+    let spelled_out = r#"{"tolerance": 1.0, "criterion": "variation", "method": "semi-recursive",
+        "domain": {"y": [0, 1.0], "x": [0.0, 1]}, "max_vertices": 10000, "function": "x*y"}"#;
+    let long: Value = app.post_raw("/v1/meshes", spelled_out).await.json().await.unwrap();
+    assert_eq!(id(short.clone()), id(long));
+    let other: Value = app
+        .post("/v1/meshes", &json!({"function": "x*y", "tolerance": 1, "max_vertices": 9999}))
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_ne!(id(short), id(other), "a different budget is a different job");
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn if_none_match_with_the_etag_answers_304() {
+    let app = spawn_app().await;
+    let body = json!({"function": "x+y", "max_vertices": 50});
+    let etag = app.post("/v1/meshes", &body).await.headers()["etag"].clone();
+    let again = app
+        .client
+        .post(app.url("/v1/meshes"))
+        .json(&body)
+        .header("if-none-match", etag.clone())
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(again.status(), 304);
+    assert!(again.bytes().await.unwrap().is_empty());
+    let id = etag.to_str().unwrap().trim_matches('"').to_owned();
+    let mesh = app
+        .client
+        .get(app.url(&format!("/v1/jobs/{id}/mesh")))
+        .header("if-none-match", etag)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(mesh.status(), 304);
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_job_is_accepted_then_reports_its_status_and_serves_its_mesh() {
+    let app = spawn_app().await;
+    let body = json!({"function": "exp(-10*((x-0.3)^2+(y-0.6)^2))", "max_vertices": 20000});
+    let created = app.post("/v1/jobs", &body).await;
+    assert_eq!(created.status(), 202);
+    let location = created.headers()["location"].to_str().unwrap().to_owned();
+    let status: Value = created.json().await.unwrap();
+    let id = status["id"].as_str().unwrap().to_owned();
+    assert_eq!(location, format!("/v1/jobs/{id}"));
+    assert!(matches!(status["status"].as_str(), Some("queued" | "running")), "{status}");
+    assert_eq!(status["links"]["mesh"], format!("/v1/jobs/{id}/mesh"));
+
+    let done = app.wait_finished(&id).await;
+    assert_eq!(done["status"], "succeeded");
+    assert_eq!(done["stats"]["vertices"], 20000);
+    let mesh = app.get(&format!("/v1/jobs/{id}/mesh")).await;
+    assert_eq!(mesh.status(), 200);
+    let mesh: Value = mesh.json().await.unwrap();
+    assert_eq!(mesh["stats"], done["stats"]);
+    // Submitting it again finds the finished job: 200, not 202.
+    assert_eq!(app.post("/v1/jobs", &body).await.status(), 200);
+    // The synchronous endpoint serves the same document from the cache.
+    let sync = app.post("/v1/meshes", &body).await;
+    assert_eq!(sync.headers()["x-cache"], "hit");
+    assert_eq!(sync.json::<Value>().await.unwrap(), mesh);
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn unknown_jobs_are_404_and_unfinished_meshes_are_409() {
+    let app = spawn_app().await;
+    let unknown = "0".repeat(64);
+    for path in [
+        format!("/v1/jobs/{unknown}"),
+        format!("/v1/jobs/{unknown}/mesh"),
+        format!("/v1/jobs/{unknown}/events"),
+    ] {
+        let response = app.get(&path).await;
+        assert_eq!(response.status(), 404, "{path}");
+        assert_eq!(response.headers()["content-type"], "application/problem+json");
+    }
+    assert_eq!(app.delete(&format!("/v1/jobs/{unknown}")).await.status(), 404);
+
+    let status: Value = app
+        .post("/v1/jobs", &json!({"function": "sin(40*x*y)", "max_vertices": 2_000_000}))
+        .await
+        .json()
+        .await
+        .unwrap();
+    let id = status["id"].as_str().unwrap();
+    let mesh = app.get(&format!("/v1/jobs/{id}/mesh")).await;
+    assert_eq!(mesh.status(), 409);
+    let problem: Value = mesh.json().await.unwrap();
+    assert_eq!(problem["type"], "/problems/not-finished");
+    app.delete(&format!("/v1/jobs/{id}")).await;
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn concurrent_identical_requests_run_the_engine_once() {
+    let app = spawn_app().await;
+    let body = json!({"function": "sin(7*x)*cos(5*y)", "max_vertices": 300_000});
+    let requests = (0..4).map(|_| app.post("/v1/meshes", &body));
+    let responses = futures_util::future::join_all(requests).await;
+    let mut bodies = Vec::new();
+    for r in responses {
+        assert_eq!(r.status(), 200);
+        bodies.push(r.bytes().await.unwrap());
+    }
+    assert!(bodies.windows(2).all(|w| w[0] == w[1]), "every client gets the same document");
+    assert_eq!(app.metric("meshfit_engine_runs_total").await, 1.0);
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn delete_stops_a_two_million_vertex_job_within_a_second() {
+    let app = spawn_app().await;
+    let status: Value = app
+        .post("/v1/jobs", &json!({"function": "sin(30*x)*cos(30*y)", "max_vertices": 2_000_000}))
+        .await
+        .json()
+        .await
+        .unwrap();
+    let id = status["id"].as_str().unwrap().to_owned();
+    app.wait_running(&id).await;
+    let start = Instant::now();
+    let cancelled = app.delete(&format!("/v1/jobs/{id}")).await;
+    let took = start.elapsed();
+    assert_eq!(cancelled.status(), 200);
+    let cancelled: Value = cancelled.json().await.unwrap();
+    assert_eq!(cancelled["status"], "cancelled");
+    assert!(took < Duration::from_secs(1), "cancel took {took:?}");
+    assert_eq!(app.metric("meshfit_jobs_running").await, 0.0);
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_client_that_hangs_up_cancels_its_synchronous_job() {
+    let app = spawn_app().await;
+    let impatient = reqwest::Client::builder().timeout(Duration::from_millis(300)).build().unwrap();
+    let body = json!({"function": "sin(33*x)*cos(31*y)", "max_vertices": 2_000_000});
+    let result = impatient.post(app.url("/v1/meshes")).json(&body).send().await;
+    assert!(result.is_err(), "the request should time out on the client side");
+    for _ in 0..100 {
+        if app.metric("meshfit_jobs_finished_total{state=\"cancelled\"}").await == 1.0 {
+            app.shutdown().await;
+            return;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    panic!("the job was not cancelled after its client left");
+}
+
+#[tokio::test]
+async fn a_full_queue_answers_503_with_retry_after_while_healthz_stays_fast() {
+    let mut config = crate::helpers::test_config();
+    config.workers = std::num::NonZeroUsize::new(1).unwrap();
+    config.queue = 1;
+    let app = crate::helpers::spawn_with(config).await;
+    let job = |k: u32| json!({"function": format!("sin({k}*x)*cos(y)"), "max_vertices": 2_000_000});
+    let running: Value = app.post("/v1/jobs", &job(11)).await.json().await.unwrap();
+    app.wait_running(running["id"].as_str().unwrap()).await;
+    let queued: Value = app.post("/v1/jobs", &job(12)).await.json().await.unwrap();
+    assert_eq!(queued["status"], "queued");
+
+    let refused = app.post("/v1/jobs", &job(13)).await;
+    assert_eq!(refused.status(), 503);
+    assert_eq!(refused.headers()["retry-after"], "1");
+    let problem: Value = refused.json().await.unwrap();
+    assert_eq!(problem["type"], "/problems/queue-full");
+    assert_eq!(app.get("/readyz").await.status(), 503);
+
+    let start = Instant::now();
+    assert_eq!(app.get("/healthz").await.status(), 200);
+    assert!(start.elapsed() < Duration::from_millis(500), "healthz took {:?}", start.elapsed());
+
+    for status in [running, queued] {
+        app.delete(&format!("/v1/jobs/{}", status["id"].as_str().unwrap())).await;
+    }
+    assert_eq!(app.get("/readyz").await.status(), 200);
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn f_not_finite_fails_the_job_with_the_point() {
+    let app = spawn_app().await;
+    let response = app.post("/v1/meshes", &json!({"function": "1/(x - 0.5)"})).await;
+    assert_eq!(response.status(), 422);
+    let problem: Value = response.json().await.unwrap();
+    assert_eq!(problem["type"], "/problems/non-finite-value");
+    assert_eq!(problem["point"][0], 0.5);
+    // The job's status carries the same problem.
+    let status: Value = app.post("/v1/jobs", &json!({"function": "1/(x - 0.5)"})).await.json().await.unwrap();
+    assert_eq!(status["status"], "failed");
+    assert_eq!(status["problem"]["point"], problem["point"]);
+    app.shutdown().await;
+}

@@ -1,0 +1,9 @@
+//! The HTTP API, tested through a real server on a loopback port with reqwest.
+//! One binary for every API test: each file under tests/ would otherwise link separately.
+
+mod cache;
+mod errors;
+mod events;
+mod helpers;
+mod jobs;
+mod service;

@@ -1,0 +1,89 @@
+//! Health, metrics, the OpenAPI document, request ids and shutdown.
+
+use crate::helpers::spawn_app;
+use meshfit::http::ROUTES;
+use serde_json::{Value, json};
+
+#[tokio::test]
+async fn openapi_yaml_parses_and_names_every_route_the_router_serves() {
+    let app = spawn_app().await;
+    let response = app.get("/openapi.yaml").await;
+    assert_eq!(response.status(), 200);
+    let doc: serde_yaml_ng::Value = serde_yaml_ng::from_str(&response.text().await.unwrap()).unwrap();
+    assert_eq!(doc["openapi"].as_str(), Some("3.1.0"));
+    for (method, path) in ROUTES {
+        assert!(doc["paths"][*path][*method].is_mapping(), "openapi.yaml lacks {method} {path}");
+    }
+    let documented: usize = doc["paths"]
+        .as_mapping()
+        .unwrap()
+        .values()
+        .map(|p| p.as_mapping().unwrap().keys().filter(|k| k.as_str() != Some("parameters")).count())
+        .sum();
+    assert_eq!(documented, ROUTES.len(), "openapi.yaml documents a route the router lacks");
+    // Every route in the list is really served (not the 404 fallback).
+    for (method, path) in ROUTES {
+        let path = path.replace("{id}", &"0".repeat(64));
+        let response =
+            app.client.request(method.to_uppercase().parse().unwrap(), app.url(&path)).send().await.unwrap();
+        let problem: Option<Value> = response.json().await.ok();
+        let no_route =
+            problem.is_some_and(|p| p["detail"].as_str().is_some_and(|d| d.starts_with("no such route")));
+        assert!(!no_route, "{method} {path} is not routed");
+    }
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn metrics_report_jobs_cache_and_request_latency() {
+    let app = spawn_app().await;
+    app.post("/v1/meshes", &json!({"function": "x", "max_vertices": 10})).await;
+    app.post("/v1/meshes", &json!({"function": "x", "max_vertices": 10})).await;
+    let text = app.get("/metrics").await.text().await.unwrap();
+    for name in [
+        "meshfit_jobs_queued",
+        "meshfit_jobs_running",
+        "meshfit_jobs_finished_total{state=\"succeeded\"} 1",
+        "meshfit_engine_runs_total 1",
+        "meshfit_cache_hits_total 1",
+        "meshfit_cache_misses_total 1",
+        "meshfit_cache_bytes",
+        "meshfit_http_request_duration_seconds_bucket",
+        "meshfit_http_requests_total{method=\"POST\",status=\"200\"} 2",
+    ] {
+        assert!(text.contains(name), "/metrics lacks {name}:\n{text}");
+    }
+    assert!(app.metric("meshfit_cache_bytes").await > 0.0);
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn every_response_carries_a_request_id() {
+    let app = spawn_app().await;
+    let ok = app.get("/healthz").await;
+    let not_found = app.get("/nope").await;
+    for response in [ok, not_found] {
+        let id = response.headers()["x-request-id"].to_str().unwrap();
+        assert_eq!(id.len(), 36, "a UUID: {id}");
+    }
+    let given = app.client.get(app.url("/healthz")).header("x-request-id", "abc-123").send().await.unwrap();
+    assert_eq!(given.headers()["x-request-id"], "abc-123");
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn shutdown_cancels_a_detached_job_after_the_grace_period_and_returns() {
+    let mut config = crate::helpers::test_config();
+    config.shutdown_grace = std::time::Duration::from_millis(200);
+    let app = crate::helpers::spawn_with(config).await;
+    let status: Value = app
+        .post("/v1/jobs", &json!({"function": "sin(50*x)*cos(50*y)", "max_vertices": 2_000_000}))
+        .await
+        .json()
+        .await
+        .unwrap();
+    app.wait_running(status["id"].as_str().unwrap()).await;
+    let start = std::time::Instant::now();
+    app.shutdown().await;
+    assert!(start.elapsed() < std::time::Duration::from_secs(2), "shutdown took {:?}", start.elapsed());
+}
