@@ -3,6 +3,7 @@
 use crate::refine::{Criterion, Method};
 use serde::de::{self, Deserializer, IgnoredAny, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
+use std::cell::Cell;
 use std::fmt;
 
 /// The body of `POST /v1/meshes` and `POST /v1/jobs`. Unknown fields are rejected, so a typo
@@ -54,10 +55,29 @@ pub struct DomainInput {
 /// its (i, j) once nx is known (serde alone would only give a line and column of the body).
 #[derive(Debug, Clone, Default)]
 pub struct GridValues {
-    /// The numbers (a non-number is stored as NaN).
+    /// The numbers (a non-number is stored as NaN), at most the limit set by
+    /// [`with_grid_limit`].
     pub values: Vec<f64>,
+    /// How many elements the array had, kept or not.
+    pub count: usize,
     /// Position and JSON kind of the first element that is not a number.
     pub first_bad: Option<(usize, &'static str)>,
+}
+
+thread_local! {
+    /// The most grid values a parse on this thread keeps. serde's derive cannot pass context
+    /// down to a field, so the caller sets it around one parse with [`with_grid_limit`]; the
+    /// rest of an oversized array is read and counted, never stored.
+    static GRID_LIMIT: Cell<usize> = const { Cell::new(usize::MAX) };
+}
+
+/// Runs `parse` keeping at most `limit` grid values, so a body full of numbers cannot grow a
+/// vector beyond the grid-point limit.
+pub fn with_grid_limit<T>(limit: usize, parse: impl FnOnce() -> T) -> T {
+    let previous = GRID_LIMIT.replace(limit);
+    let result = parse();
+    GRID_LIMIT.set(previous);
+    result
 }
 
 enum Element {
@@ -113,15 +133,20 @@ impl<'de> Deserialize<'de> for GridValues {
                 f.write_str("an array of numbers")
             }
             fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<GridValues, A::Error> {
+                let limit = GRID_LIMIT.get();
                 let mut out = GridValues::default();
                 while let Some(element) = seq.next_element::<Element>()? {
-                    match element {
-                        Element::Number(v) => out.values.push(v),
+                    let value = match element {
+                        Element::Number(v) => v,
                         Element::Bad(kind) => {
-                            out.first_bad.get_or_insert((out.values.len(), kind));
-                            out.values.push(f64::NAN);
+                            out.first_bad.get_or_insert((out.count, kind));
+                            f64::NAN
                         }
+                    };
+                    if out.count < limit {
+                        out.values.push(value);
                     }
+                    out.count += 1;
                 }
                 Ok(out)
             }

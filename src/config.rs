@@ -31,7 +31,8 @@ pub struct Config {
     pub max_vertices: usize,
     /// Largest nx·ny of a grid (`MESHFIT_MAX_GRID_POINTS`, default 16,777,216).
     pub max_grid_points: usize,
-    /// Largest request body (`MESHFIT_MAX_BODY_BYTES`, default 256 MiB, room for the largest grid).
+    /// Largest request body (`MESHFIT_MAX_BODY_BYTES`, default 256 MiB: a 4097 × 4097 grid
+    /// written with up to 14 characters per value; raise it for full-precision grids).
     pub max_body_bytes: usize,
     /// Longest expression in characters (`MESHFIT_MAX_EXPRESSION_LEN`, default 4096).
     pub max_expression_len: usize,

@@ -42,6 +42,9 @@ use std::sync::Arc;
 use std::time::Duration;
 use tokio::net::TcpListener;
 
+/// How long connections may drain after the grace period before the server stops anyway.
+const DRAIN_MARGIN: Duration = Duration::from_secs(5);
+
 /// Serves the API on `listener` until `shutdown` resolves, then stops taking jobs, lets
 /// running ones finish for `config.shutdown_grace`, cancels the rest and returns.
 ///
@@ -67,19 +70,29 @@ pub async fn serve(
     let app = http::router(http::AppState { jobs: jobs.clone(), limits }, config.max_body_bytes);
     let on_signal = jobs.clone();
     let grace = config.shutdown_grace;
-    axum::serve(listener, app)
-        .with_graceful_shutdown(async move {
-            shutdown.await;
-            tracing::info!(grace_ms = grace.as_millis() as u64, "shutting down: no new jobs");
-            on_signal.close();
-            // Open requests and streams end when their jobs do; past the grace period, make
-            // them end.
-            tokio::spawn(async move {
-                tokio::time::sleep(grace).await;
-                on_signal.cancel_all();
-            });
-        })
-        .await?;
+    let (signalled, mut on_signalled) = tokio::sync::watch::channel(false);
+    let server = axum::serve(listener, app).with_graceful_shutdown(async move {
+        shutdown.await;
+        tracing::info!(grace_ms = grace.as_millis() as u64, "shutting down: no new jobs");
+        on_signal.close();
+        let _ = signalled.send(true);
+        // Open requests and streams end when their jobs do; past the grace period, make
+        // them end.
+        tokio::spawn(async move {
+            tokio::time::sleep(grace).await;
+            on_signal.cancel_all();
+        });
+    });
+    // A connection can outlive its job (a slow reader of a large mesh): after the grace
+    // period and a margin to drain, stop waiting for it.
+    let hard_stop = async move {
+        let _ = on_signalled.wait_for(|&s| s).await;
+        tokio::time::sleep(grace + DRAIN_MARGIN).await;
+    };
+    tokio::select! {
+        served = server => served?,
+        () = hard_stop => tracing::warn!("connections still open after the grace period; closing them"),
+    }
     // Detached jobs have no connection to wait on: give them the same grace.
     let deadline = tokio::time::Instant::now() + grace;
     while jobs.is_busy() {

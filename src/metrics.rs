@@ -20,8 +20,8 @@ pub struct StateLabel {
 /// Labels of HTTP requests.
 #[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
 pub struct RequestLabels {
-    /// The HTTP method.
-    pub method: String,
+    /// The HTTP method: GET, POST, DELETE, HEAD or OTHER.
+    pub method: &'static str,
     /// The status code.
     pub status: u16,
 }

@@ -73,6 +73,11 @@ pub const MAX_COORDINATE: f64 = 1e60;
 /// edges round onto their endpoints long before any useful refinement.
 pub const MIN_RELATIVE_SIDE: f64 = 1e-9;
 
+/// The shortest side a rectangle may have. The predicates multiply up to four coordinate
+/// differences; with edges down to 1e-9 of a side of 1e-30, those products stay far above
+/// the subnormal range, where even exact predicates lose their guarantees.
+pub const MIN_SIDE: f64 = 1e-30;
+
 /// The closed rectangle [x0, x1] × [y0, y1] with x0 < x1 and y0 < y1, all finite.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Rect {
@@ -124,7 +129,7 @@ impl Rect {
     ///
     /// # Errors
     /// When a bound is not finite or beyond ±1e60, when a ≥ b or c ≥ d, or when a side is
-    /// shorter than 1e-9 times the largest coordinate magnitude.
+    /// shorter than 1e-30 or than 1e-9 times the largest coordinate magnitude.
     pub fn new(a: f64, b: f64, c: f64, d: f64) -> Result<Self, RectError> {
         for (name, value) in [("a", a), ("b", b), ("c", c), ("d", d)] {
             if !value.is_finite() {
@@ -143,7 +148,7 @@ impl Rect {
         }
         let magnitude = a.abs().max(b.abs()).max(c.abs()).max(d.abs());
         for (axis, side) in [("x", b - a), ("y", d - c)] {
-            if side < MIN_RELATIVE_SIDE * magnitude || side < f64::MIN_POSITIVE {
+            if side < MIN_RELATIVE_SIDE * magnitude || side < MIN_SIDE {
                 return Err(RectError::TooNarrow { axis, side });
             }
         }
@@ -217,6 +222,7 @@ mod tests {
         assert!(matches!(Rect::new(f64::NAN, 1.0, 0.0, 1.0), Err(RectError::NonFinite { name: "a" })));
         assert!(matches!(Rect::new(0.0, 1e61, 0.0, 1.0), Err(RectError::TooLarge { name: "b", .. })));
         assert!(matches!(Rect::new(1e9, 1e9 + 1e-3, 0.0, 1.0), Err(RectError::TooNarrow { axis: "x", .. })));
+        assert!(matches!(Rect::new(0.0, 1e-100, 0.0, 1.0), Err(RectError::TooNarrow { axis: "x", .. })));
         assert!(Rect::new(-3.0, 3.0, -3.0, 3.0).is_ok());
     }
 

@@ -3,8 +3,10 @@
 use super::AppState;
 use super::extract::{Body, parse_json};
 use super::problem::ApiError;
-use crate::api::{JobRequest, JobStatus, Links, ProgressEvent};
-use crate::jobs::{Finished, Found, Job, JobSpec, Outcome, Snapshot, Ticket, Waiter, job_id};
+use crate::api::{JobRequest, JobStatus, Links, ProgressEvent, with_grid_limit};
+use crate::jobs::{
+    Finished, Found, JobError, JobSpec, Outcome, Record, Snapshot, Status, Ticket, Waiter, job_id,
+};
 use axum::extract::{Path, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::sse::{Event, KeepAlive, Sse};
@@ -22,7 +24,7 @@ const PROGRESS_EVERY: Duration = Duration::from_millis(100);
 async fn prepare(state: &AppState, body: Body) -> Result<(String, JobSpec), ApiError> {
     let limits = state.limits;
     let (id, spec) = tokio::task::spawn_blocking(move || {
-        let request: JobRequest = parse_json(&body.0)?;
+        let request: JobRequest = with_grid_limit(limits.max_grid_points, || parse_json(&body.0))?;
         let spec = JobSpec::from_request(request, &limits)?;
         Ok::<_, ApiError>((job_id(&spec), spec))
     })
@@ -65,20 +67,30 @@ fn mesh_response(headers: &HeaderMap, id: &str, finished: &Finished, cache: &'st
     response
 }
 
-fn status_body(id: &str, snapshot: Option<&Snapshot>, cached: Option<&Finished>) -> JobStatus {
-    let (status, progress, stats, problem) = match snapshot {
-        Some(s) => {
+/// The status document of a job as it is now.
+fn status_body(id: &str, found: &Found) -> JobStatus {
+    let (status, progress, stats, problem) = match found {
+        Found::Job(job) => {
+            let s = job.snapshot();
             let (stats, problem) = match &s.outcome {
                 Some(Outcome::Succeeded(f)) => (Some(f.stats.clone()), None),
                 Some(Outcome::Failed(e)) => (None, Some(ApiError::from(e.clone()).to_json())),
                 Some(Outcome::Cancelled) => (None, Some(ApiError::Cancelled.to_json())),
                 None => (None, None),
             };
-            (s.status.as_str(), s.progress, stats, problem)
+            (s.status, s.progress, stats, problem)
         }
-        None => ("succeeded", None, cached.map(|f| f.stats.clone()), None),
+        Found::Done(r) => {
+            let problem = match (&r.error, r.status) {
+                (Some(e), _) => Some(ApiError::from(e.clone()).to_json()),
+                (None, Status::Cancelled) => Some(ApiError::Cancelled.to_json()),
+                _ => None,
+            };
+            (r.status, r.progress, r.stats.clone(), problem)
+        }
+        Found::Cached(f) => (Status::Succeeded, None, Some(f.stats.clone()), None),
     };
-    JobStatus { id: id.to_owned(), status, progress, stats, problem, links: Links::of(id) }
+    JobStatus { id: id.to_owned(), status: status.as_str(), progress, stats, problem, links: Links::of(id) }
 }
 
 /// `POST /v1/meshes`: the mesh, computed or cached; with `Accept: text/event-stream`, progress
@@ -91,19 +103,18 @@ pub async fn meshes_create(
     let (id, spec) = prepare(&state, body).await?;
     let stream = wants_event_stream(&headers);
     match state.jobs.submit(id.clone(), spec, false).await? {
-        Ticket::Cached(f) if stream => Ok(finished_stream(f).into_response()),
+        Ticket::Cached(f) if stream => Ok(final_stream(&Outcome::Succeeded(f)).into_response()),
         Ticket::Cached(f) => Ok(mesh_response(&headers, &id, &f, "hit")),
-        Ticket::Job(job) if stream => Ok(job_stream(job.attach(), 0).into_response()),
-        Ticket::Job(job) => {
-            // Dropped with this future if the client hangs up, which cancels a job nobody
-            // else waits on.
-            let waiter = job.attach();
-            match waiter.job().outcome().await {
-                Outcome::Succeeded(f) => Ok(mesh_response(&headers, &id, &f, "miss")),
-                Outcome::Failed(e) => Err(e.into()),
-                Outcome::Cancelled => Err(ApiError::Cancelled),
-            }
-        }
+        Ticket::Failed(e) if stream => Ok(final_stream(&Outcome::Failed(e)).into_response()),
+        Ticket::Failed(e) => Err(e.into()),
+        Ticket::Job(waiter) if stream => Ok(job_stream(waiter, 0).into_response()),
+        // The waiter is dropped with this future if the client hangs up, which cancels a job
+        // nobody else waits on.
+        Ticket::Job(waiter) => match waiter.job().outcome().await {
+            Outcome::Succeeded(f) => Ok(mesh_response(&headers, &id, &f, "miss")),
+            Outcome::Failed(e) => Err(e.into()),
+            Outcome::Cancelled => Err(ApiError::Cancelled),
+        },
     }
 }
 
@@ -111,12 +122,12 @@ pub async fn meshes_create(
 pub async fn jobs_create(State(state): State<AppState>, body: Body) -> Result<Response, ApiError> {
     let (id, spec) = prepare(&state, body).await?;
     let (code, status) = match state.jobs.submit(id.clone(), spec, true).await? {
-        Ticket::Cached(f) => (StatusCode::OK, status_body(&id, None, Some(&f))),
-        Ticket::Job(job) => {
-            let snapshot = job.snapshot();
-            let code = if snapshot.outcome.is_some() { StatusCode::OK } else { StatusCode::ACCEPTED };
-            (code, status_body(&id, Some(&snapshot), None))
+        Ticket::Cached(f) => (StatusCode::OK, status_body(&id, &Found::Cached(f))),
+        Ticket::Failed(e) => {
+            let record = Record { status: Status::Failed, progress: None, stats: None, error: Some(e) };
+            (StatusCode::OK, status_body(&id, &Found::Done(Arc::new(record))))
         }
+        Ticket::Job(waiter) => (StatusCode::ACCEPTED, status_body(&id, &Found::Job(waiter.job().clone()))),
     };
     let location = HeaderValue::from_str(&status.links.this).expect("ascii path");
     Ok((code, [(header::LOCATION, location)], axum::Json(status)).into_response())
@@ -129,11 +140,24 @@ async fn find(state: &AppState, id: &str) -> Result<Found, ApiError> {
 
 /// `GET /v1/jobs/{id}`.
 pub async fn jobs_show(State(state): State<AppState>, Path(id): Path<String>) -> Result<Response, ApiError> {
-    let body = match find(&state, &id).await? {
-        Found::Job(job) => status_body(&id, Some(&job.snapshot()), None),
-        Found::Cached(f) => status_body(&id, None, Some(&f)),
-    };
-    Ok(axum::Json(body).into_response())
+    let found = find(&state, &id).await?;
+    Ok(axum::Json(status_body(&id, &found)).into_response())
+}
+
+/// The outcome of a finished job, its mesh fetched back from the cache.
+async fn finished_outcome(state: &AppState, id: &str, found: Found) -> Option<Outcome> {
+    match found {
+        Found::Cached(f) => Some(Outcome::Succeeded(f)),
+        Found::Job(job) => job.snapshot().outcome,
+        Found::Done(r) => Some(match (&r.error, r.status) {
+            (Some(e), _) => Outcome::Failed(e.clone()),
+            (None, Status::Cancelled) => Outcome::Cancelled,
+            _ => match state.jobs.cached(id).await {
+                Some(f) => Outcome::Succeeded(f),
+                None => Outcome::Failed(JobError::Evicted),
+            },
+        }),
+    }
 }
 
 /// `GET /v1/jobs/{id}/mesh`: 200 with the mesh, 409 while it is not finished.
@@ -142,19 +166,23 @@ pub async fn jobs_mesh(
     Path(id): Path<String>,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    match find(&state, &id).await? {
-        Found::Cached(f) => Ok(mesh_response(&headers, &id, &f, "hit")),
-        Found::Job(job) => match job.snapshot().outcome {
-            Some(Outcome::Succeeded(f)) => Ok(mesh_response(&headers, &id, &f, "hit")),
-            Some(Outcome::Failed(e)) => Err(e.into()),
-            Some(Outcome::Cancelled) => Err(ApiError::Cancelled),
-            None => Err(ApiError::NotFinished(job.snapshot().status.as_str())),
-        },
+    let found = find(&state, &id).await?;
+    let status = status_body(&id, &found).status;
+    match finished_outcome(&state, &id, found).await {
+        Some(Outcome::Succeeded(f)) => Ok(mesh_response(&headers, &id, &f, "hit")),
+        Some(Outcome::Failed(e)) => Err(e.into()),
+        Some(Outcome::Cancelled) => Err(ApiError::Cancelled),
+        None => Err(ApiError::NotFinished(status)),
     }
 }
 
+/// The id of the final event: above every progress id, the same for every run of a job, so a
+/// client that reconnects with any earlier id still gets the result.
+const FINAL_EVENT_ID: u64 = u64::MAX;
+
 /// `GET /v1/jobs/{id}/events`: server-sent events; a finished job sends its final event at
-/// once. `Last-Event-ID` skips what the client has seen.
+/// once. `Last-Event-ID` skips what the client has seen; once it has seen the final event,
+/// the answer is 204, which tells an EventSource to stop reconnecting.
 pub async fn jobs_events(
     State(state): State<AppState>,
     Path(id): Path<String>,
@@ -165,11 +193,18 @@ pub async fn jobs_events(
         .and_then(|v| v.to_str().ok())
         .and_then(|v| v.trim().parse::<u64>().ok())
         .unwrap_or(0);
-    Ok(match find(&state, &id).await? {
-        Found::Cached(f) if last_seen == 0 => finished_stream(f).into_response(),
-        Found::Cached(_) => Sse::new(stream::empty::<Result<Event, Infallible>>()).into_response(),
-        Found::Job(job) => job_stream(job.attach(), last_seen).into_response(),
-    })
+    if let Some(waiter) = state.jobs.watch(&id) {
+        return Ok(job_stream(waiter, last_seen).into_response());
+    }
+    let found = find(&state, &id).await?;
+    if last_seen == FINAL_EVENT_ID {
+        return Ok(StatusCode::NO_CONTENT.into_response());
+    }
+    match finished_outcome(&state, &id, found).await {
+        Some(outcome) => Ok(final_stream(&outcome).into_response()),
+        // Finished between the two looks: the record is there now.
+        None => Err(ApiError::Internal("job vanished between lookups".into())),
+    }
 }
 
 /// `DELETE /v1/jobs/{id}`: cancels the job and answers with its final status.
@@ -177,22 +212,21 @@ pub async fn jobs_cancel(
     State(state): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
-    let job = match find(&state, &id).await? {
-        Found::Cached(f) => return Ok(axum::Json(status_body(&id, None, Some(&f))).into_response()),
-        Found::Job(job) => job,
-    };
-    job.cancel();
-    // The worker checks the flag between insertions, so this is milliseconds.
-    let _ = tokio::time::timeout(Duration::from_secs(5), job.outcome()).await;
-    Ok(axum::Json(status_body(&id, Some(&job.snapshot()), None)).into_response())
+    let found = find(&state, &id).await?;
+    if let Found::Job(job) = &found {
+        job.cancel();
+        // The worker checks the flag between insertions, so this is milliseconds.
+        let _ = tokio::time::timeout(Duration::from_secs(5), job.outcome()).await;
+    }
+    Ok(axum::Json(status_body(&id, &found)).into_response())
 }
 
 fn progress_event(seq: u64, p: &ProgressEvent) -> Event {
     Event::default().event("progress").id(seq.to_string()).json_data(p).expect("progress serializes")
 }
 
-fn final_event(seq: u64, outcome: &Outcome) -> Event {
-    let event = Event::default().id(seq.to_string());
+fn final_event(outcome: &Outcome) -> Event {
+    let event = Event::default().id(FINAL_EVENT_ID.to_string());
     match outcome {
         Outcome::Succeeded(f) => event.event("result").data(String::from_utf8_lossy(&f.body)),
         Outcome::Failed(e) => event.event("error").data(ApiError::from(e.clone()).to_json().to_string()),
@@ -200,10 +234,9 @@ fn final_event(seq: u64, outcome: &Outcome) -> Event {
     }
 }
 
-/// One `result` event for a mesh that is already cached.
-fn finished_stream(f: Arc<Finished>) -> Sse<impl Stream<Item = Result<Event, Infallible>>> {
-    let event = final_event(1, &Outcome::Succeeded(f));
-    Sse::new(stream::iter([Ok(event)])).keep_alive(KeepAlive::default())
+/// Just the final event, for a job that has finished.
+fn final_stream(outcome: &Outcome) -> Sse<impl Stream<Item = Result<Event, Infallible>> + use<>> {
+    Sse::new(stream::iter([Ok(final_event(outcome))])).keep_alive(KeepAlive::default())
 }
 
 struct Watch {
@@ -217,7 +250,7 @@ struct Watch {
 
 /// Progress events (throttled) and the final event of a job, skipping ids ≤ `last_seen`.
 fn job_stream(waiter: Waiter, last_seen: u64) -> Sse<impl Stream<Item = Result<Event, Infallible>>> {
-    let rx = Job::subscribe(waiter.job());
+    let rx = waiter.job().subscribe();
     let watch = Watch { waiter, rx, last_seen, last_progress: None, done: false };
     let events = stream::unfold(watch, |mut w| async move {
         if w.done {
@@ -227,7 +260,7 @@ fn job_stream(waiter: Waiter, last_seen: u64) -> Sse<impl Stream<Item = Result<E
             let snapshot = w.rx.borrow_and_update().clone();
             if let Some(outcome) = &snapshot.outcome {
                 w.done = true;
-                return (snapshot.seq > w.last_seen).then(|| (Ok(final_event(snapshot.seq, outcome)), w));
+                return (w.last_seen < FINAL_EVENT_ID).then(|| (Ok(final_event(outcome)), w));
             }
             if let Some(progress) = snapshot.progress.filter(|_| snapshot.seq > w.last_seen) {
                 let due = w.last_progress.map(|t| t + PROGRESS_EVERY);

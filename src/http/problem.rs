@@ -59,6 +59,9 @@ impl From<JobError> for ApiError {
         match e {
             JobError::Refine(e) => ApiError::NonFinite(e),
             JobError::Internal(detail) => ApiError::Internal(detail),
+            JobError::Evicted => ApiError::NotFound(
+                "the job succeeded, but its mesh is no longer cached; submit the request again".into(),
+            ),
         }
     }
 }

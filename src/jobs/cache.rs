@@ -12,6 +12,7 @@ use sha2::{Digest, Sha256};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 const MAGIC: &str = "meshfit-cache-v1";
 
@@ -114,13 +115,23 @@ fn checksum(body: &[u8]) -> String {
 }
 
 fn write_entry(path: &Path, f: &Finished) -> std::io::Result<()> {
-    // Write to a temporary name and rename, so a crash never leaves a half file under the id.
-    let tmp = path.with_extension("tmp");
-    let mut file = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
-    writeln!(file, "{MAGIC} {} {}", checksum(&f.body), f.stats)?;
-    file.write_all(&f.body)?;
-    file.into_inner()?.sync_all()?;
-    std::fs::rename(tmp, path)
+    // Write to a temporary name of our own and rename, so a crash never leaves a half file
+    // under the id and two writers (threads or processes sharing the directory) never
+    // interleave.
+    static NEXT: AtomicU64 = AtomicU64::new(0);
+    let unique = format!("{}.{}.tmp", std::process::id(), NEXT.fetch_add(1, Ordering::Relaxed));
+    let tmp = path.with_extension(unique);
+    let written = (|| {
+        let mut file = std::io::BufWriter::new(std::fs::File::create_new(&tmp)?);
+        writeln!(file, "{MAGIC} {} {}", checksum(&f.body), f.stats)?;
+        file.write_all(&f.body)?;
+        file.into_inner()?.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if written.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    written
 }
 
 fn read_entry(path: &Path) -> Result<Option<Finished>, String> {

@@ -61,6 +61,9 @@ pub enum JobError {
     /// Something went wrong inside the server; the detail is logged, not sent.
     #[error("internal error: {0}")]
     Internal(String),
+    /// The job succeeded, but its mesh has since left the cache.
+    #[error("the mesh is no longer cached")]
+    Evicted,
 }
 
 /// How a job ended.
@@ -96,7 +99,9 @@ pub struct Job {
     state: watch::Sender<Snapshot>,
     cancel: AtomicBool,
     cancel_notify: Notify,
-    /// Created through `POST /v1/jobs`: runs on even when no client is waiting.
+    /// Created through `POST /v1/jobs`: runs on even when no client is waiting. Read and
+    /// written under the table lock, like `waiters`, so a leaving client and a joining one
+    /// cannot both decide.
     detached: AtomicBool,
     waiters: AtomicUsize,
 }
@@ -123,13 +128,6 @@ impl Job {
         self.cancel_notify.notify_one();
     }
 
-    /// Registers a waiting client; when the last one leaves a job that nobody detached, the
-    /// job is cancelled (a synchronous request or stream whose client hung up).
-    pub fn attach(self: &Arc<Self>) -> Waiter {
-        self.waiters.fetch_add(1, Ordering::SeqCst);
-        Waiter { job: self.clone() }
-    }
-
     /// Waits for the outcome.
     pub async fn outcome(&self) -> Outcome {
         let mut rx = self.subscribe();
@@ -148,6 +146,11 @@ impl Job {
         self.state.borrow().outcome.is_some()
     }
 
+    /// Whether a new identical request may join this job instead of starting its own.
+    fn is_joinable(&self) -> bool {
+        !self.cancel.load(Ordering::Relaxed) && !self.is_finished()
+    }
+
     fn finish(&self, outcome: Outcome) {
         self.state.send_modify(|s| {
             s.seq += 1;
@@ -161,9 +164,11 @@ impl Job {
     }
 }
 
-/// A client waiting on a job; dropping it may cancel the job (see [`Job::attach`]).
+/// A client waiting on a job. When the last one leaves a job that nobody detached, the job is
+/// cancelled: a synchronous request or stream whose client hung up.
 pub struct Waiter {
     job: Arc<Job>,
+    inner: Arc<Inner>,
 }
 
 impl Waiter {
@@ -175,6 +180,7 @@ impl Waiter {
 
 impl Drop for Waiter {
     fn drop(&mut self) {
+        let _table = self.inner.table.lock().expect("job table poisoned");
         let last = self.job.waiters.fetch_sub(1, Ordering::SeqCst) == 1;
         if last && !self.job.detached.load(Ordering::SeqCst) && !self.job.is_finished() {
             tracing::info!(job = %self.job.id, "last client left; cancelling");
@@ -183,12 +189,40 @@ impl Drop for Waiter {
     }
 }
 
+/// What the table remembers of a finished job: status, stats or error, never the mesh, which
+/// lives only in the byte-bounded cache.
+#[derive(Debug, Clone)]
+pub struct Record {
+    /// Succeeded, failed or cancelled.
+    pub status: Status,
+    /// The last progress report.
+    pub progress: Option<ProgressEvent>,
+    /// The stats, when succeeded.
+    pub stats: Option<serde_json::Value>,
+    /// The error, when failed.
+    pub error: Option<JobError>,
+}
+
+impl Record {
+    fn of(snapshot: &Snapshot) -> Self {
+        let (stats, error) = match &snapshot.outcome {
+            Some(Outcome::Succeeded(f)) => (Some(f.stats.clone()), None),
+            Some(Outcome::Failed(e)) => (None, Some(e.clone())),
+            _ => (None, None),
+        };
+        Self { status: snapshot.status, progress: snapshot.progress, stats, error }
+    }
+}
+
 /// What a submission found or started.
 pub enum Ticket {
     /// The result was cached.
     Cached(Arc<Finished>),
-    /// A job to wait on: new, or an identical one already under way.
-    Job(Arc<Job>),
+    /// A job, new or already under way, with this client registered as waiting on it (for a
+    /// detached submission, the registration is dropped at once and changes nothing).
+    Job(Waiter),
+    /// An identical job failed on its input before; it would fail the same way again.
+    Failed(JobError),
 }
 
 /// Why a submission was refused.
@@ -205,10 +239,12 @@ pub enum SubmitError {
     ShuttingDown,
 }
 
-/// A job or a cached result, for status queries.
+/// A job, a finished job's record, or a cached result, for status queries.
 pub enum Found {
-    /// A job this server ran or runs.
+    /// A job queued or running (or just finished, while clients still read its outcome).
     Job(Arc<Job>),
+    /// A finished job.
+    Done(Arc<Record>),
     /// A result from the cache with no job record (e.g. after a restart).
     Cached(Arc<Finished>),
 }
@@ -225,6 +261,7 @@ pub struct Jobs {
 struct Inner {
     permits: Arc<Semaphore>,
     queue: usize,
+    /// Jobs created and not yet holding a permit (some of which will get one at once).
     waiting: AtomicUsize,
     /// A std Mutex: held only for map operations, never across an `.await`.
     table: Mutex<Table>,
@@ -233,15 +270,42 @@ struct Inner {
     closed: AtomicBool,
 }
 
+enum Entry {
+    Live(Arc<Job>),
+    Done(Arc<Record>),
+}
+
 #[derive(Default)]
 struct Table {
-    jobs: HashMap<String, Arc<Job>>,
+    jobs: HashMap<String, Entry>,
     finished: VecDeque<String>,
+}
+
+impl Inner {
+    /// Jobs waiting beyond the free workers: the queue proper.
+    fn queued(&self) -> usize {
+        self.waiting.load(Ordering::SeqCst).saturating_sub(self.permits.available_permits())
+    }
+
+    /// Whether one more job would wait at most behind `queue` others: it either finds a free
+    /// worker or a place in the queue.
+    fn has_room(&self) -> bool {
+        self.waiting.load(Ordering::SeqCst) < self.queue + self.permits.available_permits()
+    }
+
+    fn attach(self: &Arc<Self>, job: &Arc<Job>, detached: bool) -> Waiter {
+        // Caller holds the table lock.
+        job.waiters.fetch_add(1, Ordering::SeqCst);
+        if detached {
+            job.detached.store(true, Ordering::SeqCst);
+        }
+        Waiter { job: job.clone(), inner: self.clone() }
+    }
 }
 
 impl Jobs {
     /// A registry running at most `workers` refinements at once, with at most `queue` jobs
-    /// waiting.
+    /// waiting beyond them.
     pub fn new(workers: usize, queue: usize, cache: Cache, metrics: Arc<Metrics>) -> Self {
         Self {
             inner: Arc::new(Inner {
@@ -268,8 +332,7 @@ impl Jobs {
 
     /// Whether a new job would be accepted now.
     pub fn is_ready(&self) -> bool {
-        !self.inner.closed.load(Ordering::SeqCst)
-            && self.inner.waiting.load(Ordering::SeqCst) < self.inner.queue
+        !self.inner.closed.load(Ordering::SeqCst) && self.inner.has_room()
     }
 
     /// Answers from the cache, joins an identical job, or starts a new one. `detached` jobs
@@ -283,25 +346,37 @@ impl Jobs {
             inner.metrics.cache_hits.inc();
             return Ok(Ticket::Cached(finished));
         }
-        inner.metrics.cache_misses.inc();
         let mut table = inner.table.lock().expect("job table poisoned");
-        if let Some(job) = table.jobs.get(&id) {
-            let status = job.snapshot().status;
-            // Join anything under way; a failure is deterministic, so it is the answer again.
-            // A cancelled job, or a success whose mesh was evicted, runs again.
-            if matches!(status, Status::Queued | Status::Running | Status::Failed) {
-                if detached {
-                    job.detached.store(true, Ordering::SeqCst);
-                }
-                return Ok(Ticket::Job(job.clone()));
+        match table.jobs.get(&id) {
+            Some(Entry::Live(job)) if job.is_joinable() => {
+                inner.metrics.cache_misses.inc();
+                return Ok(Ticket::Job(inner.attach(job, detached)));
             }
+            Some(Entry::Done(record)) => match &record.error {
+                // A failure on the input is deterministic: it is the answer again.
+                Some(e @ JobError::Refine(_)) => {
+                    inner.metrics.cache_misses.inc();
+                    return Ok(Ticket::Failed(e.clone()));
+                }
+                _ if record.status == Status::Succeeded => {
+                    // It may have been cached between the lookup above and the lock.
+                    if let Some(finished) = inner.cache.get_memory(&id) {
+                        inner.metrics.cache_hits.inc();
+                        return Ok(Ticket::Cached(finished));
+                    }
+                }
+                // Cancelled, an internal error, or a mesh evicted from the cache: run again.
+                _ => {}
+            },
+            // A job being cancelled, or none: start a new one.
+            _ => {}
         }
+        inner.metrics.cache_misses.inc();
         if inner.closed.load(Ordering::SeqCst) {
             return Err(SubmitError::ShuttingDown);
         }
-        let waiting = inner.waiting.load(Ordering::SeqCst);
-        if waiting >= inner.queue {
-            return Err(SubmitError::QueueFull { waiting });
+        if !inner.has_room() {
+            return Err(SubmitError::QueueFull { waiting: inner.queued() });
         }
         inner.waiting.fetch_add(1, Ordering::SeqCst);
         inner.metrics.jobs_queued.inc();
@@ -315,18 +390,32 @@ impl Jobs {
             detached: AtomicBool::new(detached),
             waiters: AtomicUsize::new(0),
         });
-        table.jobs.insert(id, job.clone());
+        let waiter = inner.attach(&job, detached);
+        table.jobs.insert(id, Entry::Live(job.clone()));
         drop(table);
-        tokio::spawn(run(self.inner.clone(), job.clone(), spec));
-        Ok(Ticket::Job(job))
+        tokio::spawn(run(self.inner.clone(), job, spec));
+        Ok(Ticket::Job(waiter))
     }
 
-    /// The job or cached result with this id.
+    /// The job, finished job or cached result with this id.
     pub async fn find(&self, id: &str) -> Option<Found> {
-        let job = self.inner.table.lock().expect("job table poisoned").jobs.get(id).cloned();
-        match job {
-            Some(job) => Some(Found::Job(job)),
+        let found = match self.inner.table.lock().expect("job table poisoned").jobs.get(id) {
+            Some(Entry::Live(job)) => Some(Found::Job(job.clone())),
+            Some(Entry::Done(record)) => Some(Found::Done(record.clone())),
+            None => None,
+        };
+        match found {
+            Some(found) => Some(found),
             None => self.cached(id).await.map(Found::Cached),
+        }
+    }
+
+    /// Registers a client waiting on job `id` while it runs (server-sent events).
+    pub fn watch(&self, id: &str) -> Option<Waiter> {
+        let table = self.inner.table.lock().expect("job table poisoned");
+        match table.jobs.get(id) {
+            Some(Entry::Live(job)) => Some(self.inner.attach(job, false)),
+            _ => None,
         }
     }
 
@@ -350,14 +439,17 @@ impl Jobs {
 
     /// Cancels every job not yet finished.
     pub fn cancel_all(&self) {
-        for job in self.inner.table.lock().expect("job table poisoned").jobs.values() {
-            job.cancel();
+        for entry in self.inner.table.lock().expect("job table poisoned").jobs.values() {
+            if let Entry::Live(job) = entry {
+                job.cancel();
+            }
         }
     }
 
     /// Whether any job is queued or running.
     pub fn is_busy(&self) -> bool {
-        self.inner.table.lock().expect("job table poisoned").jobs.values().any(|j| !j.is_finished())
+        let table = self.inner.table.lock().expect("job table poisoned");
+        table.jobs.values().any(|e| matches!(e, Entry::Live(_)))
     }
 }
 
@@ -395,11 +487,17 @@ async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec) {
     inner.metrics.jobs_finished.get_or_create(&StateLabel { state }).inc();
     tracing::info!(job = %job.id, state, "job finished");
     job.finish(outcome);
+    // Waiting clients hold the job (and its mesh) until they have read it; the table keeps
+    // only the record.
+    let record = Arc::new(Record::of(&job.snapshot()));
     let mut table = inner.table.lock().expect("job table poisoned");
-    table.finished.push_back(job.id.clone());
+    if matches!(table.jobs.get(&job.id), Some(Entry::Live(j)) if Arc::ptr_eq(j, &job)) {
+        table.jobs.insert(job.id.clone(), Entry::Done(record));
+        table.finished.push_back(job.id.clone());
+    }
     while table.finished.len() > FINISHED_KEPT {
         let oldest = table.finished.pop_front().expect("non-empty");
-        if table.jobs.get(&oldest).is_some_and(|j| j.is_finished()) {
+        if matches!(table.jobs.get(&oldest), Some(Entry::Done(_))) {
             table.jobs.remove(&oldest);
         }
     }

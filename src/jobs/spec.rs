@@ -112,6 +112,11 @@ impl JobSpec {
                     });
                 }
                 let (nx, ny) = (grid.nx as usize, grid.ny as usize);
+                if grid.values.count != grid.values.values.len() {
+                    // More values than the limit were sent (and not kept): nx·ny cannot match.
+                    let detail = format!("grid has {} values, but nx * ny = {points}", grid.values.count);
+                    return Err(SpecError::Grid { detail, index: None });
+                }
                 let mut values = grid.values.values;
                 if let Some((k, kind)) = grid.values.first_bad
                     && nx >= 2

@@ -135,9 +135,11 @@ impl Surface for Grid {
         let row = j * self.nx + i;
         let (z00, z10) = (self.values[row], self.values[row + 1]);
         let (z01, z11) = (self.values[row + self.nx], self.values[row + self.nx + 1]);
-        let bottom = z00 + (z10 - z00) * fx;
-        let top = z01 + (z11 - z01) * fx;
-        bottom + (top - bottom) * fy
+        // Weighted sums rather than z0 + (z1 - z0)·t: the difference of two finite values
+        // near ±f64::MAX overflows.
+        let bottom = z00 * (1.0 - fx) + z10 * fx;
+        let top = z01 * (1.0 - fx) + z11 * fx;
+        bottom * (1.0 - fy) + top * fy
     }
 
     fn grid(&self) -> Option<&Grid> {
@@ -176,6 +178,14 @@ mod tests {
         for p in [Point::new(0.3, 0.7), Point::new(1.99, 0.01), Point::new(2.0, 1.0)] {
             assert!((grid.eval(p) - f(p.x, p.y)).abs() < 1e-12, "at {p:?}");
         }
+    }
+
+    #[test]
+    fn interpolation_does_not_overflow_between_huge_values_of_opposite_sign() {
+        let grid = Grid::new(2, 2, vec![-1e308, 1e308, 0.0, 0.0]).unwrap();
+        assert_eq!(grid.eval(Point::new(0.0, 0.0)), -1e308);
+        assert_eq!(grid.eval(Point::new(0.5, 0.0)), 0.0);
+        assert!(grid.eval(Point::new(0.25, 0.5)).is_finite());
     }
 
     #[test]

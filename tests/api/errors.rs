@@ -93,6 +93,13 @@ fn cases() -> Vec<Case> {
         )
         .field("/limit/name", json!("MESHFIT_MAX_GRID_POINTS"))
         .field("/limit/value", json!(10000)),
+        case(
+            "grid with more values than the limit",
+            format!(r#"{{"grid": {{"nx": 2, "ny": 2, "values": [{}0]}}}}"#, "1,".repeat(20_000)),
+            422,
+            "invalid-grid",
+        )
+        .detail("20001 values, but nx * ny = 4"),
         case("grid without values", r#"{"grid": {"nx": 2, "ny": 2}}"#, 422, "invalid-request")
             .detail("values"),
         case(

@@ -246,3 +246,48 @@ async fn f_not_finite_fails_the_job_with_the_point() {
     assert_eq!(status["problem"]["point"], problem["point"]);
     app.shutdown().await;
 }
+
+#[tokio::test]
+async fn a_cancelled_job_runs_again_when_it_is_requested_again() {
+    let app = spawn_app().await;
+    let body = json!({"function": "sin(13*x)*cos(17*y)", "max_vertices": 400_000});
+    let status: Value = app.post("/v1/jobs", &body).await.json().await.unwrap();
+    let id = status["id"].as_str().unwrap().to_owned();
+    app.wait_running(&id).await;
+    let cancelled: Value = app.delete(&format!("/v1/jobs/{id}")).await.json().await.unwrap();
+    assert_eq!(cancelled["status"], "cancelled");
+    let again = app.post("/v1/jobs", &body).await;
+    assert_eq!(again.status(), 202, "a cancelled job is not the answer: it runs again");
+    assert_eq!(app.wait_finished(&id).await["status"], "succeeded");
+    assert_eq!(app.metric("meshfit_engine_runs_total").await, 2.0);
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn finished_jobs_keep_their_status_but_not_their_mesh_outside_the_cache() {
+    let mut config = crate::helpers::test_config();
+    config.cache_bytes = 0;
+    let app = crate::helpers::spawn_with(config).await;
+    let status: Value =
+        app.post("/v1/jobs", &json!({"function": "x*y", "max_vertices": 1000})).await.json().await.unwrap();
+    let id = status["id"].as_str().unwrap();
+    let done = app.wait_finished(id).await;
+    assert_eq!(done["status"], "succeeded");
+    assert_eq!(done["stats"]["vertices"], 1000);
+    let mesh = app.get(&format!("/v1/jobs/{id}/mesh")).await;
+    assert_eq!(mesh.status(), 404);
+    let problem: Value = mesh.json().await.unwrap();
+    assert!(problem["detail"].as_str().unwrap().contains("no longer cached"), "{problem}");
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_queue_of_zero_still_runs_jobs_on_idle_workers() {
+    let mut config = crate::helpers::test_config();
+    config.queue = 0;
+    let app = crate::helpers::spawn_with(config).await;
+    assert_eq!(app.get("/readyz").await.status(), 200);
+    let response = app.post("/v1/meshes", &json!({"function": "x", "max_vertices": 10})).await;
+    assert_eq!(response.status(), 200);
+    app.shutdown().await;
+}

@@ -54,6 +54,11 @@ async fn metrics_report_jobs_cache_and_request_latency() {
         assert!(text.contains(name), "/metrics lacks {name}:\n{text}");
     }
     assert!(app.metric("meshfit_cache_bytes").await > 0.0);
+    // Any token is a method; the label set stays fixed.
+    app.client.request("FROB".parse().unwrap(), app.url("/healthz")).send().await.unwrap();
+    let text = app.get("/metrics").await.text().await.unwrap();
+    assert!(text.contains("method=\"OTHER\""), "{text}");
+    assert!(!text.contains("FROB"));
     app.shutdown().await;
 }
 
