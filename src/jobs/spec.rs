@@ -71,6 +71,14 @@ pub enum SpecError {
     },
 }
 
+/// `Err(SpecError::Limit)` when `value` is above `limit`.
+fn at_most(name: &'static str, setting: &'static str, limit: usize, value: u64) -> Result<(), SpecError> {
+    if value > limit as u64 {
+        return Err(SpecError::Limit { name, setting, limit: limit as u64, value });
+    }
+    Ok(())
+}
+
 /// The two bounds of one axis, with -0.0 made 0.0 (one value, one cache key).
 fn pair(axis: &str, bounds: &[f64]) -> Result<[f64; 2], SpecError> {
     match bounds {
@@ -90,27 +98,13 @@ impl JobSpec {
             (None, None) => return Err(SpecError::Source(", none given")),
             (Some(_), Some(_)) => return Err(SpecError::Source(", not both")),
             (Some(text), None) => {
-                let len = text.chars().count();
-                if len > limits.max_expression_len {
-                    return Err(SpecError::Limit {
-                        name: "function length",
-                        setting: "MESHFIT_MAX_EXPRESSION_LEN",
-                        limit: limits.max_expression_len as u64,
-                        value: len as u64,
-                    });
-                }
+                let len = text.chars().count() as u64;
+                at_most("function length", "MESHFIT_MAX_EXPRESSION_LEN", limits.max_expression_len, len)?;
                 Source::Expression(Expression::parse(&text).map_err(SpecError::Expression)?)
             }
             (None, Some(grid)) => {
                 let points = grid.nx.saturating_mul(grid.ny);
-                if points > limits.max_grid_points as u64 {
-                    return Err(SpecError::Limit {
-                        name: "grid nx*ny",
-                        setting: "MESHFIT_MAX_GRID_POINTS",
-                        limit: limits.max_grid_points as u64,
-                        value: points,
-                    });
-                }
+                at_most("grid nx*ny", "MESHFIT_MAX_GRID_POINTS", limits.max_grid_points, points)?;
                 let (nx, ny) = (grid.nx as usize, grid.ny as usize);
                 if grid.values.count != grid.values.values.len() {
                     // More values than the limit were sent (and not kept): nx·ny cannot match.
@@ -155,14 +149,7 @@ impl JobSpec {
             s => s,
         };
         let max_vertices = request.max_vertices.unwrap_or(DEFAULT_MAX_VERTICES);
-        if max_vertices > limits.max_vertices as u64 {
-            return Err(SpecError::Limit {
-                name: "max_vertices",
-                setting: "MESHFIT_MAX_VERTICES",
-                limit: limits.max_vertices as u64,
-                value: max_vertices,
-            });
-        }
+        at_most("max_vertices", "MESHFIT_MAX_VERTICES", limits.max_vertices, max_vertices)?;
         let time_limit = request
             .time_limit_ms
             .map_or(limits.job_time_limit, |ms| Duration::from_millis(ms).min(limits.job_time_limit));
