@@ -32,6 +32,22 @@ impl Split {
     }
 }
 
+/// Whether `m` lies exactly on the line through `a` and `b`.
+///
+/// Midpoints of dyadic meshes are almost always exact: when both coordinate sums are free of
+/// rounding (checked by Knuth's TwoSum, whose error term is exact), `m` is the true midpoint.
+/// Only otherwise is the exact `orient2d` asked, whose adaptive path a collinear input always
+/// takes.
+fn is_on_segment_line(a: Point, b: Point, m: Point) -> bool {
+    let exact_sum = |p: f64, q: f64| {
+        let s = p + q;
+        let q_virtual = s - p;
+        (p - (s - q_virtual)) + (q - q_virtual) == 0.0
+    };
+    let is_midpoint = exact_sum(a.x, b.x) && exact_sum(a.y, b.y) && m == a.midpoint(b);
+    is_midpoint || orientation(a, b, m) == Orientation::Collinear
+}
+
 impl Mesh {
     /// Whether splitting the edge of half-edge `e` at `m` gives new triangles that are all
     /// strictly counter-clockwise (decided exactly) with twice their area above `min_area_x2`.
@@ -81,7 +97,7 @@ impl Mesh {
     pub fn split(&mut self, e: u32, m: Vertex) -> Split {
         debug_assert!(self.can_split(e, m.point(), 0.0), "split would create a non-positive triangle");
         let (a, b, c) = (self.origin(e), self.dest(e), self.apex(e));
-        let on_edge = orientation(self.point(a), self.point(b), m.point()) == Orientation::Collinear;
+        let on_edge = is_on_segment_line(self.point(a), self.point(b), m.point());
         let t0 = e / 3;
         let (out_bc, out_ca) = (self.twin(next(e)), self.twin(prev(e)));
         let f = self.twin(e);

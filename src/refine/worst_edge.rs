@@ -101,30 +101,30 @@ impl WorstEdgeQueue {
     #[inline]
     pub fn pop(&mut self, vertices: &[Vertex]) -> Option<Candidate> {
         let last = self.heap.pop()?;
-        let heap = &mut self.heap;
-        if heap.is_empty() {
+        let heap = &mut self.heap[..];
+        let Some(&top) = heap.first() else {
             return Some(last);
-        }
-        let top = heap[0];
+        };
         // Move the hole from the root down along the worst children, then put `last` in it.
-        let len = heap.len();
+        // Children are taken as one subslice per level, so the bounds are checked once.
         let mut i = 0;
         loop {
             let first = ARITY * i + 1;
-            if first >= len {
+            if first >= heap.len() {
                 break;
             }
-            let mut worst = first;
-            for child in first + 1..(first + ARITY).min(len) {
-                if heap[child].cmp(&heap[worst], vertices) == Ordering::Greater {
-                    worst = child;
+            let children = &heap[first..(first + ARITY).min(heap.len())];
+            let mut worst = 0;
+            for (k, child) in children.iter().enumerate().skip(1) {
+                if child.cmp(&children[worst], vertices) == Ordering::Greater {
+                    worst = k;
                 }
             }
-            if last.cmp(&heap[worst], vertices) != Ordering::Less {
+            if last.cmp(&children[worst], vertices) != Ordering::Less {
                 break;
             }
-            heap[i] = heap[worst];
-            i = worst;
+            heap[i] = children[worst];
+            i = first + worst;
         }
         heap[i] = last;
         Some(top)
