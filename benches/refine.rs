@@ -29,10 +29,26 @@ fn franke_grid(n: usize) -> Grid {
 }
 
 fn run<S: Surface + ?Sized>(c: &mut Criterion, name: &str, surface: &S) {
+    run_with(c, name, surface, meshfit::refine::Criterion::Variation, &[10_000, 100_000, 1_000_000]);
+}
+
+fn run_with<S: Surface + ?Sized>(
+    c: &mut Criterion,
+    name: &str,
+    surface: &S,
+    criterion: meshfit::refine::Criterion,
+    sizes: &[usize],
+) {
     let mut group = c.benchmark_group("refine");
     for method in [Method::Recursive, Method::SemiRecursive] {
-        for n in [10_000usize, 100_000, 1_000_000] {
-            let params = Params::new(n).unwrap().with_method(method);
+        for &n in sizes {
+            let params = Params::new(n).unwrap().with_method(method).with_criterion(criterion);
+            // Ids read refine/<method>/<surface>/<n> for the paper's criterion and
+            // refine/<method>-error/<surface>/<n> for the error criterion.
+            let method = match criterion {
+                meshfit::refine::Criterion::Variation => method.to_string(),
+                meshfit::refine::Criterion::Error => format!("{method}-error"),
+            };
             group.throughput(Throughput::Elements(n as u64));
             group.sample_size(if n >= 1_000_000 { 10 } else { 20 });
             group.measurement_time(Duration::from_secs(if n >= 1_000_000 { 15 } else { 5 }));
@@ -45,9 +61,13 @@ fn run<S: Surface + ?Sized>(c: &mut Criterion, name: &str, surface: &S) {
 }
 
 fn benches(c: &mut Criterion) {
+    let meval = Source::Expression(Expression::parse(FRANKE).unwrap());
     run(c, "franke_native", &franke);
-    run(c, "franke_meval", &Source::Expression(Expression::parse(FRANKE).unwrap()));
+    run(c, "franke_meval", &meval);
     run(c, "franke_grid4097", &Source::Grid(franke_grid(4097)));
+    let error = meshfit::refine::Criterion::Error;
+    run_with(c, "franke_meval", &meval, error, &[10_000, 100_000]);
+    run_with(c, "franke_grid1025", &Source::Grid(franke_grid(1025)), error, &[10_000, 100_000]);
 }
 
 criterion_group!(refine_benches, benches);

@@ -151,7 +151,8 @@ struct MeshArgs {
     /// recursive (no flips) or semi-recursive (Delaunay flips after each insertion).
     #[arg(long, default_value_t = Method::SemiRecursive)]
     method: Method,
-    /// How the worst edge is chosen.
+    /// How the worst edge is chosen: variation (the paper's |zi − zj|) or error (the longest
+    /// edge of the triangle with the largest sampled |F − F_n|).
     #[arg(long, default_value_t = Criterion::Variation)]
     criterion: Criterion,
     /// Stop once the worst edge's criterion value is at most T.

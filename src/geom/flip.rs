@@ -47,12 +47,15 @@ impl Mesh {
     /// not, and needs [`Mesh::legalize_all`].
     ///
     /// `stack` is the caller's scratch space, so the hot loop does not allocate; it is empty on
-    /// return.
-    pub fn legalize(&mut self, stack: &mut Vec<u32>) -> u32 {
+    /// return. `on_flip` is told the half-edge of each new diagonal (its two triangles are the
+    /// ones the flip rewrote).
+    pub fn legalize(&mut self, stack: &mut Vec<u32>, mut on_flip: impl FnMut(&Self, u32)) -> u32 {
         let mut flips = 0;
         while let Some(e) = stack.pop() {
             if self.is_illegal(e) {
-                stack.extend(self.flip(e));
+                let [p, q] = self.flip(e);
+                on_flip(self, p + 1);
+                stack.extend([p, q]);
                 flips += 1;
             }
         }
@@ -65,13 +68,13 @@ impl Mesh {
     /// lowers the lifted surface (Lawson 1977; de Berg et al., *Computational Geometry*, 9.1).
     ///
     /// Unlike [`Mesh::legalize`], a flip here may create an edge that does not end at the new
-    /// vertex; `created(a, b)` is told of every diagonal a flip makes.
-    pub fn legalize_all(&mut self, stack: &mut Vec<u32>, mut created: impl FnMut(&Self, u32, u32)) -> u32 {
+    /// vertex; `on_flip` is told the half-edge of every diagonal a flip makes.
+    pub fn legalize_all(&mut self, stack: &mut Vec<u32>, mut on_flip: impl FnMut(&Self, u32)) -> u32 {
         let mut flips = 0;
         while let Some(e) = stack.pop() {
             if self.is_illegal(e) {
                 let [p, q] = self.flip(e);
-                created(self, self.origin(q), self.apex(q));
+                on_flip(self, p + 1);
                 // p = u→w and q = w→v face the apex; next(q) = v→m and prev(p) = m→u don't.
                 stack.extend([p, q, super::mesh::next(q), super::mesh::prev(p)]);
                 flips += 1;
@@ -104,9 +107,11 @@ mod tests {
         let e = mesh.find_edge(0, 1).unwrap();
         let split = mesh.split(e, Vertex { x: 0.5, y: 0.0, z: 0.0 });
         let mut stack = split.link().to_vec();
-        let flips = mesh.legalize(&mut stack);
+        let mut diagonals = Vec::new();
+        let flips = mesh.legalize(&mut stack, |mesh, d| diagonals.push((mesh.origin(d), mesh.dest(d))));
         mesh.check_invariants().unwrap();
         assert_eq!(flips, 1);
+        assert_eq!(diagonals, [(3, 4)], "the new diagonal runs P4 → P5");
         assert!(mesh.find_edge(0, 2).is_none(), "P1P3 survived");
         assert!(mesh.find_edge(4, 3).is_some(), "P5P4 missing");
         assert!(mesh.is_delaunay());
@@ -121,7 +126,7 @@ mod tests {
         let e = mesh.find_edge(0, 2).unwrap();
         let split = mesh.split(e, Vertex { x: 0.5, y: 0.5, z: 0.0 });
         let mut stack = split.link().to_vec();
-        assert_eq!(mesh.legalize(&mut stack), 0);
+        assert_eq!(mesh.legalize(&mut stack, |_, _| {}), 0);
         assert_eq!(mesh.point(4), Point::new(0.5, 0.5));
         assert!(mesh.is_delaunay());
     }

@@ -222,10 +222,10 @@ mod properties {
                 if flip {
                     if split.on_edge {
                         stack.extend_from_slice(split.link());
-                        mesh.legalize(&mut stack);
+                        mesh.legalize(&mut stack, |_, _| {});
                     } else {
                         stack.extend(split.suspects());
-                        mesh.legalize_all(&mut stack, |_, _, _| {});
+                        mesh.legalize_all(&mut stack, |_, _| {});
                     }
                     prop_assert!(mesh.is_delaunay(), "not Delaunay after inserting {}", split.vertex);
                 }

@@ -19,6 +19,11 @@
 //! splitting the one or two triangles beside it. `semi-recursive` then restores the Delaunay
 //! property with Lawson flips around M; `recursive` never flips.
 //!
+//! That is the `variation` criterion ([`Criterion::Variation`], the paper's). With
+//! [`Criterion::Error`] every triangle carries a sampled error e(T) = max |F − F_n| and the
+//! longest edge of the worst triangle is bisected; `recursive` then follows the longest-edge
+//! propagation path (Rivara), which bounds angles from below.
+//!
 //! # Guarantees
 //! - Every triangle is strictly counter-clockwise (exact `orient2d`), and the triangles tile
 //!   the rectangle; vertex ids are in insertion order and old vertices never move.
@@ -38,15 +43,17 @@
 //! The order of splits may change between versions of meshfit (the service keys its cache by
 //! an engine version); it never changes between two runs of one version.
 
+mod error;
 mod metrics;
 mod params;
+mod variation;
 mod worst_edge;
 
 pub use metrics::{ErrorEstimate, estimate_error, variation};
 pub use params::{Criterion, MAX_VERTICES, Method, Params, ParamsError};
 pub use worst_edge::{Candidate, WorstEdgeQueue};
 
-use crate::geom::{Mesh, Point, Rect, Vertex};
+use crate::geom::{Mesh, Point, Rect, Split, Vertex};
 use crate::source::Surface;
 use std::time::{Duration, Instant};
 
@@ -62,7 +69,7 @@ pub enum StopReason {
     TimeLimit,
     /// The observer asked to stop.
     Cancelled,
-    /// Every remaining edge was retired (too short, or its split would fold a triangle).
+    /// Every remaining candidate was retired (too short, or its split would fold a triangle).
     Exhausted,
 }
 
@@ -114,6 +121,9 @@ pub struct Stats {
     pub triangles: usize,
     /// V_n = max |zᵢ − zⱼ| over the edges of the final mesh.
     pub variation: f64,
+    /// For the `error` criterion: the largest triangle error estimate e(T) at the end.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_triangle_error: Option<f64>,
     /// Edge flips made.
     pub flips: u64,
     /// Edges retired instead of split.
@@ -167,7 +177,8 @@ const CLOCK_EVERY: u64 = 64;
 /// Refines S₄ on `rect` until a stop rule of `params` fires. See the [module docs](self).
 ///
 /// # Errors
-/// [`RefineError::NonFinite`] when F is not finite at a corner or at a midpoint to insert.
+/// [`RefineError::NonFinite`] when F is not finite at a corner or at a point the refinement
+/// needs (a midpoint to insert, or a sample of the error criterion).
 pub fn refine<S, O>(
     surface: &S,
     rect: Rect,
@@ -179,103 +190,37 @@ where
     O: Observer,
 {
     let start = Instant::now();
-    let mut evaluations = 0u64;
-    let mut eval = |p: Point| {
-        evaluations += 1;
-        let value = surface.eval(p);
-        if value.is_finite() { Ok(value) } else { Err(RefineError::NonFinite { point: p, value }) }
-    };
+    let mut sampler = Sampler { surface, evaluations: 0 };
     let [p1, p2, p3, p4] = rect.corners();
-    let z = [eval(p1)?, eval(p2)?, eval(p3)?, eval(p4)?];
-    let n = params.max_vertices();
-    let mut mesh = Mesh::with_capacity(rect, z, n);
-    // About three edges per vertex are queued over a run.
-    let mut queue = WorstEdgeQueue::with_capacity(3 * n.min(1 << 24) + 8);
-    for edge in mesh.edges() {
-        queue.push(candidate(&mesh, edge.a, edge.b), mesh.vertices());
-    }
-    let floor_sq = (LENGTH_FLOOR * rect.diagonal()).powi(2);
-    let min_area_x2 = 2.0 * AREA_FLOOR * rect.area();
-    let semi_recursive = params.method() == Method::SemiRecursive;
-    // Scratch stack for Lawson flips, reused so insertions do not allocate.
-    let mut stack = Vec::with_capacity(64);
-    let (mut flips, mut retired, mut steps) = (0u64, 0u64, 0u64);
-    let mut last_report = start;
-
-    let stop = loop {
-        if mesh.num_vertices() >= n {
-            break StopReason::MaxVertices;
-        }
-        if observer.is_cancelled() {
-            break StopReason::Cancelled;
-        }
-        steps += 1;
-        if steps % CLOCK_EVERY == 0 {
-            let now = Instant::now();
-            if params.time_limit().is_some_and(|limit| now - start >= limit) {
-                break StopReason::TimeLimit;
-            }
-            if now - last_report >= PROGRESS_INTERVAL {
-                last_report = now;
-                observer.progress(&Progress {
-                    vertices: mesh.num_vertices(),
-                    triangles: mesh.num_triangles(),
-                    worst: queue.peek().map_or(0.0, |c| c.value),
-                    elapsed: now - start,
-                });
-            }
-        }
-        let Some(&worst) = queue.peek() else {
-            break StopReason::Exhausted;
-        };
-        let Some(e) = mesh.find_edge(worst.a, worst.b) else {
-            // Flipped away since it was queued.
-            queue.pop(mesh.vertices());
-            continue;
-        };
-        if params.tolerance().is_some_and(|tolerance| worst.value <= tolerance) {
-            break StopReason::Tolerance;
-        }
-        queue.pop(mesh.vertices());
-        observer.selected(&mesh, worst.a, worst.b);
-        let m = mesh.point(worst.a).midpoint(mesh.point(worst.b));
-        if worst.len_sq(mesh.vertices()) < floor_sq || !mesh.can_split(e, m, min_area_x2) {
-            retired += 1;
-            observer.retired(worst.a, worst.b);
-            continue;
-        }
-        let z = eval(m)?;
-        let split = mesh.split(e, Vertex { x: m.x, y: m.y, z });
-        if semi_recursive {
-            flips += u64::from(if split.on_edge {
-                stack.extend_from_slice(split.link());
-                mesh.legalize(&mut stack)
-            } else {
-                // Flips may now make edges away from the new vertex: queue those here (an
-                // edge flipped again later in the same pass goes stale and is skipped).
-                stack.extend(split.suspects());
-                mesh.legalize_all(&mut stack, |mesh, p, q| {
-                    if p != split.vertex && q != split.vertex {
-                        queue.push(candidate(mesh, p, q), mesh.vertices());
-                    }
-                })
-            });
-        }
-        // The other edges this step created end at the new vertex: its halves, the edges to
-        // the apexes, and the diagonals of flips around it.
-        mesh.for_each_neighbour(split.vertex, |other, _| {
-            queue.push(candidate(&mesh, split.vertex, other), mesh.vertices());
-        });
-        observer.inserted(&mesh, split.vertex);
+    let z = [sampler.eval(p1)?, sampler.eval(p2)?, sampler.eval(p3)?, sampler.eval(p4)?];
+    let mut mesh = Mesh::with_capacity(rect, z, params.max_vertices());
+    let mut run = Run {
+        params,
+        observer,
+        start,
+        last_report: start,
+        steps: 0,
+        floor_sq: (LENGTH_FLOOR * rect.diagonal()).powi(2),
+        min_area_x2: 2.0 * AREA_FLOOR * rect.area(),
+        stack: Vec::with_capacity(64),
+        flips: 0,
+        retired: 0,
     };
-
+    let (stop, max_triangle_error) = match params.criterion() {
+        Criterion::Variation => (variation::refine(&mut mesh, &mut sampler, &mut run)?, None),
+        Criterion::Error => {
+            let (stop, worst) = error::refine(&mut mesh, &mut sampler, &mut run)?;
+            (stop, Some(worst))
+        }
+    };
     let stats = Stats {
         vertices: mesh.num_vertices(),
         triangles: mesh.num_triangles(),
         variation: variation(&mesh),
-        flips,
-        retired_edges: retired,
-        evaluations,
+        max_triangle_error,
+        flips: run.flips,
+        retired_edges: run.retired,
+        evaluations: sampler.evaluations,
         stop,
         delaunay: mesh.is_delaunay(),
         elapsed: start.elapsed(),
@@ -283,10 +228,105 @@ where
     Ok(Refinement { mesh, stats })
 }
 
-/// The queue entry for the edge (p, q) under the variation criterion.
-#[inline]
-fn candidate(mesh: &Mesh, p: u32, q: u32) -> Candidate {
-    Candidate::new((mesh.vertex(p).z - mesh.vertex(q).z).abs(), p, q)
+/// F with a count of evaluations; a non-finite value is an error naming the point.
+struct Sampler<'s, S: ?Sized> {
+    surface: &'s S,
+    evaluations: u64,
+}
+
+impl<S: Surface + ?Sized> Sampler<'_, S> {
+    #[inline]
+    fn eval(&mut self, p: Point) -> Result<f64, RefineError> {
+        self.evaluations += 1;
+        let value = self.surface.eval(p);
+        if value.is_finite() { Ok(value) } else { Err(RefineError::NonFinite { point: p, value }) }
+    }
+}
+
+/// What both criteria's loops share: the stop rules, progress reports, size floors, the flip
+/// stack and the counters.
+struct Run<'a, O> {
+    params: &'a Params,
+    observer: &'a mut O,
+    start: Instant,
+    last_report: Instant,
+    steps: u64,
+    /// Edges shorter than this (squared) are never split.
+    floor_sq: f64,
+    /// No split makes a triangle with twice its area below this.
+    min_area_x2: f64,
+    /// Scratch stack for Lawson flips, reused so insertions do not allocate.
+    stack: Vec<u32>,
+    flips: u64,
+    retired: u64,
+}
+
+impl<O: Observer> Run<'_, O> {
+    /// The stop rule that fires before the next insertion, if any: the budget, cancellation,
+    /// and every [`CLOCK_EVERY`] steps the time limit; progress is reported on the same beat.
+    /// `worst` is the current worst criterion value, asked only for a report.
+    fn stop_before_step(&mut self, mesh: &Mesh, worst: impl FnOnce() -> f64) -> Option<StopReason> {
+        if mesh.num_vertices() >= self.params.max_vertices() {
+            return Some(StopReason::MaxVertices);
+        }
+        if self.observer.is_cancelled() {
+            return Some(StopReason::Cancelled);
+        }
+        self.steps += 1;
+        if self.steps % CLOCK_EVERY == 0 {
+            let now = Instant::now();
+            if self.params.time_limit().is_some_and(|limit| now - self.start >= limit) {
+                return Some(StopReason::TimeLimit);
+            }
+            if now - self.last_report >= PROGRESS_INTERVAL {
+                self.last_report = now;
+                self.observer.progress(&Progress {
+                    vertices: mesh.num_vertices(),
+                    triangles: mesh.num_triangles(),
+                    worst: worst(),
+                    elapsed: now - self.start,
+                });
+            }
+        }
+        None
+    }
+
+    /// Whether the tolerance stops the run at this worst value.
+    fn is_tolerance_met(&self, worst: f64) -> bool {
+        self.params.tolerance().is_some_and(|tolerance| worst <= tolerance)
+    }
+
+    /// Splits the edge of half-edge `e` at its midpoint with value F there, restores the
+    /// Delaunay property in semi-recursive mode, and reports every triangle it rewrote and
+    /// every edge a flip created away from the new vertex. `None` (and an untouched mesh)
+    /// when the edge is below the length floor or its split would make a too-small triangle.
+    fn split_midpoint<S: Surface + ?Sized>(
+        &mut self,
+        mesh: &mut Mesh,
+        sampler: &mut Sampler<'_, S>,
+        e: u32,
+        mut on_flip: impl FnMut(&Mesh, u32),
+    ) -> Result<Option<Split>, RefineError> {
+        let (a, b) = (mesh.point(mesh.origin(e)), mesh.point(mesh.dest(e)));
+        let m = a.midpoint(b);
+        if a.distance_sq(b) < self.floor_sq || !mesh.can_split(e, m, self.min_area_x2) {
+            self.retired += 1;
+            return Ok(None);
+        }
+        let z = sampler.eval(m)?;
+        let split = mesh.split(e, Vertex { x: m.x, y: m.y, z });
+        if self.params.method() == Method::SemiRecursive {
+            let stack = &mut self.stack;
+            self.flips += u64::from(if split.on_edge {
+                stack.extend_from_slice(split.link());
+                mesh.legalize(stack, &mut on_flip)
+            } else {
+                stack.extend(split.suspects());
+                mesh.legalize_all(stack, &mut on_flip)
+            });
+        }
+        Ok(Some(split))
+    }
 }
 
 #[cfg(test)]

@@ -22,6 +22,8 @@ pub enum Criterion {
     /// The paper's: the edge with the largest |zᵢ − zⱼ|.
     #[default]
     Variation,
+    /// The longest edge of the triangle with the largest sampled error max |F − F_n|.
+    Error,
 }
 
 /// The largest vertex budget the engine accepts: vertex and half-edge ids are `u32`, and a
@@ -147,7 +149,7 @@ macro_rules! names {
 }
 
 names!(Method, "method", "recursive" => Method::Recursive, "semi-recursive" => Method::SemiRecursive);
-names!(Criterion, "criterion", "variation" => Criterion::Variation);
+names!(Criterion, "criterion", "variation" => Criterion::Variation, "error" => Criterion::Error);
 
 #[cfg(test)]
 mod tests {

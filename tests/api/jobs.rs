@@ -291,3 +291,23 @@ async fn a_queue_of_zero_still_runs_jobs_on_idle_workers() {
     assert_eq!(response.status(), 200);
     app.shutdown().await;
 }
+
+#[tokio::test]
+async fn the_error_criterion_is_served_and_reports_its_max_triangle_error() {
+    let app = spawn_app().await;
+    let body =
+        json!({"function": "exp(-100*((x-0.4)^2+(y-0.6)^2))", "criterion": "error", "max_vertices": 2000});
+    let doc: Value = app.post("/v1/meshes", &body).await.json().await.unwrap();
+    assert_eq!(doc["stats"]["vertices"], 2000);
+    let worst = doc["stats"]["max_triangle_error"].as_f64().unwrap();
+    assert!(worst > 0.0 && worst < 0.01, "{worst}");
+    let paper: Value = app
+        .post("/v1/meshes", &json!({"function": "exp(-100*((x-0.4)^2+(y-0.6)^2))", "max_vertices": 2000}))
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_ne!(doc["id"], paper["id"], "the criterion is part of the id");
+    assert!(paper["stats"].get("max_triangle_error").is_none());
+    app.shutdown().await;
+}

@@ -1,0 +1,223 @@
+//! The error criterion: split the longest edge of the triangle whose sampled error
+//! e(T) = max |F − F_n| is largest.
+//!
+//! Every vertex is still the midpoint of a mesh edge and old vertices never move, as in the
+//! paper; what changes is which edge: the one that serves the worst-approximated triangle.
+//! `semi-recursive` bisects that triangle's longest edge and flips; `recursive` follows the
+//! longest-edge propagation path (Rivara) and bisects its terminal edge, one midpoint per
+//! step, which keeps angles bounded away from zero.
+
+use super::{Observer, RefineError, Run, Sampler, StopReason};
+use crate::geom::{Mesh, NONE, Point};
+use crate::refine::Method;
+use crate::source::{Grid, Surface};
+use std::cmp::Ordering;
+use std::collections::BinaryHeap;
+
+/// A triangle's error estimate, valid while `seq` is the triangle's current sequence number.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Entry {
+    error: f64,
+    seq: u32,
+    t: u32,
+}
+
+/// Worse first: larger error, then the older estimate. Oldest-first among ties spreads the
+/// refinement evenly where F is linear (every error 0) instead of digging at one corner.
+impl Ord for Entry {
+    fn cmp(&self, other: &Self) -> Ordering {
+        // Errors are finite and ≥ +0, where the bit patterns order like the numbers.
+        self.error.to_bits().cmp(&other.error.to_bits()).then(other.seq.cmp(&self.seq))
+    }
+}
+
+impl PartialOrd for Entry {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Eq for Entry {}
+
+/// Triangle errors and the queue over them.
+struct Estimates {
+    heap: BinaryHeap<Entry>,
+    /// Current sequence number and estimate of each triangle slot.
+    current: Vec<(u32, f64)>,
+    next_seq: u32,
+}
+
+impl Estimates {
+    fn set(&mut self, t: u32, error: f64) {
+        let seq = self.next_seq;
+        self.next_seq += 1;
+        let t_us = t as usize;
+        if self.current.len() <= t_us {
+            self.current.resize(t_us + 1, (u32::MAX, 0.0));
+        }
+        self.current[t_us] = (seq, error);
+        self.heap.push(Entry { error, seq, t });
+    }
+
+    fn is_current(&self, entry: &Entry) -> bool {
+        self.current[entry.t as usize].0 == entry.seq
+    }
+
+    /// The worst current entry, dropping stale ones on the way.
+    fn peek(&mut self) -> Option<Entry> {
+        while let Some(&top) = self.heap.peek() {
+            if self.is_current(&top) {
+                return Some(top);
+            }
+            self.heap.pop();
+        }
+        None
+    }
+}
+
+/// Refines `mesh` worst triangle first until a stop rule fires. Returns why it stopped and the
+/// largest e(T) at that point.
+pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
+    mesh: &mut Mesh,
+    sampler: &mut Sampler<'_, S>,
+    run: &mut Run<'_, O>,
+) -> Result<(StopReason, f64), RefineError> {
+    let n = run.params.max_vertices();
+    let mut estimates =
+        Estimates { heap: BinaryHeap::with_capacity(4 * n.min(1 << 24)), current: Vec::new(), next_seq: 0 };
+    for t in 0..mesh.num_triangles() as u32 {
+        estimates.set(t, triangle_error(mesh, t, sampler)?);
+    }
+    let recursive = run.params.method() == Method::Recursive;
+    // Triangles a step rewrote, re-estimated after it; reused so steps do not allocate.
+    let mut touched: Vec<u32> = Vec::with_capacity(32);
+    let stop = loop {
+        let top = estimates.peek();
+        if let Some(stop) = run.stop_before_step(mesh, || top.map_or(0.0, |e| e.error)) {
+            break stop;
+        }
+        let Some(worst) = top else {
+            break StopReason::Exhausted;
+        };
+        if run.is_tolerance_met(worst.error) {
+            break StopReason::Tolerance;
+        }
+        estimates.heap.pop();
+        let e = if recursive { terminal_edge(mesh, worst.t) } else { longest_edge(mesh, worst.t) };
+        run.observer.selected(mesh, mesh.origin(e), mesh.dest(e));
+        touched.clear();
+        let split = run.split_midpoint(mesh, sampler, e, |mesh, d| {
+            touched.extend([d / 3, mesh.twin(d) / 3]);
+        })?;
+        let Some(split) = split else {
+            // The triangle stays as it is, out of the queue.
+            run.observer.retired(mesh.origin(e), mesh.dest(e));
+            continue;
+        };
+        touched.extend(split.link().iter().map(|&h| h / 3));
+        touched.sort_unstable();
+        touched.dedup();
+        for &t in &touched {
+            estimates.set(t, triangle_error(mesh, t, sampler)?);
+        }
+        if !touched.contains(&worst.t) {
+            // Rivara bisected a neighbour first: the worst triangle is still there, unchanged.
+            estimates.heap.push(worst);
+        }
+        run.observer.inserted(mesh, split.vertex);
+    };
+    let worst = (0..mesh.num_triangles()).map(|t| estimates.current[t].1).fold(0.0, f64::max);
+    Ok((stop, worst))
+}
+
+/// The half-edge of triangle `t`'s longest edge; among equal lengths, the first.
+fn longest_edge(mesh: &Mesh, t: u32) -> u32 {
+    let len_sq = |e: u32| mesh.point(mesh.origin(e)).distance_sq(mesh.point(mesh.dest(e)));
+    (3 * t..3 * t + 3).fold(3 * t, |best, e| if len_sq(e) > len_sq(best) { e } else { best })
+}
+
+/// The end of the longest-edge propagation path from `t`: follow longest edges across
+/// neighbours while the neighbour's longest edge is strictly longer. Lengths grow strictly
+/// along the path, so it ends; its last edge is the longest edge of both its triangles (or
+/// on the boundary), so bisecting it keeps the mesh conforming.
+fn terminal_edge(mesh: &Mesh, t: u32) -> u32 {
+    let len_sq = |e: u32| mesh.point(mesh.origin(e)).distance_sq(mesh.point(mesh.dest(e)));
+    let mut e = longest_edge(mesh, t);
+    loop {
+        let f = mesh.twin(e);
+        if f == NONE {
+            return e;
+        }
+        let g = longest_edge(mesh, f / 3);
+        if len_sq(g) <= len_sq(e) {
+            return e;
+        }
+        e = g;
+    }
+}
+
+/// Barycentric weights ×4 of the order-4 lattice points that are not corners: 9 inside the
+/// edges and 3 inside the triangle.
+const LATTICE: [[u8; 3]; 12] = [
+    [3, 1, 0],
+    [2, 2, 0],
+    [1, 3, 0],
+    [0, 3, 1],
+    [0, 2, 2],
+    [0, 1, 3],
+    [1, 0, 3],
+    [2, 0, 2],
+    [3, 0, 1],
+    [2, 1, 1],
+    [1, 2, 1],
+    [1, 1, 2],
+];
+
+/// e(T) = max |F(s) − F_n(s)| over the lattice points s of triangle `t`, and for a grid also
+/// over the grid nodes inside it (nodes alone would miss the small triangles that hold none).
+fn triangle_error<S: Surface + ?Sized>(
+    mesh: &Mesh,
+    t: u32,
+    sampler: &mut Sampler<'_, S>,
+) -> Result<f64, RefineError> {
+    let [a, b, c] = mesh.triangle(t as usize).map(|v| mesh.vertex(v));
+    let mut error = 0.0f64;
+    for [i, j, k] in LATTICE {
+        let (wa, wb, wc) = (f64::from(i) * 0.25, f64::from(j) * 0.25, f64::from(k) * 0.25);
+        let p = Point::new(wa * a.x + wb * b.x + wc * c.x, wa * a.y + wb * b.y + wc * c.y);
+        let linear = wa * a.z + wb * b.z + wc * c.z;
+        error = error.max((sampler.eval(p)? - linear).abs());
+    }
+    if let Some(grid) = sampler.surface.grid() {
+        error = error.max(grid_nodes_error(grid, [a, b, c]));
+    }
+    Ok(error)
+}
+
+/// max |value − F_n| over the grid nodes in the closed triangle (a hair of slack, so nodes on
+/// edges are not lost to rounding).
+fn grid_nodes_error(grid: &Grid, corners: [crate::geom::Vertex; 3]) -> f64 {
+    const SLACK: f64 = 1e-9;
+    let [(a, za), (b, zb), (c, zc)] = corners.map(|v| {
+        let (u, w) = grid.to_grid(v.point());
+        (Point::new(u, w), v.z)
+    });
+    let det = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+    let lo_i = a.x.min(b.x).min(c.x).ceil().max(0.0) as usize;
+    let hi_i = (a.x.max(b.x).max(c.x).floor().max(0.0) as usize).min(grid.nx() - 1);
+    let lo_j = a.y.min(b.y).min(c.y).ceil().max(0.0) as usize;
+    let hi_j = (a.y.max(b.y).max(c.y).floor().max(0.0) as usize).min(grid.ny() - 1);
+    let mut error = 0.0f64;
+    for j in lo_j..=hi_j {
+        for i in lo_i..=hi_i {
+            let (x, y) = (i as f64, j as f64);
+            let wb = ((x - a.x) * (c.y - a.y) - (y - a.y) * (c.x - a.x)) / det;
+            let wc = ((b.x - a.x) * (y - a.y) - (b.y - a.y) * (x - a.x)) / det;
+            let wa = 1.0 - wb - wc;
+            if wa >= -SLACK && wb >= -SLACK && wc >= -SLACK {
+                error = error.max((grid.value(i, j) - (wa * za + wb * zb + wc * zc)).abs());
+            }
+        }
+    }
+    error
+}

@@ -1,0 +1,62 @@
+//! The paper's criterion: split the edge with the largest |zᵢ − zⱼ|.
+
+use super::worst_edge::{Candidate, WorstEdgeQueue};
+use super::{Observer, RefineError, Run, Sampler, StopReason};
+use crate::geom::Mesh;
+use crate::source::Surface;
+
+/// Refines `mesh` worst edge first until a stop rule fires.
+pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
+    mesh: &mut Mesh,
+    sampler: &mut Sampler<'_, S>,
+    run: &mut Run<'_, O>,
+) -> Result<StopReason, RefineError> {
+    // About three edges per vertex are queued over a run.
+    let mut queue = WorstEdgeQueue::with_capacity(3 * run.params.max_vertices().min(1 << 24) + 8);
+    for edge in mesh.edges() {
+        queue.push(candidate(mesh, edge.a, edge.b), mesh.vertices());
+    }
+    loop {
+        if let Some(stop) = run.stop_before_step(mesh, || queue.peek().map_or(0.0, |c| c.value)) {
+            return Ok(stop);
+        }
+        let Some(&worst) = queue.peek() else {
+            return Ok(StopReason::Exhausted);
+        };
+        let Some(e) = mesh.find_edge(worst.a, worst.b) else {
+            // Flipped away since it was queued.
+            queue.pop(mesh.vertices());
+            continue;
+        };
+        if run.is_tolerance_met(worst.value) {
+            return Ok(StopReason::Tolerance);
+        }
+        queue.pop(mesh.vertices());
+        run.observer.selected(mesh, worst.a, worst.b);
+        // A flip away from the new vertex (only after a midpoint rounded off its edge) makes
+        // an edge the walk below does not see: queue it here. One flipped again later in the
+        // same pass goes stale and is skipped.
+        let split = run.split_midpoint(mesh, sampler, e, |mesh, d| {
+            let (p, q, new) = (mesh.origin(d), mesh.dest(d), mesh.num_vertices() as u32 - 1);
+            if p != new && q != new {
+                queue.push(candidate(mesh, p, q), mesh.vertices());
+            }
+        })?;
+        let Some(split) = split else {
+            run.observer.retired(worst.a, worst.b);
+            continue;
+        };
+        // The other edges this step created end at the new vertex: its halves, the edges to
+        // the apexes, and the diagonals of flips around it.
+        mesh.for_each_neighbour(split.vertex, |other, _| {
+            queue.push(candidate(mesh, split.vertex, other), mesh.vertices());
+        });
+        run.observer.inserted(mesh, split.vertex);
+    }
+}
+
+/// The queue entry for the edge (p, q) under the variation criterion.
+#[inline]
+pub(super) fn candidate(mesh: &Mesh, p: u32, q: u32) -> Candidate {
+    Candidate::new((mesh.vertex(p).z - mesh.vertex(q).z).abs(), p, q)
+}
