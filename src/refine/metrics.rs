@@ -134,3 +134,53 @@ fn grid_error(mesh: &Mesh, grid: &Grid) -> (f64, f64, u64) {
     let rms = if samples > 0 { (sum_sq / samples as f64).sqrt() } else { 0.0 };
     (max, rms, samples)
 }
+
+/// E_max on a dense sample: an `n × n` grid over the rectangle plus every edge midpoint and
+/// centroid of the mesh (F_n equals F at the vertices), each grid point compared once. The
+/// measure of the quality table (docs/quality.md); far costlier than [`estimate_error`].
+pub fn dense_max_error<S: Surface + ?Sized>(mesh: &Mesh, surface: &S, n: usize) -> f64 {
+    let r = mesh.rect();
+    let (hx, hy) = ((r.x1() - r.x0()) / (n - 1) as f64, (r.y1() - r.y0()) / (n - 1) as f64);
+    let mut seen = vec![0u64; (n * n).div_ceil(64)];
+    let mut max = 0.0f64;
+    let mut compare = |p: Point, linear: f64| {
+        let exact = surface.eval(p);
+        if exact.is_finite() {
+            max = max.max((exact - linear).abs());
+        }
+    };
+    for t in 0..mesh.num_triangles() {
+        let [(a, za), (b, zb), (c, zc)] = corners(mesh, t);
+        compare(Point::new((a.x + b.x + c.x) / 3.0, (a.y + b.y + c.y) / 3.0), (za + zb + zc) / 3.0);
+        for ((p, zp), (q, zq)) in [((a, za), (b, zb)), ((b, zb), (c, zc)), ((c, zc), (a, za))] {
+            compare(p.midpoint(q), 0.5 * (zp + zq));
+        }
+        // The grid points inside, in grid units (i, j), with a hair of slack for edges.
+        let to_grid = |p: Point| Point::new((p.x - r.x0()) / hx, (p.y - r.y0()) / hy);
+        let (ga, gb, gc) = (to_grid(a), to_grid(b), to_grid(c));
+        let det = (gb.x - ga.x) * (gc.y - ga.y) - (gb.y - ga.y) * (gc.x - ga.x);
+        let lo_i = ga.x.min(gb.x).min(gc.x).ceil().max(0.0) as usize;
+        let hi_i = (ga.x.max(gb.x).max(gc.x).floor().max(0.0) as usize).min(n - 1);
+        let lo_j = ga.y.min(gb.y).min(gc.y).ceil().max(0.0) as usize;
+        let hi_j = (ga.y.max(gb.y).max(gc.y).floor().max(0.0) as usize).min(n - 1);
+        for j in lo_j..=hi_j {
+            for i in lo_i..=hi_i {
+                let index = j * n + i;
+                if seen[index / 64] & (1 << (index % 64)) != 0 {
+                    continue;
+                }
+                let (x, y) = (i as f64, j as f64);
+                let wb = ((x - ga.x) * (gc.y - ga.y) - (y - ga.y) * (gc.x - ga.x)) / det;
+                let wc = ((gb.x - ga.x) * (y - ga.y) - (gb.y - ga.y) * (x - ga.x)) / det;
+                let wa = 1.0 - wb - wc;
+                if wa < -1e-9 || wb < -1e-9 || wc < -1e-9 {
+                    continue;
+                }
+                seen[index / 64] |= 1 << (index % 64);
+                let p = Point::new(r.x0() + x * hx, r.y0() + y * hy);
+                compare(p, wa * za + wb * zb + wc * zc);
+            }
+        }
+    }
+    max
+}

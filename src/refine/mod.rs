@@ -49,7 +49,7 @@ mod params;
 mod variation;
 mod worst_edge;
 
-pub use metrics::{ErrorEstimate, estimate_error, variation};
+pub use metrics::{ErrorEstimate, dense_max_error, estimate_error, variation};
 pub use params::{Criterion, MAX_VERTICES, Method, Params, ParamsError};
 pub use worst_edge::{Candidate, WorstEdgeQueue};
 

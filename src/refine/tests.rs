@@ -479,7 +479,8 @@ fn max_error(text: &str, [a, b, c, d]: [f64; 4], n: usize, criterion: Criterion)
     let f = Expression::parse(text).unwrap();
     let rect = Rect::new(a, b, c, d).unwrap();
     let r = refine(&f, rect, &Params::new(n).unwrap().with_criterion(criterion), &mut ()).unwrap();
-    estimate_error(&r.mesh, &f).max_error
+    // The measure: a 1001 × 1001 grid plus every vertex, edge midpoint and centroid.
+    dense_max_error(&r.mesh, &f, 1001)
 }
 
 #[test]
@@ -506,6 +507,17 @@ fn variation_criterion_fails_that_bar_on_most_quality_functions() {
         })
         .count();
     assert!(failing * 2 > QUALITY.len(), "only {failing} of {} fail", QUALITY.len());
+}
+
+#[test]
+fn dense_max_error_sees_what_the_vertices_miss() {
+    // S4 of x² + y²: the worst point is the centre, F = 0.5 against F_n = 1, on the grid.
+    let bowl = |x: f64, y: f64| x * x + y * y;
+    let r = refine(&bowl, Rect::unit(), &Params::new(4).unwrap(), &mut ()).unwrap();
+    assert_eq!(dense_max_error(&r.mesh, &bowl, 11), 0.5);
+    let linear = |x: f64, y: f64| 3.0 * x - y;
+    let r = refine(&linear, Rect::unit(), &Params::new(200).unwrap(), &mut ()).unwrap();
+    assert!(dense_max_error(&r.mesh, &linear, 101) < 1e-12);
 }
 
 #[test]
