@@ -1,9 +1,13 @@
-//! One refinement of Franke's function (native closure), for profilers:
-//! `cargo run --release --example profile_refine -- semi-recursive 100000`
+//! One refinement of Franke's function, for profilers:
+//! `cargo run --release --example profile_refine -- semi-recursive 100000 [variation|error] [native|meval]`
 //! (`valgrind --tool=cachegrind` or `perf record` on the binary give repeatable counts).
 
 use meshfit::geom::Rect;
-use meshfit::refine::{Method, Params, refine};
+use meshfit::refine::{Criterion, Method, Params, refine};
+use meshfit::source::Expression;
+
+const FRANKE: &str = "0.75*exp(-((9*x-2)^2 + (9*y-2)^2)/4) + 0.75*exp(-((9*x+1)^2)/49 - (9*y+1)/10) \
+                      + 0.5*exp(-((9*x-7)^2 + (9*y-3)^2)/4) - 0.2*exp(-((9*x-4)^2) - (9*y-7)^2)";
 
 fn franke(x: f64, y: f64) -> f64 {
     let (a, b) = (9.0 * x, 9.0 * y);
@@ -17,7 +21,13 @@ fn main() {
     let mut args = std::env::args().skip(1);
     let method: Method = args.next().as_deref().unwrap_or("semi-recursive").parse().expect("a method");
     let n: usize = args.next().as_deref().unwrap_or("100000").parse().expect("a vertex count");
-    let params = Params::new(n).expect("a budget of at least 4").with_method(method);
-    let result = refine(&franke, Rect::unit(), &params, &mut ()).expect("Franke is finite");
+    let criterion: Criterion = args.next().as_deref().unwrap_or("variation").parse().expect("a criterion");
+    let params =
+        Params::new(n).expect("a budget of at least 4").with_method(method).with_criterion(criterion);
+    let result = match args.next().as_deref().unwrap_or("native") {
+        "meval" => refine(&Expression::parse(FRANKE).expect("Franke parses"), Rect::unit(), &params, &mut ()),
+        _ => refine(&franke, Rect::unit(), &params, &mut ()),
+    }
+    .expect("Franke is finite");
     println!("{}", serde_json::to_string(&result.stats).expect("stats serialize"));
 }
