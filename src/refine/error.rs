@@ -181,12 +181,19 @@ fn triangle_error<S: Surface + ?Sized>(
     sampler: &mut Sampler<'_, S>,
 ) -> Result<f64, RefineError> {
     let [a, b, c] = mesh.triangle(t as usize).map(|v| mesh.vertex(v));
-    let mut error = 0.0f64;
-    for [i, j, k] in LATTICE {
+    let mut points = [Point::new(0.0, 0.0); LATTICE.len()];
+    let mut linear = [0.0; LATTICE.len()];
+    for ((p, l), [i, j, k]) in points.iter_mut().zip(&mut linear).zip(LATTICE) {
         let (wa, wb, wc) = (f64::from(i) * 0.25, f64::from(j) * 0.25, f64::from(k) * 0.25);
-        let p = Point::new(wa * a.x + wb * b.x + wc * c.x, wa * a.y + wb * b.y + wc * c.y);
-        let linear = wa * a.z + wb * b.z + wc * c.z;
-        error = error.max((sampler.eval(p)? - linear).abs());
+        *p = Point::new(wa * a.x + wb * b.x + wc * c.x, wa * a.y + wb * b.y + wc * c.y);
+        *l = wa * a.z + wb * b.z + wc * c.z;
+    }
+    let mut values = [0.0; LATTICE.len()];
+    // One batch: a compiled expression decodes each operation once for all twelve points.
+    sampler.eval_many(&points, &mut values)?;
+    let mut error = 0.0f64;
+    for (v, l) in values.iter().zip(&linear) {
+        error = error.max((v - l).abs());
     }
     if let Some(grid) = sampler.surface.grid() {
         error = error.max(grid_nodes_error(grid, [a, b, c]));

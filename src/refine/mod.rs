@@ -241,6 +241,17 @@ impl<S: Surface + ?Sized> Sampler<'_, S> {
         let value = self.surface.eval(p);
         if value.is_finite() { Ok(value) } else { Err(RefineError::NonFinite { point: p, value }) }
     }
+
+    /// F at each point into `out`; the first non-finite value is the error.
+    #[inline]
+    fn eval_many(&mut self, points: &[Point], out: &mut [f64]) -> Result<(), RefineError> {
+        self.evaluations += points.len() as u64;
+        self.surface.eval_many(points, out);
+        match out.iter().position(|v| !v.is_finite()) {
+            None => Ok(()),
+            Some(i) => Err(RefineError::NonFinite { point: points[i], value: out[i] }),
+        }
+    }
 }
 
 /// What both criteria's loops share: the stop rules, progress reports, size floors, the flip

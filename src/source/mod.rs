@@ -16,6 +16,14 @@ pub trait Surface: Sync {
     /// F at `p`.
     fn eval(&self, p: Point) -> f64;
 
+    /// F at each of `points` into `out` (same length), with the same bits as [`Surface::eval`];
+    /// sources that can share work across points (a compiled expression) override it.
+    fn eval_many(&self, points: &[Point], out: &mut [f64]) {
+        for (p, o) in points.iter().zip(out) {
+            *o = self.eval(*p);
+        }
+    }
+
     /// The sampled grid behind this surface, if any: error estimation then visits every node.
     fn grid(&self) -> Option<&Grid> {
         None
@@ -55,6 +63,13 @@ impl Surface for Source {
         match self {
             Source::Expression(e) => e.eval(p),
             Source::Grid(g) => g.eval(p),
+        }
+    }
+
+    fn eval_many(&self, points: &[Point], out: &mut [f64]) {
+        match self {
+            Source::Expression(e) => e.eval_many(points, out),
+            Source::Grid(g) => g.eval_many(points, out),
         }
     }
 
