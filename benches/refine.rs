@@ -5,22 +5,15 @@
 //! `cargo bench --bench refine -- semi-recursive/franke_native`.
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+#[path = "support/franke.rs"]
+mod support;
+
 use meshfit::geom::Rect;
 use meshfit::refine::{Method, Params, refine};
 use meshfit::source::{Expression, Grid, Source, Surface};
 use std::hint::black_box;
 use std::time::Duration;
-
-const FRANKE: &str = "0.75*exp(-((9*x-2)^2 + (9*y-2)^2)/4) + 0.75*exp(-((9*x+1)^2)/49 - (9*y+1)/10) \
-                      + 0.5*exp(-((9*x-7)^2 + (9*y-3)^2)/4) - 0.2*exp(-((9*x-4)^2) - (9*y-7)^2)";
-
-fn franke(x: f64, y: f64) -> f64 {
-    let (a, b) = (9.0 * x, 9.0 * y);
-    0.75 * (-((a - 2.0).powi(2) + (b - 2.0).powi(2)) / 4.0).exp()
-        + 0.75 * (-(a + 1.0).powi(2) / 49.0 - (b + 1.0) / 10.0).exp()
-        + 0.5 * (-((a - 7.0).powi(2) + (b - 3.0).powi(2)) / 4.0).exp()
-        - 0.2 * (-(a - 4.0).powi(2) - (b - 7.0).powi(2)).exp()
-}
+use support::{FRANKE, franke};
 
 fn franke_grid(n: usize) -> Grid {
     let h = 1.0 / (n - 1) as f64;
