@@ -1,5 +1,7 @@
 //! Refinement speed: Franke's function as a native closure, through meval, and sampled on a
-//! 4097 × 4097 grid, at 10^4, 10^5 and 10^6 vertices with both methods.
+//! 4097 × 4097 grid, at 10^4, 10^5 and 10^6 vertices with both methods; and the error
+//! criterion (ids `refine/<method>-error/...`) through meval and on a 1025 × 1025 grid at 10^4
+//! and 10^5.
 //!
 //! Run with `cargo bench --bench refine`; pick a subset with a filter, e.g.
 //! `cargo bench --bench refine -- semi-recursive/franke_native`.
