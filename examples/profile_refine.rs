@@ -1,5 +1,6 @@
 //! One refinement of Franke's function, for profilers:
-//! `cargo run --release --example profile_refine -- semi-recursive 100000 [variation|error] [native|meval]`
+//! `cargo run --release --example profile_refine -- semi-recursive 100000 [variation|error] [native|meval|grid<N>]`
+//! (`grid4097`: Franke sampled on a 4097 × 4097 grid over [0,1]²)
 //! (`valgrind --tool=cachegrind` or `perf record` on the binary give repeatable counts).
 
 #[path = "../benches/support/franke.rs"]
@@ -7,7 +8,7 @@ mod support;
 
 use meshfit::geom::Rect;
 use meshfit::refine::{Criterion, Method, Params, refine};
-use meshfit::source::Expression;
+use meshfit::source::{Expression, Grid};
 use support::{FRANKE, franke};
 
 fn main() {
@@ -17,8 +18,16 @@ fn main() {
     let criterion: Criterion = args.next().as_deref().unwrap_or("variation").parse().expect("a criterion");
     let params =
         Params::new(n).expect("a budget of at least 4").with_method(method).with_criterion(criterion);
-    let result = match args.next().as_deref().unwrap_or("native") {
+    let surface = args.next().unwrap_or_else(|| "native".into());
+    let result = match surface.as_str() {
         "meval" => refine(&Expression::parse(FRANKE).expect("Franke parses"), Rect::unit(), &params, &mut ()),
+        grid if grid.starts_with("grid") => {
+            let n: usize = grid[4..].parse().expect("grid<N>, e.g. grid4097");
+            let h = 1.0 / (n - 1) as f64;
+            let values = (0..n * n).map(|k| franke((k % n) as f64 * h, (k / n) as f64 * h)).collect();
+            let grid = Grid::new(n, n, values).expect("a valid grid").with_domain(Rect::unit());
+            refine(&grid, Rect::unit(), &params, &mut ())
+        }
         _ => refine(&franke, Rect::unit(), &params, &mut ()),
     }
     .expect("Franke is finite");
