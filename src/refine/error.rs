@@ -39,28 +39,56 @@ impl PartialOrd for Entry {
 
 impl Eq for Entry {}
 
+/// What is known of one triangle slot.
+#[derive(Debug, Clone, Copy)]
+struct Slot {
+    /// Sequence number of the triangle's current queue entry.
+    seq: u32,
+    /// e(T).
+    error: f64,
+    /// The error on each of its edges' lattice points, by half-edge position. Both triangles
+    /// of an edge sample the same points (the weights of the third corner are zero and IEEE
+    /// addition commutes), so a neighbour may take these instead of evaluating F again.
+    edges: [f64; 3],
+    /// Whether `error` and `edges` describe the triangle now in the slot; false from the
+    /// moment a step rewrites it until it is estimated again.
+    fresh: bool,
+}
+
 /// Triangle errors and the queue over them.
 struct Estimates {
     heap: BinaryHeap<Entry>,
-    /// Current sequence number and estimate of each triangle slot.
-    current: Vec<(u32, f64)>,
+    slots: Vec<Slot>,
     next_seq: u32,
 }
 
 impl Estimates {
-    fn set(&mut self, t: u32, error: f64) {
+    /// Marks triangle `t` as rewritten, so neighbours stop borrowing its edge errors.
+    fn invalidate(&mut self, t: u32) {
+        let t = t as usize;
+        if self.slots.len() <= t {
+            self.slots.resize(t + 1, Slot { seq: u32::MAX, error: 0.0, edges: [0.0; 3], fresh: false });
+        }
+        self.slots[t].fresh = false;
+    }
+
+    /// The error on the edge of half-edge `e` as a fresh triangle on its far side knows it.
+    fn known_edge_error(&self, mesh: &Mesh, e: u32) -> Option<f64> {
+        let f = mesh.twin(e);
+        let slot = self.slots.get((f / 3) as usize).filter(|_| f != NONE)?;
+        slot.fresh.then_some(slot.edges[(f % 3) as usize])
+    }
+
+    fn set(&mut self, t: u32, error: f64, edges: [f64; 3]) {
         let seq = self.next_seq;
         self.next_seq += 1;
-        let t_us = t as usize;
-        if self.current.len() <= t_us {
-            self.current.resize(t_us + 1, (u32::MAX, 0.0));
-        }
-        self.current[t_us] = (seq, error);
+        self.invalidate(t);
+        self.slots[t as usize] = Slot { seq, error, edges, fresh: true };
         self.heap.push(Entry { error, seq, t });
     }
 
     fn is_current(&self, entry: &Entry) -> bool {
-        self.current[entry.t as usize].0 == entry.seq
+        self.slots[entry.t as usize].seq == entry.seq
     }
 
     /// The worst current entry, dropping stale ones on the way.
@@ -84,9 +112,13 @@ pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
 ) -> Result<(StopReason, f64), RefineError> {
     let n = run.params.max_vertices();
     let mut estimates =
-        Estimates { heap: BinaryHeap::with_capacity(4 * n.min(1 << 24)), current: Vec::new(), next_seq: 0 };
+        Estimates { heap: BinaryHeap::with_capacity(4 * n.min(1 << 24)), slots: Vec::new(), next_seq: 0 };
     for t in 0..mesh.num_triangles() as u32 {
-        estimates.set(t, triangle_error(mesh, t, sampler)?);
+        estimates.invalidate(t);
+    }
+    for t in 0..mesh.num_triangles() as u32 {
+        let (error, edges) = triangle_error(mesh, t, sampler, &estimates)?;
+        estimates.set(t, error, edges);
     }
     let recursive = run.params.method() == Method::Recursive;
     // Triangles a step rewrote, re-estimated after it; reused so steps do not allocate.
@@ -118,7 +150,11 @@ pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
         touched.sort_unstable();
         touched.dedup();
         for &t in &touched {
-            estimates.set(t, triangle_error(mesh, t, sampler)?);
+            estimates.invalidate(t);
+        }
+        for &t in &touched {
+            let (error, edges) = triangle_error(mesh, t, sampler, &estimates)?;
+            estimates.set(t, error, edges);
         }
         if !touched.contains(&worst.t) {
             // Rivara bisected a neighbour first: the worst triangle is still there, unchanged.
@@ -126,7 +162,7 @@ pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
         }
         run.observer.inserted(mesh, split.vertex);
     };
-    let worst = (0..mesh.num_triangles()).map(|t| estimates.current[t].1).fold(0.0, f64::max);
+    let worst = (0..mesh.num_triangles()).map(|t| estimates.slots[t].error).fold(0.0, f64::max);
     Ok((stop, worst))
 }
 
@@ -175,30 +211,51 @@ const LATTICE: [[u8; 3]; 12] = [
 
 /// e(T) = max |F(s) − F_n(s)| over the lattice points s of triangle `t`, and for a grid also
 /// over the grid nodes inside it (nodes alone would miss the small triangles that hold none).
+/// Returns e(T) and the error on each edge's points; an edge a fresh neighbour has already
+/// sampled is not sampled again.
 fn triangle_error<S: Surface + ?Sized>(
     mesh: &Mesh,
     t: u32,
     sampler: &mut Sampler<'_, S>,
-) -> Result<f64, RefineError> {
+    estimates: &Estimates,
+) -> Result<(f64, [f64; 3]), RefineError> {
     let [a, b, c] = mesh.triangle(t as usize).map(|v| mesh.vertex(v));
+    let known = [0, 1, 2].map(|k| estimates.known_edge_error(mesh, 3 * t + k));
+    // Lattice points still to sample, with the interpolant there and where the error goes:
+    // 0..3 for an edge (half-edge position), 3 for the interior.
     let mut points = [Point::new(0.0, 0.0); LATTICE.len()];
     let mut linear = [0.0; LATTICE.len()];
-    for ((p, l), [i, j, k]) in points.iter_mut().zip(&mut linear).zip(LATTICE) {
+    let mut owner = [0usize; LATTICE.len()];
+    let mut count = 0;
+    for (index, [i, j, k]) in LATTICE.into_iter().enumerate() {
+        // LATTICE lists the points of edge 0 (a→b), 1 (b→c), 2 (c→a), then the interior.
+        let place = (index / 3).min(3);
+        if place < 3 && known[place].is_some() {
+            continue;
+        }
         let (wa, wb, wc) = (f64::from(i) * 0.25, f64::from(j) * 0.25, f64::from(k) * 0.25);
-        *p = Point::new(wa * a.x + wb * b.x + wc * c.x, wa * a.y + wb * b.y + wc * c.y);
-        *l = wa * a.z + wb * b.z + wc * c.z;
+        points[count] = Point::new(wa * a.x + wb * b.x + wc * c.x, wa * a.y + wb * b.y + wc * c.y);
+        linear[count] = wa * a.z + wb * b.z + wc * c.z;
+        owner[count] = place;
+        count += 1;
     }
     let mut values = [0.0; LATTICE.len()];
-    // One batch: a compiled expression decodes each operation once for all twelve points.
-    sampler.eval_many(&points, &mut values)?;
-    let mut error = 0.0f64;
-    for (v, l) in values.iter().zip(&linear) {
-        error = error.max((v - l).abs());
+    // One batch: a compiled expression decodes each operation once for all the points.
+    sampler.eval_many(&points[..count], &mut values[..count])?;
+    let mut edges = known.map(|e| e.unwrap_or(0.0));
+    let mut interior = 0.0f64;
+    for ((v, l), &place) in values[..count].iter().zip(&linear).zip(&owner) {
+        let err = (v - l).abs();
+        match place {
+            3 => interior = interior.max(err),
+            k => edges[k] = edges[k].max(err),
+        }
     }
+    let mut error = edges.iter().fold(interior, |m, &e| m.max(e));
     if let Some(grid) = sampler.surface.grid() {
         error = error.max(grid_nodes_error(grid, [a, b, c]));
     }
-    Ok(error)
+    Ok((error, edges))
 }
 
 /// max |value − F_n| over the grid nodes in the closed triangle (a hair of slack, so nodes on
