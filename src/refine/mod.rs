@@ -100,10 +100,11 @@ pub trait Observer {
         false
     }
 
-    /// The edge (a, b) was taken from the queue as the worst, before it is split or retired.
+    /// The edge (a, b) was chosen to split, before it is split or retired: the worst edge for
+    /// `variation`, the edge serving the worst triangle for `error`.
     fn selected(&mut self, _mesh: &Mesh, _a: u32, _b: u32) {}
 
-    /// The edge (a, b) was retired instead of split.
+    /// The edge (a, b) was retired instead of split (for `error`, with its triangle).
     fn retired(&mut self, _a: u32, _b: u32) {}
 
     /// Vertex `vertex` was inserted and the mesh is consistent again (flips done).
