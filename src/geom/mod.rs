@@ -6,6 +6,7 @@ mod check;
 mod flip;
 mod mesh;
 pub mod predicates;
+pub mod raster;
 mod split;
 
 pub use check::InvariantError;

@@ -8,7 +8,7 @@
 //! step, which keeps angles bounded away from zero.
 
 use super::{Observer, RefineError, Run, Sampler, StopReason};
-use crate::geom::{Mesh, NONE, Point};
+use crate::geom::{Mesh, NONE, Point, raster};
 use crate::refine::Method;
 use crate::source::{Grid, Surface};
 use std::cmp::Ordering;
@@ -258,30 +258,16 @@ fn triangle_error<S: Surface + ?Sized>(
     Ok((error, edges))
 }
 
-/// max |value − F_n| over the grid nodes in the closed triangle (a hair of slack, so nodes on
-/// edges are not lost to rounding).
+/// max |value − F_n| over the grid nodes in the closed triangle.
 fn grid_nodes_error(grid: &Grid, corners: [crate::geom::Vertex; 3]) -> f64 {
-    const SLACK: f64 = 1e-9;
-    let [(a, za), (b, zb), (c, zc)] = corners.map(|v| {
+    let in_grid = corners.map(|v| {
         let (u, w) = grid.to_grid(v.point());
-        (Point::new(u, w), v.z)
+        Point::new(u, w)
     });
-    let det = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
-    let lo_i = a.x.min(b.x).min(c.x).ceil().max(0.0) as usize;
-    let hi_i = (a.x.max(b.x).max(c.x).floor().max(0.0) as usize).min(grid.nx() - 1);
-    let lo_j = a.y.min(b.y).min(c.y).ceil().max(0.0) as usize;
-    let hi_j = (a.y.max(b.y).max(c.y).floor().max(0.0) as usize).min(grid.ny() - 1);
     let mut error = 0.0f64;
-    for j in lo_j..=hi_j {
-        for i in lo_i..=hi_i {
-            let (x, y) = (i as f64, j as f64);
-            let wb = ((x - a.x) * (c.y - a.y) - (y - a.y) * (c.x - a.x)) / det;
-            let wc = ((b.x - a.x) * (y - a.y) - (b.y - a.y) * (x - a.x)) / det;
-            let wa = 1.0 - wb - wc;
-            if wa >= -SLACK && wb >= -SLACK && wc >= -SLACK {
-                error = error.max((grid.value(i, j) - (wa * za + wb * zb + wc * zc)).abs());
-            }
-        }
-    }
+    raster::for_each_node(in_grid, grid.nx(), grid.ny(), |i, j, [wa, wb, wc]| {
+        let linear = wa * corners[0].z + wb * corners[1].z + wc * corners[2].z;
+        error = error.max((grid.value(i, j) - linear).abs());
+    });
     error
 }

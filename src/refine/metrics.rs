@@ -2,7 +2,7 @@
 //!
 //! Kept out of the refinement loop: these walk the whole mesh once.
 
-use crate::geom::{Mesh, Point};
+use crate::geom::{Mesh, Point, raster};
 use crate::source::{Grid, Surface};
 
 /// V_n = max |zᵢ − zⱼ| over the edges (i, j) of the mesh.
@@ -93,46 +93,35 @@ fn lattice_error<S: Surface + ?Sized>(mesh: &Mesh, surface: &S) -> (f64, f64, u6
     (max, rms, samples)
 }
 
-/// Rasterises every triangle over the grid nodes it covers (in grid coordinates, with a hair
-/// of slack so nodes on edges are not lost to rounding) and compares each node once.
+/// Compares every grid node once, visiting the nodes each triangle covers.
 fn grid_error(mesh: &Mesh, grid: &Grid) -> (f64, f64, u64) {
     let (nx, ny) = (grid.nx(), grid.ny());
     let mut seen = vec![0u64; (nx * ny).div_ceil(64)];
     let (mut max, mut sum_sq, mut samples) = (0.0f64, 0.0, 0u64);
-    const SLACK: f64 = 1e-9;
     for t in 0..mesh.num_triangles() {
-        let [(a, za), (b, zb), (c, zc)] = corners(mesh, t).map(|(p, z)| {
+        let corners = corners(mesh, t);
+        let in_grid = corners.map(|(p, _)| {
             let (u, v) = grid.to_grid(p);
-            (Point::new(u, v), z)
+            Point::new(u, v)
         });
-        let det = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
-        let lo_i = a.x.min(b.x).min(c.x).ceil().max(0.0) as usize;
-        let hi_i = (a.x.max(b.x).max(c.x).floor() as usize).min(nx - 1);
-        let lo_j = a.y.min(b.y).min(c.y).ceil().max(0.0) as usize;
-        let hi_j = (a.y.max(b.y).max(c.y).floor() as usize).min(ny - 1);
-        for j in lo_j..=hi_j {
-            for i in lo_i..=hi_i {
-                let index = j * nx + i;
-                if seen[index / 64] & (1 << (index % 64)) != 0 {
-                    continue;
-                }
-                let p = Point::new(i as f64, j as f64);
-                let wb = ((p.x - a.x) * (c.y - a.y) - (p.y - a.y) * (c.x - a.x)) / det;
-                let wc = ((b.x - a.x) * (p.y - a.y) - (b.y - a.y) * (p.x - a.x)) / det;
-                let wa = 1.0 - wb - wc;
-                if wa < -SLACK || wb < -SLACK || wc < -SLACK {
-                    continue;
-                }
+        raster::for_each_node(in_grid, nx, ny, |i, j, w| {
+            let index = j * nx + i;
+            if seen[index / 64] & (1 << (index % 64)) == 0 {
                 seen[index / 64] |= 1 << (index % 64);
-                let err = (grid.value(i, j) - (wa * za + wb * zb + wc * zc)).abs();
+                let err = (grid.value(i, j) - interpolate(&corners, w)).abs();
                 max = max.max(err);
                 sum_sq += err * err;
                 samples += 1;
             }
-        }
+        });
     }
     let rms = if samples > 0 { (sum_sq / samples as f64).sqrt() } else { 0.0 };
     (max, rms, samples)
+}
+
+/// F_n at barycentric weights `w` of a triangle's corners.
+fn interpolate(corners: &[(Point, f64); 3], [wa, wb, wc]: [f64; 3]) -> f64 {
+    wa * corners[0].1 + wb * corners[1].1 + wc * corners[2].1
 }
 
 /// E_max on a dense sample: an `n × n` grid over the rectangle plus every edge midpoint and
@@ -155,32 +144,17 @@ pub fn dense_max_error<S: Surface + ?Sized>(mesh: &Mesh, surface: &S, n: usize) 
         for ((p, zp), (q, zq)) in [((a, za), (b, zb)), ((b, zb), (c, zc)), ((c, zc), (a, za))] {
             compare(p.midpoint(q), 0.5 * (zp + zq));
         }
-        // The grid points inside, in grid units (i, j), with a hair of slack for edges.
-        let to_grid = |p: Point| Point::new((p.x - r.x0()) / hx, (p.y - r.y0()) / hy);
-        let (ga, gb, gc) = (to_grid(a), to_grid(b), to_grid(c));
-        let det = (gb.x - ga.x) * (gc.y - ga.y) - (gb.y - ga.y) * (gc.x - ga.x);
-        let lo_i = ga.x.min(gb.x).min(gc.x).ceil().max(0.0) as usize;
-        let hi_i = (ga.x.max(gb.x).max(gc.x).floor().max(0.0) as usize).min(n - 1);
-        let lo_j = ga.y.min(gb.y).min(gc.y).ceil().max(0.0) as usize;
-        let hi_j = (ga.y.max(gb.y).max(gc.y).floor().max(0.0) as usize).min(n - 1);
-        for j in lo_j..=hi_j {
-            for i in lo_i..=hi_i {
-                let index = j * n + i;
-                if seen[index / 64] & (1 << (index % 64)) != 0 {
-                    continue;
-                }
-                let (x, y) = (i as f64, j as f64);
-                let wb = ((x - ga.x) * (gc.y - ga.y) - (y - ga.y) * (gc.x - ga.x)) / det;
-                let wc = ((gb.x - ga.x) * (y - ga.y) - (gb.y - ga.y) * (x - ga.x)) / det;
-                let wa = 1.0 - wb - wc;
-                if wa < -1e-9 || wb < -1e-9 || wc < -1e-9 {
-                    continue;
-                }
+        // The grid points inside, each compared once.
+        let in_grid = [a, b, c].map(|p| Point::new((p.x - r.x0()) / hx, (p.y - r.y0()) / hy));
+        let corners = [(a, za), (b, zb), (c, zc)];
+        raster::for_each_node(in_grid, n, n, |i, j, w| {
+            let index = j * n + i;
+            if seen[index / 64] & (1 << (index % 64)) == 0 {
                 seen[index / 64] |= 1 << (index % 64);
-                let p = Point::new(r.x0() + x * hx, r.y0() + y * hy);
-                compare(p, wa * za + wb * zb + wc * zc);
+                let p = Point::new(r.x0() + i as f64 * hx, r.y0() + j as f64 * hy);
+                compare(p, interpolate(&corners, w));
             }
-        }
+        });
     }
     max
 }
