@@ -18,21 +18,26 @@ pub fn for_each_node(
     mut visit: impl FnMut(usize, usize, [f64; 3]),
 ) {
     let det = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+    // The weights of b and c are affine in (x, y): step them along each row instead of
+    // solving per node.
+    let (wb_dx, wb_dy) = ((c.y - a.y) / det, -(c.x - a.x) / det);
+    let (wc_dx, wc_dy) = (-(b.y - a.y) / det, (b.x - a.x) / det);
     // `as usize` saturates, so corners left of or below the grid clamp to 0.
     let lo_i = a.x.min(b.x).min(c.x).ceil().max(0.0) as usize;
     let hi_i = (a.x.max(b.x).max(c.x).floor().max(0.0) as usize).min(nx - 1);
     let lo_j = a.y.min(b.y).min(c.y).ceil().max(0.0) as usize;
     let hi_j = (a.y.max(b.y).max(c.y).floor().max(0.0) as usize).min(ny - 1);
     for j in lo_j..=hi_j {
-        let y = j as f64;
+        let (dx, dy) = (lo_i as f64 - a.x, j as f64 - a.y);
+        let mut wb = dx * wb_dx + dy * wb_dy;
+        let mut wc = dx * wc_dx + dy * wc_dy;
         for i in lo_i..=hi_i {
-            let x = i as f64;
-            let wb = ((x - a.x) * (c.y - a.y) - (y - a.y) * (c.x - a.x)) / det;
-            let wc = ((b.x - a.x) * (y - a.y) - (b.y - a.y) * (x - a.x)) / det;
             let wa = 1.0 - wb - wc;
             if wa >= -SLACK && wb >= -SLACK && wc >= -SLACK {
                 visit(i, j, [wa, wb, wc]);
             }
+            wb += wb_dx;
+            wc += wc_dx;
         }
     }
 }
