@@ -205,10 +205,7 @@ fn load_source(args: &MeshArgs) -> Result<Source> {
 fn mesh(args: &MeshArgs) -> Result<()> {
     let source = load_source(args)?;
     let rect = args.domain.unwrap_or_else(|| source.default_domain());
-    let source = match source {
-        Source::Grid(g) => Source::Grid(g.with_domain(rect)),
-        s => s,
-    };
+    let source = source.with_domain(rect);
     let mut params = Params::new(args.max_vertices)
         .context("--max-vertices")?
         .with_method(args.method)

@@ -67,6 +67,15 @@ fn mesh_response(headers: &HeaderMap, id: &str, finished: &Finished, cache: &'st
     response
 }
 
+/// Where a job is now.
+fn status_of(found: &Found) -> Status {
+    match found {
+        Found::Job(job) => job.snapshot().status,
+        Found::Done(r) => r.status,
+        Found::Cached(_) => Status::Succeeded,
+    }
+}
+
 /// The status document of a job as it is now.
 fn status_body(id: &str, found: &Found) -> JobStatus {
     let (status, progress, stats, problem) = match found {
@@ -167,7 +176,7 @@ pub async fn jobs_mesh(
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let found = find(&state, &id).await?;
-    let status = status_body(&id, &found).status;
+    let status = status_of(&found).as_str();
     match finished_outcome(&state, &id, found).await {
         Some(Outcome::Succeeded(f)) => Ok(mesh_response(&headers, &id, &f, "hit")),
         Some(Outcome::Failed(e)) => Err(e.into()),

@@ -145,13 +145,13 @@ impl ApiError {
         (status, slug, title, detail, ext)
     }
 
-    /// The HTTP status.
-    pub fn status(&self) -> StatusCode {
-        self.parts().0
-    }
-
     /// The problem document.
     pub fn to_json(&self) -> Value {
+        self.document().1
+    }
+
+    /// The HTTP status and the problem document, from one pass over the variant.
+    fn document(&self) -> (StatusCode, Value) {
         let (status, slug, title, detail, ext) = self.parts();
         let mut doc = Map::new();
         doc.insert("type".into(), json!(format!("/problems/{slug}")));
@@ -159,7 +159,7 @@ impl ApiError {
         doc.insert("status".into(), json!(status.as_u16()));
         doc.insert("detail".into(), json!(detail));
         doc.extend(ext);
-        Value::Object(doc)
+        (status, Value::Object(doc))
     }
 }
 
@@ -169,7 +169,8 @@ impl IntoResponse for ApiError {
             // Inside the request's span, so the log line carries its id.
             tracing::error!(%detail, "internal error");
         }
-        let mut response = (self.status(), self.to_json().to_string()).into_response();
+        let (status, doc) = self.document();
+        let mut response = (status, doc.to_string()).into_response();
         let headers = response.headers_mut();
         headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(PROBLEM_JSON));
         if matches!(self, ApiError::QueueFull(_) | ApiError::ShuttingDown) {

@@ -144,10 +144,7 @@ impl JobSpec {
                 Rect::new(a, b, c, e).map_err(|e| SpecError::Domain(e.to_string()))?
             }
         };
-        let source = match source {
-            Source::Grid(g) => Source::Grid(g.with_domain(domain)),
-            s => s,
-        };
+        let source = source.with_domain(domain);
         let max_vertices = request.max_vertices.unwrap_or(DEFAULT_MAX_VERTICES);
         at_most("max_vertices", "MESHFIT_MAX_VERTICES", limits.max_vertices, max_vertices)?;
         let time_limit = request

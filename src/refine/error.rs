@@ -7,6 +7,7 @@
 //! longest-edge propagation path (Rivara) and bisects its terminal edge, one midpoint per
 //! step, which keeps angles bounded away from zero.
 
+use super::metrics::{LATTICE, lattice_point};
 use super::{Observer, RefineError, Run, Sampler, StopReason};
 use crate::geom::{Mesh, NONE, Point, raster};
 use crate::refine::Method;
@@ -192,23 +193,6 @@ fn terminal_edge(mesh: &Mesh, t: u32) -> u32 {
     }
 }
 
-/// Barycentric weights ×4 of the order-4 lattice points that are not corners: 9 inside the
-/// edges and 3 inside the triangle.
-const LATTICE: [[u8; 3]; 12] = [
-    [3, 1, 0],
-    [2, 2, 0],
-    [1, 3, 0],
-    [0, 3, 1],
-    [0, 2, 2],
-    [0, 1, 3],
-    [1, 0, 3],
-    [2, 0, 2],
-    [3, 0, 1],
-    [2, 1, 1],
-    [1, 2, 1],
-    [1, 1, 2],
-];
-
 /// e(T) = max |F(s) − F_n(s)| over the lattice points s of triangle `t`, and for a grid also
 /// over the grid nodes inside it (nodes alone would miss the small triangles that hold none).
 /// Returns e(T) and the error on each edge's points; an edge a fresh neighbour has already
@@ -219,7 +203,7 @@ fn triangle_error<S: Surface + ?Sized>(
     sampler: &mut Sampler<'_, S>,
     estimates: &Estimates,
 ) -> Result<(f64, [f64; 3]), RefineError> {
-    let [a, b, c] = mesh.triangle(t as usize).map(|v| mesh.vertex(v));
+    let corners = mesh.triangle(t as usize).map(|v| mesh.vertex(v));
     let known = [0, 1, 2].map(|k| estimates.known_edge_error(mesh, 3 * t + k));
     // Lattice points still to sample, with the interpolant there and where the error goes:
     // 0..3 for an edge (half-edge position), 3 for the interior.
@@ -227,15 +211,13 @@ fn triangle_error<S: Surface + ?Sized>(
     let mut linear = [0.0; LATTICE.len()];
     let mut owner = [0usize; LATTICE.len()];
     let mut count = 0;
-    for (index, [i, j, k]) in LATTICE.into_iter().enumerate() {
+    for (index, weights) in LATTICE.into_iter().enumerate() {
         // LATTICE lists the points of edge 0 (a→b), 1 (b→c), 2 (c→a), then the interior.
         let place = (index / 3).min(3);
         if place < 3 && known[place].is_some() {
             continue;
         }
-        let (wa, wb, wc) = (f64::from(i) * 0.25, f64::from(j) * 0.25, f64::from(k) * 0.25);
-        points[count] = Point::new(wa * a.x + wb * b.x + wc * c.x, wa * a.y + wb * b.y + wc * c.y);
-        linear[count] = wa * a.z + wb * b.z + wc * c.z;
+        (points[count], linear[count]) = lattice_point(&corners, weights);
         owner[count] = place;
         count += 1;
     }
@@ -253,7 +235,7 @@ fn triangle_error<S: Surface + ?Sized>(
     }
     let mut error = edges.iter().fold(interior, |m, &e| m.max(e));
     if let Some(grid) = sampler.surface.grid() {
-        error = error.max(grid_nodes_error(grid, [a, b, c]));
+        error = error.max(grid_nodes_error(grid, corners));
     }
     Ok((error, edges))
 }

@@ -2,7 +2,7 @@
 //!
 //! Kept out of the refinement loop: these walk the whole mesh once.
 
-use crate::geom::{Mesh, Point, raster};
+use crate::geom::{Mesh, Point, Vertex, raster};
 use crate::source::{Grid, Surface};
 
 /// V_n = max |zᵢ − zⱼ| over the edges (i, j) of the mesh.
@@ -25,8 +25,34 @@ pub struct ErrorEstimate {
     pub samples: u64,
 }
 
-/// The order of the barycentric lattice sampled in each triangle.
-const LATTICE: usize = 4;
+/// Barycentric weights ×4 of the order-4 lattice points that are not corners: 3 inside each
+/// edge, in the order of the triangle's half-edges (a→b, b→c, c→a), then 3 inside it. Both
+/// the E_n estimate and the error criterion sample these.
+pub(super) const LATTICE: [[u8; 3]; 12] = [
+    [3, 1, 0],
+    [2, 2, 0],
+    [1, 3, 0],
+    [0, 3, 1],
+    [0, 2, 2],
+    [0, 1, 3],
+    [1, 0, 3],
+    [2, 0, 2],
+    [3, 0, 1],
+    [2, 1, 1],
+    [1, 2, 1],
+    [1, 1, 2],
+];
+
+/// The lattice point with weights `[i, j, k]` (×4) of triangle (a, b, c), and F_n there.
+///
+/// On an edge the third weight is zero and IEEE addition commutes, so both triangles of the
+/// edge compute the same bits: the error criterion relies on that to share edge samples.
+#[inline]
+pub(super) fn lattice_point([a, b, c]: &[Vertex; 3], [i, j, k]: [u8; 3]) -> (Point, f64) {
+    let (wa, wb, wc) = (f64::from(i) * 0.25, f64::from(j) * 0.25, f64::from(k) * 0.25);
+    let p = Point::new(wa * a.x + wb * b.x + wc * c.x, wa * a.y + wb * b.y + wc * c.y);
+    (p, wa * a.z + wb * b.z + wc * c.z)
+}
 
 /// Estimates E_n = max |F − F_n|, where F_n is the piecewise linear interpolant on `mesh`.
 ///
@@ -61,27 +87,21 @@ fn min_angle(mesh: &Mesh, t: usize) -> f64 {
 
 fn lattice_error<S: Surface + ?Sized>(mesh: &Mesh, surface: &S) -> (f64, f64, u64) {
     let (mut max, mut weighted_sq, mut area_sum, mut samples) = (0.0f64, 0.0, 0.0, 0u64);
+    let (mut points, mut linear, mut values) = ([Point::new(0.0, 0.0); 12], [0.0; 12], [0.0; 12]);
     for t in 0..mesh.num_triangles() {
-        let [(a, za), (b, zb), (c, zc)] = corners(mesh, t);
+        let corners = mesh.triangle(t).map(|v| mesh.vertex(v));
+        for ((p, l), w) in points.iter_mut().zip(&mut linear).zip(LATTICE) {
+            (*p, *l) = lattice_point(&corners, w);
+        }
+        surface.eval_many(&points, &mut values);
+        let [a, b, c] = corners.map(Vertex::point);
         let area = 0.5 * ((b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x));
         let (mut sum_sq, mut count) = (0.0, 0u32);
-        for i in 0..=LATTICE {
-            for j in 0..=LATTICE - i {
-                let k = LATTICE - i - j;
-                if i == LATTICE || j == LATTICE || k == LATTICE {
-                    continue;
-                }
-                let (wa, wb, wc) = (i as f64 / 4.0, j as f64 / 4.0, k as f64 / 4.0);
-                let p = Point::new(wa * a.x + wb * b.x + wc * c.x, wa * a.y + wb * b.y + wc * c.y);
-                let exact = surface.eval(p);
-                if !exact.is_finite() {
-                    continue;
-                }
-                let err = (exact - (wa * za + wb * zb + wc * zc)).abs();
-                max = max.max(err);
-                sum_sq += err * err;
-                count += 1;
-            }
+        for (exact, l) in values.iter().zip(&linear).filter(|(v, _)| v.is_finite()) {
+            let err = (exact - l).abs();
+            max = max.max(err);
+            sum_sq += err * err;
+            count += 1;
         }
         if count > 0 {
             weighted_sq += area * sum_sq / f64::from(count);
@@ -138,12 +158,13 @@ pub fn dense_max_error<S: Surface + ?Sized>(mesh: &Mesh, surface: &S, n: usize) 
             max = max.max((exact - linear).abs());
         }
     };
+    for edge in mesh.edges() {
+        let (p, q) = (mesh.vertex(edge.a), mesh.vertex(edge.b));
+        compare(p.point().midpoint(q.point()), 0.5 * (p.z + q.z));
+    }
     for t in 0..mesh.num_triangles() {
         let [(a, za), (b, zb), (c, zc)] = corners(mesh, t);
         compare(Point::new((a.x + b.x + c.x) / 3.0, (a.y + b.y + c.y) / 3.0), (za + zb + zc) / 3.0);
-        for ((p, zp), (q, zq)) in [((a, za), (b, zb)), ((b, zb), (c, zc)), ((c, zc), (a, za))] {
-            compare(p.midpoint(q), 0.5 * (zp + zq));
-        }
         // The grid points inside, each compared once.
         let in_grid = [a, b, c].map(|p| Point::new((p.x - r.x0()) / hx, (p.y - r.y0()) / hy));
         let corners = [(a, za), (b, zb), (c, zc)];

@@ -335,10 +335,7 @@ proptest! {
     fn every_insertion_keeps_the_mesh_valid_and_splits_the_true_worst_edge(
         rect in rect(), source in source(), method in method(), n in 4usize..120
     ) {
-        let source = match source {
-            Source::Grid(g) => Source::Grid(g.with_domain(rect)),
-            s => s,
-        };
+        let source = source.with_domain(rect);
         let mut checker = Checker::new(method);
         let r = refine(&source, rect, &params(n, method), &mut checker).unwrap();
         prop_assert!(checker.failure.is_none(), "{}", checker.failure.unwrap());
@@ -351,10 +348,7 @@ proptest! {
     fn finished_meshes_tile_the_rectangle_with_ccw_triangles_and_true_values(
         rect in rect(), source in source(), method in method(), n in 4usize..2_000
     ) {
-        let source = match source {
-            Source::Grid(g) => Source::Grid(g.with_domain(rect)),
-            s => s,
-        };
+        let source = source.with_domain(rect);
         let r = refine(&source, rect, &params(n, method), &mut ()).unwrap();
         let mesh = &r.mesh;
         let mut area = 0.0;
@@ -437,10 +431,7 @@ proptest! {
     fn error_criterion_keeps_the_mesh_valid_and_meets_the_budget(
         rect in rect(), source in source(), method in method(), n in 4usize..100
     ) {
-        let source = match source {
-            Source::Grid(g) => Source::Grid(g.with_domain(rect)),
-            s => s,
-        };
+        let source = source.with_domain(rect);
         // Longest-edge bisection keeps every angle at least half the smallest angle of S4
         // (Rosenberg and Stenger 1975); S4's is atan(short side / long side).
         let (w, h) = (rect.x1() - rect.x0(), rect.y1() - rect.y0());

@@ -61,9 +61,9 @@ impl Grid {
         if let Some(index) = values.iter().position(|v| !v.is_finite()) {
             return Err(GridError::NonFinite { i: index % nx, j: index / nx, index });
         }
-        let rect = Rect::new(0.0, (nx - 1) as f64, 0.0, (ny - 1) as f64)
-            .expect("nx, ny >= 2 give a valid rectangle");
-        Ok(Self { nx, ny, values, rect })
+        let mut grid = Self { nx, ny, values, rect: Rect::unit() };
+        grid.rect = grid.default_domain();
+        Ok(grid)
     }
 
     /// The same samples spread over `rect` instead.

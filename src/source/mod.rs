@@ -57,6 +57,16 @@ impl Source {
     }
 }
 
+impl Source {
+    /// The same F on `rect`: a grid's samples are spread over it; an expression is unchanged.
+    pub fn with_domain(self, rect: Rect) -> Self {
+        match self {
+            Source::Grid(g) => Source::Grid(g.with_domain(rect)),
+            expression => expression,
+        }
+    }
+}
+
 impl Surface for Source {
     #[inline]
     fn eval(&self, p: Point) -> f64 {
