@@ -308,10 +308,10 @@ impl<O: Observer> Run<'_, O> {
         self.params.tolerance().is_some_and(|tolerance| worst <= tolerance)
     }
 
-    /// Splits the edge of half-edge `e` at its midpoint with value F there, restores the
-    /// Delaunay property in semi-recursive mode, and reports every triangle it rewrote and
-    /// every edge a flip created away from the new vertex. `None` (and an untouched mesh)
-    /// when the edge is below the length floor or its split would make a too-small triangle.
+    /// Splits the edge of half-edge `e` at its midpoint with value F there and, in
+    /// semi-recursive mode, restores the Delaunay property, telling `on_flip` the half-edge of
+    /// each flip's new diagonal. `None` (and an untouched mesh) when the edge is below the
+    /// length floor or its split would make a too-small triangle.
     fn split_midpoint<S: Surface + ?Sized>(
         &mut self,
         mesh: &mut Mesh,

@@ -130,11 +130,6 @@ impl WorstEdgeQueue {
         Some(top)
     }
 
-    /// Number of entries, stale ones included.
-    pub fn len(&self) -> usize {
-        self.heap.len()
-    }
-
     /// Whether no entries remain.
     pub fn is_empty(&self) -> bool {
         self.heap.is_empty()
