@@ -118,8 +118,13 @@ pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
     run: &mut Run<'_, O>,
 ) -> Result<(StopReason, f64), RefineError> {
     let n = run.params.max_vertices();
-    let mut estimates =
-        Estimates { heap: BinaryHeap::with_capacity(4 * n.min(1 << 24)), slots: Vec::new(), next_seq: 0 };
+    // Sized for the budget (capped for huge ones), so the run does not copy them as they grow.
+    let room = n.min(1 << 24);
+    let mut estimates = Estimates {
+        heap: BinaryHeap::with_capacity(4 * room),
+        slots: Vec::with_capacity(2 * room),
+        next_seq: 0,
+    };
     for t in 0..mesh.num_triangles() as u32 {
         estimates.invalidate(t);
     }
@@ -252,10 +257,16 @@ fn grid_nodes_error(grid: &Grid, corners: [crate::geom::Vertex; 3]) -> f64 {
         let (u, w) = grid.to_grid(v.point());
         Point::new(u, w)
     });
+    let plane = raster::Plane::new(in_grid, corners.map(|v| v.z));
     let mut error = 0.0f64;
-    raster::for_each_node(in_grid, grid.nx(), grid.ny(), |i, j, [wa, wb, wc]| {
-        let linear = wa * corners[0].z + wb * corners[1].z + wc * corners[2].z;
-        error = error.max((grid.value(i, j) - linear).abs());
+    raster::for_each_span(in_grid, grid.nx(), grid.ny(), |j, i0, i1| {
+        for (&value, linear) in grid.row(j)[i0..=i1].iter().zip(plane.row(i0, j)) {
+            // Grid values are finite, so a plain comparison is max without NaN handling.
+            let e = (value - linear).abs();
+            if e > error {
+                error = e;
+            }
+        }
     });
     error
 }

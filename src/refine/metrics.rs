@@ -124,24 +124,22 @@ fn grid_error(mesh: &Mesh, grid: &Grid) -> (f64, f64, u64) {
             let (u, v) = grid.to_grid(p);
             Point::new(u, v)
         });
-        raster::for_each_node(in_grid, nx, ny, |i, j, w| {
-            let index = j * nx + i;
-            if seen[index / 64] & (1 << (index % 64)) == 0 {
-                seen[index / 64] |= 1 << (index % 64);
-                let err = (grid.value(i, j) - interpolate(&corners, w)).abs();
-                max = max.max(err);
-                sum_sq += err * err;
-                samples += 1;
+        let plane = raster::Plane::new(in_grid, corners.map(|(_, z)| z));
+        raster::for_each_span(in_grid, nx, ny, |j, i0, i1| {
+            for (i, linear) in (i0..=i1).zip(plane.row(i0, j)) {
+                let index = j * nx + i;
+                if seen[index / 64] & (1 << (index % 64)) == 0 {
+                    seen[index / 64] |= 1 << (index % 64);
+                    let err = (grid.value(i, j) - linear).abs();
+                    max = max.max(err);
+                    sum_sq += err * err;
+                    samples += 1;
+                }
             }
         });
     }
     let rms = if samples > 0 { (sum_sq / samples as f64).sqrt() } else { 0.0 };
     (max, rms, samples)
-}
-
-/// F_n at barycentric weights `w` of a triangle's corners.
-fn interpolate(corners: &[(Point, f64); 3], [wa, wb, wc]: [f64; 3]) -> f64 {
-    wa * corners[0].1 + wb * corners[1].1 + wc * corners[2].1
 }
 
 /// E_max on a dense sample: an `n × n` grid over the rectangle plus every edge midpoint and
@@ -167,13 +165,14 @@ pub fn dense_max_error<S: Surface + ?Sized>(mesh: &Mesh, surface: &S, n: usize) 
         compare(Point::new((a.x + b.x + c.x) / 3.0, (a.y + b.y + c.y) / 3.0), (za + zb + zc) / 3.0);
         // The grid points inside, each compared once.
         let in_grid = [a, b, c].map(|p| Point::new((p.x - r.x0()) / hx, (p.y - r.y0()) / hy));
-        let corners = [(a, za), (b, zb), (c, zc)];
-        raster::for_each_node(in_grid, n, n, |i, j, w| {
-            let index = j * n + i;
-            if seen[index / 64] & (1 << (index % 64)) == 0 {
-                seen[index / 64] |= 1 << (index % 64);
-                let p = Point::new(r.x0() + i as f64 * hx, r.y0() + j as f64 * hy);
-                compare(p, interpolate(&corners, w));
+        let plane = raster::Plane::new(in_grid, [za, zb, zc]);
+        raster::for_each_span(in_grid, n, n, |j, i0, i1| {
+            for (i, linear) in (i0..=i1).zip(plane.row(i0, j)) {
+                let index = j * n + i;
+                if seen[index / 64] & (1 << (index % 64)) == 0 {
+                    seen[index / 64] |= 1 << (index % 64);
+                    compare(Point::new(r.x0() + i as f64 * hx, r.y0() + j as f64 * hy), linear);
+                }
             }
         });
     }

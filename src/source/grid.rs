@@ -98,6 +98,12 @@ impl Grid {
         self.values[j * self.nx + i]
     }
 
+    /// The samples of row j, x fastest.
+    #[inline]
+    pub fn row(&self, j: usize) -> &[f64] {
+        &self.values[j * self.nx..(j + 1) * self.nx]
+    }
+
     /// Position of node (i, j).
     #[inline]
     pub fn node(&self, i: usize, j: usize) -> Point {
@@ -121,7 +127,8 @@ impl Grid {
 #[inline]
 fn cell(u: f64, n: usize) -> (usize, f64) {
     let u = u.clamp(0.0, (n - 1) as f64);
-    let i = (u.floor() as usize).min(n - 2);
+    // `as` truncates, which is floor for u ≥ 0 without a call (SSE2 has no rounding op).
+    let i = (u as usize).min(n - 2);
     (i, u - i as f64)
 }
 
