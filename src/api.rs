@@ -19,11 +19,12 @@ pub struct JobRequest {
     pub domain: Option<DomainInput>,
     /// The vertex budget n (default 10000, at least 4).
     pub max_vertices: Option<u64>,
-    /// Stop when the worst edge's criterion value is at most this.
+    /// Stop when the worst criterion value is at most this: the largest sampled triangle error
+    /// for `error`, the largest |zi − zj| over edges for `variation`.
     pub tolerance: Option<f64>,
     /// `semi-recursive` (default) or `recursive`.
     pub method: Option<Method>,
-    /// `variation` (default).
+    /// `error` (default) or `variation` (the paper's).
     pub criterion: Option<Criterion>,
     /// Stop after this many milliseconds; capped by the server's job time limit.
     pub time_limit_ms: Option<u64>,
@@ -205,7 +206,7 @@ pub struct ProgressEvent {
     pub vertices: usize,
     /// Triangles so far.
     pub triangles: usize,
-    /// The current worst criterion value (V_n for variation).
+    /// The current worst criterion value: the largest e(T) for error, V_n for variation.
     pub worst: f64,
     /// Milliseconds since the job started running.
     pub elapsed_ms: f64,

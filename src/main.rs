@@ -149,13 +149,14 @@ struct MeshArgs {
     #[arg(long, value_name = "N", default_value_t = 10_000)]
     max_vertices: usize,
     /// recursive (no flips) or semi-recursive (Delaunay flips after each insertion).
-    #[arg(long, default_value_t = Method::SemiRecursive)]
+    #[arg(long, default_value_t = Method::default())]
     method: Method,
-    /// How the worst edge is chosen: variation (the paper's |zi − zj|) or error (the longest
-    /// edge of the triangle with the largest sampled |F − F_n|).
-    #[arg(long, default_value_t = Criterion::Variation)]
+    /// How the worst edge is chosen: error (an edge of the triangle with the largest sampled
+    /// |F − F_n|) or variation (the paper's exact algorithm: the largest |zi − zj|).
+    #[arg(long, default_value_t = Criterion::default())]
     criterion: Criterion,
-    /// Stop once the worst edge's criterion value is at most T.
+    /// Stop once the worst criterion value is at most T: the largest sampled triangle error
+    /// for error, the largest |zi − zj| for variation.
     #[arg(long, value_name = "T")]
     tolerance: Option<f64>,
     /// Stop after this many milliseconds.

@@ -75,16 +75,27 @@ fn stats_flag_prints_only_the_stats_and_the_error_estimate() {
 
 #[test]
 fn tolerance_stops_the_run_early() {
-    let doc = document(&[
-        "mesh",
-        "--function",
-        "x*y",
-        "--max-vertices",
-        "100000",
-        "--tolerance",
-        "0.05",
-        "--stats",
-    ]);
+    let run = |criterion: &str| {
+        document(&[
+            "mesh",
+            "--function",
+            "x*y",
+            "--max-vertices",
+            "100000",
+            "--tolerance",
+            "0.05",
+            "--criterion",
+            criterion,
+            "--stats",
+        ])
+    };
+    // The default criterion, error: every triangle's sampled error is within the tolerance.
+    let doc = run("error");
+    assert_eq!(doc["stats"]["stop"], "tolerance");
+    assert!(doc["stats"]["max_triangle_error"].as_f64().unwrap() <= 0.05);
+    assert!(doc["error"]["max_error"].as_f64().unwrap() <= 0.05 * (1.0 + 1e-9));
+    // The paper's: every edge varies by at most the tolerance.
+    let doc = run("variation");
     assert_eq!(doc["stats"]["stop"], "tolerance");
     assert!(doc["stats"]["variation"].as_f64().unwrap() <= 0.05);
 }

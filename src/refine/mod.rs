@@ -14,15 +14,15 @@
 //! ```
 //!
 //! # Algorithm
-//! Start from S₄ (the corners, diagonal P1P3). Repeatedly take the worst edge (largest
-//! |zᵢ − zⱼ|, then longest, then smallest ids) and insert its midpoint M with z = F(M),
-//! splitting the one or two triangles beside it. `semi-recursive` then restores the Delaunay
-//! property with Lawson flips around M; `recursive` never flips.
+//! Start from S₄ (the corners, diagonal P1P3). Repeatedly take the worst edge and insert its
+//! midpoint M with z = F(M), splitting the one or two triangles beside it. `semi-recursive`
+//! then restores the Delaunay property with Lawson flips around M; `recursive` never flips.
 //!
-//! That is the `variation` criterion ([`Criterion::Variation`], the paper's). With
-//! [`Criterion::Error`] every triangle carries a sampled error e(T) = max |F − F_n| and the
-//! longest edge of the worst triangle is bisected; `recursive` then follows the longest-edge
-//! propagation path (Rivara), which bounds angles from below.
+//! The criterion says which edge is worst. [`Criterion::Variation`] is the paper's: the
+//! largest |zᵢ − zⱼ|, then the longest, then the smallest ids. With [`Criterion::Error`] (the
+//! default) every triangle carries a sampled error e(T) = max |F − F_n|, and the worst
+//! triangle's worst long edge is bisected (`semi-recursive`) or its longest-edge propagation
+//! path is followed (`recursive`, Rivara), which bounds angles from below.
 //!
 //! # Guarantees
 //! - Every triangle is strictly counter-clockwise (exact `orient2d`), and the triangles tile

@@ -19,10 +19,12 @@ pub enum Method {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Criterion {
-    /// The paper's: the edge with the largest |zᵢ − zⱼ|.
-    #[default]
+    /// The paper's exact algorithm: the edge with the largest |zᵢ − zⱼ|. Best where F's level
+    /// lines are straight (exp(x + y)); blind to features between equal vertex values.
     Variation,
-    /// The longest edge of the triangle with the largest sampled error max |F − F_n|.
+    /// An edge of the triangle with the largest sampled error max |F − F_n|: its longest edge
+    /// for `recursive`, its worst long edge for `semi-recursive`. Converges on any F.
+    #[default]
     Error,
 }
 
@@ -58,7 +60,7 @@ pub enum ParamsError {
 }
 
 impl Params {
-    /// Semi-recursive refinement by variation up to `max_vertices` vertices (the paper's n).
+    /// Semi-recursive refinement by error up to `max_vertices` vertices (the paper's n).
     ///
     /// # Errors
     /// When `max_vertices` is below 4 or above [`MAX_VERTICES`].

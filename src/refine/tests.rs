@@ -8,8 +8,9 @@ use crate::source::{Expression, Grid, Source};
 use proptest::prelude::*;
 use std::collections::BTreeSet;
 
+/// The paper's algorithm: `variation` with `method`.
 fn params(n: usize, method: Method) -> Params {
-    Params::new(n).unwrap().with_method(method)
+    Params::new(n).unwrap().with_method(method).with_criterion(Criterion::Variation)
 }
 
 fn edge_set(mesh: &Mesh) -> BTreeSet<(u32, u32)> {

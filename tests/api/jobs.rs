@@ -47,7 +47,7 @@ async fn key_order_number_spelling_and_defaults_do_not_change_the_id() {
     let id = |doc: Value| doc["id"].as_str().unwrap().to_owned();
     let short: Value =
         app.post("/v1/meshes", &json!({"function": "x*y", "tolerance": 1})).await.json().await.unwrap();
-    let spelled_out = r#"{"tolerance": 1.0, "criterion": "variation", "method": "semi-recursive",
+    let spelled_out = r#"{"tolerance": 1.0, "criterion": "error", "method": "semi-recursive",
         "domain": {"y": [0, 1.0], "x": [0.0, 1]}, "max_vertices": 10000, "function": "x*y"}"#;
     let long: Value = app.post_raw("/v1/meshes", spelled_out).await.json().await.unwrap();
     assert_eq!(id(short.clone()), id(long));
@@ -293,20 +293,19 @@ async fn a_queue_of_zero_still_runs_jobs_on_idle_workers() {
 }
 
 #[tokio::test]
-async fn the_error_criterion_is_served_and_reports_its_max_triangle_error() {
+async fn the_error_criterion_is_the_default_and_reports_its_max_triangle_error() {
     let app = spawn_app().await;
-    let body =
-        json!({"function": "exp(-100*((x-0.4)^2+(y-0.6)^2))", "criterion": "error", "max_vertices": 2000});
-    let doc: Value = app.post("/v1/meshes", &body).await.json().await.unwrap();
+    let bump = "exp(-100*((x-0.4)^2+(y-0.6)^2))";
+    let client = &app;
+    let post =
+        |body: Value| async move { client.post("/v1/meshes", &body).await.json::<Value>().await.unwrap() };
+    let doc = post(json!({"function": bump, "max_vertices": 2000})).await;
     assert_eq!(doc["stats"]["vertices"], 2000);
     let worst = doc["stats"]["max_triangle_error"].as_f64().unwrap();
     assert!(worst > 0.0 && worst < 0.01, "{worst}");
-    let paper: Value = app
-        .post("/v1/meshes", &json!({"function": "exp(-100*((x-0.4)^2+(y-0.6)^2))", "max_vertices": 2000}))
-        .await
-        .json()
-        .await
-        .unwrap();
+    let explicit = post(json!({"function": bump, "max_vertices": 2000, "criterion": "error"})).await;
+    assert_eq!(doc["id"], explicit["id"], "the default is the error criterion");
+    let paper = post(json!({"function": bump, "max_vertices": 2000, "criterion": "variation"})).await;
     assert_ne!(doc["id"], paper["id"], "the criterion is part of the id");
     assert!(paper["stats"].get("max_triangle_error").is_none());
     app.shutdown().await;
