@@ -6,8 +6,9 @@
 
 use super::Point;
 
-/// How far outside the triangle, in grid units, a node still counts as inside, so nodes on an
-/// edge are not lost to rounding (which is below 1e-12 here for grids up to 2^20 nodes wide).
+/// How far outside the triangle, in grid units, a node still counts as inside, so a node on an
+/// edge is not lost to rounding. (Between two triangles nothing is lost anyway: both compute
+/// their shared edge's crossings with the same bits, and one of them takes the node.)
 const SLACK: f64 = 1e-9;
 
 /// Calls `visit(j, i0, i1)` for every row j < ny that has nodes in the closed triangle
@@ -60,25 +61,38 @@ pub struct Plane {
     z: f64,
     dz_dx: f64,
     dz_dy: f64,
+    /// The corner values' range, which holds every value inside the triangle.
+    z_range: (f64, f64),
 }
 
 impl Plane {
-    /// The plane through (a, za), (b, zb), (c, zc); the triangle must not be degenerate.
-    pub fn new([a, b, c]: [Point; 3], [za, zb, zc]: [f64; 3]) -> Self {
+    /// The plane through (a, za), (b, zb), (c, zc), or `None` when the triangle is flat in
+    /// floating point (it covers no area, so its nodes are its neighbours').
+    pub fn new([a, b, c]: [Point; 3], [za, zb, zc]: [f64; 3]) -> Option<Self> {
         let (bx, by, cx, cy) = (b.x - a.x, b.y - a.y, c.x - a.x, c.y - a.y);
         let det = bx * cy - by * cx;
         let (dzb, dzc) = (zb - za, zc - za);
-        Self { origin: a, z: za, dz_dx: (dzb * cy - dzc * by) / det, dz_dy: (dzc * bx - dzb * cx) / det }
+        let (dz_dx, dz_dy) = ((dzb * cy - dzc * by) / det, (dzc * bx - dzb * cx) / det);
+        (dz_dx.is_finite() && dz_dy.is_finite()).then_some(Self {
+            origin: a,
+            z: za,
+            dz_dx,
+            dz_dy,
+            z_range: (za.min(zb).min(zc), za.max(zb).max(zc)),
+        })
     }
 
     /// The values at nodes i0, i0 + 1, … of row j, stepped rather than solved per node.
+    ///
+    /// Clamped to the corner values: a node let in by the slack just outside a sliver, whose
+    /// plane is steep, must not read an extrapolated value.
     #[inline]
     pub fn row(&self, i0: usize, j: usize) -> impl Iterator<Item = f64> + use<> {
         let start =
             self.z + (j as f64 - self.origin.y) * self.dz_dy + (i0 as f64 - self.origin.x) * self.dz_dx;
-        let step = self.dz_dx;
+        let (step, (lo, hi)) = (self.dz_dx, self.z_range);
         // An i32 count converts to f64 in one instruction; usize (u64) takes several.
-        (0..).map(move |k: i32| start + f64::from(k) * step)
+        (0..).map(move |k: i32| (start + f64::from(k) * step).max(lo).min(hi))
     }
 }
 
@@ -112,38 +126,66 @@ mod tests {
     #[test]
     fn the_plane_passes_through_the_corners_and_steps_along_rows() {
         let tri = [Point::new(1.0, 1.0), Point::new(5.0, 2.0), Point::new(2.0, 6.0)];
-        let plane = Plane::new(tri, [1.0, -2.0, 4.0]);
+        let plane = Plane::new(tri, [1.0, -2.0, 4.0]).unwrap();
         let at = |x: usize, y: usize| plane.row(x, y).next().unwrap();
         assert!((at(1, 1) - 1.0).abs() < 1e-12 && (at(5, 2) + 2.0).abs() < 1e-12);
         assert!((at(2, 6) - 4.0).abs() < 1e-12);
         let row: Vec<f64> = plane.row(2, 3).take(3).collect();
         assert!((row[0] - at(2, 3)).abs() < 1e-12 && (row[2] - at(4, 3)).abs() < 1e-12);
+        // Outside the triangle the plane would leave the corner values; it stays within them.
+        assert_eq!(at(30, 1), -2.0);
+        let flat = [Point::new(0.0, 0.0), Point::new(1.0, 1.0), Point::new(2.0, 2.0)];
+        assert!(Plane::new(flat, [0.0, 1.0, 5.0]).is_none());
+    }
+
+    /// Signed distance of `p` from the line a→b, positive on its left.
+    fn left_of(a: Point, b: Point, p: Point) -> f64 {
+        ((b.x - a.x) * (p.y - a.y) - (b.y - a.y) * (p.x - a.x)) / a.distance_sq(b).sqrt()
     }
 
     proptest! {
-        /// The spans are exactly the nodes whose barycentric weights are all ≥ 0, up to nodes
-        /// within rounding of an edge.
+        /// The spans are the nodes inside the triangle, up to nodes within rounding of an edge.
         #[test]
         fn spans_hold_the_nodes_inside_the_triangle(
             corners in proptest::array::uniform3((-3.0f64..40.0, -3.0f64..40.0)),
         ) {
             let [a, b, c] = corners.map(|(x, y)| Point::new(x, y));
-            let det = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
-            prop_assume!(det.abs() > 1.0);
+            prop_assume!(left_of(a, b, c).abs() > 1e-3);
             let (nx, ny) = (33, 29);
             let spans = nodes([a, b, c], nx, ny);
-            for j in 0..ny {
-                for i in 0..nx {
-                    let p = Point::new(i as f64, j as f64);
-                    let edge = |p0: Point, p1: Point| {
-                        ((p1.x - p0.x) * (p.y - p0.y) - (p1.y - p0.y) * (p.x - p0.x)) / det
-                    };
-                    let w = [edge(b, c), edge(c, a), edge(a, b)];
-                    let inside = w.iter().all(|&w| w >= 1e-9);
-                    let outside = w.iter().any(|&w| w <= -1e-6);
-                    let listed = spans.contains(&(i, j));
-                    prop_assert!(!inside || listed, "({i}, {j}) inside but not visited");
-                    prop_assert!(!outside || !listed, "({i}, {j}) outside but visited");
+            let sign = left_of(a, b, c).signum();
+            for (i, j) in (0..ny).flat_map(|j| (0..nx).map(move |i| (i, j))) {
+                let p = Point::new(i as f64, j as f64);
+                let d = [left_of(a, b, p), left_of(b, c, p), left_of(c, a, p)].map(|d| d * sign);
+                let listed = spans.contains(&(i, j));
+                prop_assert!(!d.iter().all(|&d| d >= 1e-12) || listed, "({i}, {j}) inside, not visited");
+                prop_assert!(!d.iter().any(|&d| d <= -1e-6) || !listed, "({i}, {j}) outside, visited");
+            }
+        }
+
+        /// Two triangles that share an edge lose no node on it: with integer corners (edges
+        /// through nodes), every node of the closed quadrilateral is visited by one of them.
+        #[test]
+        fn triangles_sharing_an_edge_lose_no_node(
+            corners in proptest::array::uniform4((0i64..24, 0i64..24)),
+        ) {
+            let [a, mut b, c, mut d] = corners;
+            let cross = |p: (i64, i64), q: (i64, i64), r: (i64, i64)| {
+                (q.0 - p.0) * (r.1 - p.1) - (q.1 - p.1) * (r.0 - p.0)
+            };
+            // b and d strictly on opposite sides of the diagonal a–c, b on its right: then
+            // a b c and a c d are both counter-clockwise.
+            prop_assume!(cross(a, c, b) * cross(a, c, d) < 0);
+            if cross(a, c, b) > 0 {
+                std::mem::swap(&mut b, &mut d);
+            }
+            let point = |(x, y): (i64, i64)| Point::new(x as f64, y as f64);
+            let mut visited = nodes([a, b, c].map(point), 24, 24);
+            visited.extend(nodes([a, c, d].map(point), 24, 24));
+            let inside = |[u, v, w]: [(i64, i64); 3], p| cross(u, v, p) >= 0 && cross(v, w, p) >= 0 && cross(w, u, p) >= 0;
+            for (i, j) in (0..24i64).flat_map(|j| (0..24i64).map(move |i| (i, j))) {
+                if inside([a, b, c], (i, j)) || inside([a, c, d], (i, j)) {
+                    prop_assert!(visited.contains(&(i as usize, j as usize)), "({i}, {j}) lost");
                 }
             }
         }

@@ -1,4 +1,4 @@
-//! The error criterion: split the longest edge of the triangle whose sampled error
+//! The error criterion: split an edge of the triangle whose sampled error
 //! e(T) = max |F − F_n| is largest.
 //!
 //! Every vertex is still the midpoint of a mesh edge and old vertices never move, as in the
@@ -288,7 +288,9 @@ fn grid_nodes_error(grid: &Grid, corners: [crate::geom::Vertex; 3]) -> f64 {
         let (u, w) = grid.to_grid(v.point());
         Point::new(u, w)
     });
-    let plane = raster::Plane::new(in_grid, corners.map(|v| v.z));
+    let Some(plane) = raster::Plane::new(in_grid, corners.map(|v| v.z)) else {
+        return 0.0;
+    };
     let mut error = 0.0f64;
     raster::for_each_span(in_grid, grid.nx(), grid.ny(), |j, i0, i1| {
         for (&value, linear) in grid.row(j)[i0..=i1].iter().zip(plane.row(i0, j)) {

@@ -124,7 +124,9 @@ fn grid_error(mesh: &Mesh, grid: &Grid) -> (f64, f64, u64) {
             let (u, v) = grid.to_grid(p);
             Point::new(u, v)
         });
-        let plane = raster::Plane::new(in_grid, corners.map(|(_, z)| z));
+        let Some(plane) = raster::Plane::new(in_grid, corners.map(|(_, z)| z)) else {
+            continue;
+        };
         raster::for_each_span(in_grid, nx, ny, |j, i0, i1| {
             for (i, linear) in (i0..=i1).zip(plane.row(i0, j)) {
                 let index = j * nx + i;
@@ -165,7 +167,9 @@ pub fn dense_max_error<S: Surface + ?Sized>(mesh: &Mesh, surface: &S, n: usize) 
         compare(Point::new((a.x + b.x + c.x) / 3.0, (a.y + b.y + c.y) / 3.0), (za + zb + zc) / 3.0);
         // The grid points inside, each compared once.
         let in_grid = [a, b, c].map(|p| Point::new((p.x - r.x0()) / hx, (p.y - r.y0()) / hy));
-        let plane = raster::Plane::new(in_grid, [za, zb, zc]);
+        let Some(plane) = raster::Plane::new(in_grid, [za, zb, zc]) else {
+            continue;
+        };
         raster::for_each_span(in_grid, n, n, |j, i0, i1| {
             for (i, linear) in (i0..=i1).zip(plane.row(i0, j)) {
                 let index = j * n + i;

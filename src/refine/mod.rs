@@ -63,7 +63,7 @@ use std::time::{Duration, Instant};
 pub enum StopReason {
     /// The mesh has `max_vertices` vertices.
     MaxVertices,
-    /// The worst edge's criterion value is at most the tolerance.
+    /// The worst criterion value is at most the tolerance.
     Tolerance,
     /// The time limit passed.
     TimeLimit,

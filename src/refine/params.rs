@@ -19,11 +19,13 @@ pub enum Method {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Criterion {
-    /// The paper's exact algorithm: the edge with the largest |zᵢ − zⱼ|. Best where F's level
-    /// lines are straight (exp(x + y)); blind to features between equal vertex values.
+    /// The paper's exact algorithm: the edge with the largest |zᵢ − zⱼ|. With `recursive`, best
+    /// where F's level lines are straight (exp(x + y)); blind to features between equal vertex
+    /// values.
     Variation,
-    /// An edge of the triangle with the largest sampled error max |F − F_n|: its longest edge
-    /// for `recursive`, its worst long edge for `semi-recursive`. Converges on any F.
+    /// An edge of the triangle with the largest sampled error max |F − F_n|: the end of its
+    /// longest-edge path for `recursive`, its worst long edge for `semi-recursive`. Finds
+    /// features between vertex values, down to the sampling lattice's resolution.
     #[default]
     Error,
 }
@@ -89,7 +91,8 @@ impl Params {
         self
     }
 
-    /// Stops once the worst edge's criterion value is at most `tolerance`.
+    /// Stops once the worst criterion value (the largest e(T) for `error`, the largest
+    /// |zᵢ − zⱼ| for `variation`) is at most `tolerance`.
     ///
     /// # Errors
     /// When `tolerance` is negative, NaN or infinite.
