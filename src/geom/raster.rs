@@ -173,9 +173,12 @@ mod tests {
             let cross = |p: (i64, i64), q: (i64, i64), r: (i64, i64)| {
                 (q.0 - p.0) * (r.1 - p.1) - (q.1 - p.1) * (r.0 - p.0)
             };
-            // b and d strictly on opposite sides of the diagonal a–c, b on its right: then
-            // a b c and a c d are both counter-clockwise.
-            prop_assume!(cross(a, c, b) * cross(a, c, d) < 0);
+            // b and d strictly on opposite sides of the diagonal a–c (reflecting d through its
+            // midpoint if need be), b on its right: then a b c and a c d are counter-clockwise.
+            prop_assume!(cross(a, c, b) != 0 && cross(a, c, d) != 0);
+            if (cross(a, c, b) > 0) == (cross(a, c, d) > 0) {
+                d = (a.0 + c.0 - d.0, a.1 + c.1 - d.1);
+            }
             if cross(a, c, b) > 0 {
                 std::mem::swap(&mut b, &mut d);
             }
