@@ -9,49 +9,15 @@
 //! zero.
 
 use super::metrics::{LATTICE, lattice_point};
+use super::worst_triangle::{Entry, WorstTriangleQueue};
 use super::{Observer, RefineError, Run, Sampler, StopReason};
 use crate::geom::{Mesh, NONE, Point, raster};
 use crate::refine::Method;
 use crate::source::{Grid, Surface};
-use std::cmp::Ordering;
-use std::collections::BinaryHeap;
-
-/// A triangle's error estimate, valid while `seq` is the triangle's current sequence number.
-#[derive(Debug, Clone, Copy)]
-struct Entry {
-    error: f64,
-    seq: u32,
-    t: u32,
-}
-
-/// Worse first: larger error, then the older estimate. Oldest-first among ties spreads the
-/// refinement evenly where F is linear (every error 0) instead of digging at one corner.
-impl Ord for Entry {
-    fn cmp(&self, other: &Self) -> Ordering {
-        // Errors are finite and ≥ +0, where the bit patterns order like the numbers.
-        self.error.to_bits().cmp(&other.error.to_bits()).then(other.seq.cmp(&self.seq))
-    }
-}
-
-impl PartialOrd for Entry {
-    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
-        Some(self.cmp(other))
-    }
-}
-
-impl PartialEq for Entry {
-    fn eq(&self, other: &Self) -> bool {
-        self.cmp(other) == Ordering::Equal
-    }
-}
-
-impl Eq for Entry {}
 
 /// What is known of one triangle slot.
 #[derive(Debug, Clone, Copy)]
 struct Slot {
-    /// Sequence number of the triangle's current queue entry.
-    seq: u32,
     /// e(T).
     error: f64,
     /// The error on each of its edges' lattice points, by half-edge position. Both triangles
@@ -65,7 +31,7 @@ struct Slot {
 
 /// Triangle errors and the queue over them.
 struct Estimates {
-    heap: BinaryHeap<Entry>,
+    queue: WorstTriangleQueue,
     slots: Vec<Slot>,
     next_seq: u32,
 }
@@ -75,7 +41,7 @@ impl Estimates {
     fn invalidate(&mut self, t: u32) {
         let t = t as usize;
         if self.slots.len() <= t {
-            self.slots.resize(t + 1, Slot { seq: u32::MAX, error: 0.0, edges: [0.0; 3], fresh: false });
+            self.slots.resize(t + 1, Slot { error: 0.0, edges: [0.0; 3], fresh: false });
         }
         self.slots[t].fresh = false;
     }
@@ -91,23 +57,8 @@ impl Estimates {
         let seq = self.next_seq;
         self.next_seq += 1;
         self.invalidate(t);
-        self.slots[t as usize] = Slot { seq, error, edges, fresh: true };
-        self.heap.push(Entry { error, seq, t });
-    }
-
-    fn is_current(&self, entry: &Entry) -> bool {
-        self.slots[entry.t as usize].seq == entry.seq
-    }
-
-    /// The worst current entry, dropping stale ones on the way.
-    fn peek(&mut self) -> Option<Entry> {
-        while let Some(&top) = self.heap.peek() {
-            if self.is_current(&top) {
-                return Some(top);
-            }
-            self.heap.pop();
-        }
-        None
+        self.slots[t as usize] = Slot { error, edges, fresh: true };
+        self.queue.set(Entry { error, seq, t });
     }
 }
 
@@ -122,7 +73,7 @@ pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
     // Sized for the budget (capped for huge ones), so the run does not copy them as they grow.
     let room = n.min(1 << 24);
     let mut estimates = Estimates {
-        heap: BinaryHeap::with_capacity(4 * room),
+        queue: WorstTriangleQueue::with_capacity(2 * room),
         slots: Vec::with_capacity(2 * room),
         next_seq: 0,
     };
@@ -137,7 +88,7 @@ pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
     // Triangles a step rewrote, re-estimated after it; reused so steps do not allocate.
     let mut touched: Vec<u32> = Vec::with_capacity(32);
     let stop = loop {
-        let top = estimates.peek();
+        let top = estimates.queue.peek();
         if let Some(stop) = run.stop_before_step(mesh, || top.map_or(0.0, |e| e.error)) {
             break stop;
         }
@@ -147,7 +98,7 @@ pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
         if run.is_tolerance_met(worst.error) {
             break StopReason::Tolerance;
         }
-        estimates.heap.pop();
+        estimates.queue.pop();
         let e = if recursive {
             terminal_edge(mesh, worst.t)
         } else {
@@ -175,7 +126,7 @@ pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
         }
         if !touched.contains(&worst.t) {
             // Rivara bisected a neighbour first: the worst triangle is still there, unchanged.
-            estimates.heap.push(worst);
+            estimates.queue.set(worst);
         }
         run.observer.inserted(mesh, split.vertex);
     };
@@ -312,7 +263,7 @@ mod tests {
     /// Triangle 0 of S4 on [0,1]×[0,0.5] is P1 P2 P3: a bottom side of length 1, a right side
     /// of 0.5 and the diagonal P3→P1 of √1.25.
     fn slot(error: f64, edges: [f64; 3]) -> Slot {
-        Slot { seq: 0, error, edges, fresh: true }
+        Slot { error, edges, fresh: true }
     }
 
     #[test]

@@ -48,6 +48,7 @@ mod metrics;
 mod params;
 mod variation;
 mod worst_edge;
+mod worst_triangle;
 
 pub use metrics::{ErrorEstimate, dense_max_error, estimate_error, variation};
 pub use params::{Criterion, MAX_VERTICES, Method, Params, ParamsError};
