@@ -42,6 +42,9 @@ pub struct Config {
     pub cache_bytes: u64,
     /// Where finished meshes are also written, to survive restarts (`MESHFIT_CACHE_DIR`, unset).
     pub cache_dir: Option<PathBuf>,
+    /// Disk for those files, least recently used deleted first (`MESHFIT_CACHE_DIR_BYTES`,
+    /// default 10 GiB).
+    pub cache_dir_bytes: u64,
     /// How long running jobs may finish after SIGTERM before they are cancelled
     /// (`MESHFIT_SHUTDOWN_GRACE_MS`, default 10 s).
     pub shutdown_grace: Duration,
@@ -62,6 +65,7 @@ impl Default for Config {
             job_time_limit: Duration::from_secs(60),
             cache_bytes: 1 << 30,
             cache_dir: None,
+            cache_dir_bytes: 10 << 30,
             shutdown_grace: Duration::from_secs(10),
             log_format: LogFormat::Text,
         }
@@ -131,6 +135,7 @@ impl TryFrom<RawConfig> for Config {
                     config.cache_dir = (!v.is_empty()).then(|| PathBuf::from(v));
                     Ok(())
                 }
+                "MESHFIT_CACHE_DIR_BYTES" => number().map(|n| config.cache_dir_bytes = n),
                 "MESHFIT_SHUTDOWN_GRACE_MS" => {
                     number().map(|n| config.shutdown_grace = Duration::from_millis(n))
                 }
@@ -165,7 +170,7 @@ mod tests {
         let c = Config::try_from(RawConfig::default()).unwrap();
         assert_eq!(c.addr.to_string(), "0.0.0.0:8080");
         assert_eq!((c.queue, c.max_vertices, c.max_grid_points), (64, 2_000_000, 16_777_216));
-        assert_eq!(c.cache_dir, None);
+        assert_eq!((c.cache_dir, c.cache_dir_bytes), (None, 10 << 30));
     }
 
     #[test]
@@ -175,12 +180,13 @@ mod tests {
             ("MESHFIT_WORKERS", "3"),
             ("MESHFIT_MAX_VERTICES", "1_000"),
             ("MESHFIT_CACHE_DIR", "/tmp/x"),
+            ("MESHFIT_CACHE_DIR_BYTES", "1_000_000"),
             ("MESHFIT_LOG_FORMAT", "json"),
         ]))
         .unwrap();
         assert_eq!(c.addr.port(), 9000);
         assert_eq!((c.workers.get(), c.max_vertices), (3, 1000));
-        assert_eq!(c.cache_dir, Some(PathBuf::from("/tmp/x")));
+        assert_eq!((c.cache_dir, c.cache_dir_bytes), (Some(PathBuf::from("/tmp/x")), 1_000_000));
         assert_eq!(c.log_format, LogFormat::Json);
     }
 

@@ -59,7 +59,7 @@ pub async fn serve(
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
     let metrics = Arc::new(metrics::Metrics::default());
-    let cache = jobs::Cache::new(config.cache_bytes, config.cache_dir.clone())?;
+    let cache = jobs::Cache::new(config.cache_bytes, config.cache_dir.clone(), config.cache_dir_bytes)?;
     let jobs = jobs::Jobs::new(config.workers.get(), config.queue, cache, metrics);
     let limits = jobs::Limits {
         max_vertices: config.max_vertices,

@@ -62,6 +62,10 @@ struct ServeArgs {
     /// MESHFIT_CACHE_DIR: also keep finished meshes here, across restarts [default: unset].
     #[arg(long, value_name = "DIR")]
     cache_dir: Option<String>,
+    /// MESHFIT_CACHE_DIR_BYTES: disk for those meshes, least recently used deleted first
+    /// [default: 10737418240].
+    #[arg(long, value_name = "BYTES")]
+    cache_dir_bytes: Option<String>,
     /// MESHFIT_SHUTDOWN_GRACE_MS: time running jobs get after SIGTERM [default: 10000].
     #[arg(long, value_name = "MS")]
     shutdown_grace_ms: Option<String>,
@@ -84,6 +88,7 @@ impl ServeArgs {
             ("MESHFIT_JOB_TIME_LIMIT_MS", &self.job_time_limit_ms),
             ("MESHFIT_CACHE_BYTES", &self.cache_bytes),
             ("MESHFIT_CACHE_DIR", &self.cache_dir),
+            ("MESHFIT_CACHE_DIR_BYTES", &self.cache_dir_bytes),
             ("MESHFIT_SHUTDOWN_GRACE_MS", &self.shutdown_grace_ms),
             ("MESHFIT_LOG_FORMAT", &self.log_format),
         ];

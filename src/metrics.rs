@@ -43,6 +43,8 @@ pub struct Metrics {
     pub cache_misses: Counter,
     /// Bytes of meshes held in memory.
     pub cache_bytes: Gauge,
+    /// Bytes of mesh files in the cache directory.
+    pub cache_disk_bytes: Gauge,
     /// Requests, by method and status.
     pub http_requests: Family<RequestLabels, Counter>,
     /// Request latency until the response head, in seconds.
@@ -60,6 +62,7 @@ impl Default for Metrics {
             cache_hits: Counter::default(),
             cache_misses: Counter::default(),
             cache_bytes: Gauge::default(),
+            cache_disk_bytes: Gauge::default(),
             http_requests: Family::default(),
             http_latency: Histogram::new(exponential_buckets(0.0005, 4.0, 10)),
             registry: Registry::default(),
@@ -71,6 +74,11 @@ impl Default for Metrics {
         registry.register("cache_hits", "Requests answered from the cache", m.cache_hits.clone());
         registry.register("cache_misses", "Requests not answered from the cache", m.cache_misses.clone());
         registry.register("cache_bytes", "Bytes of meshes held in memory", m.cache_bytes.clone());
+        registry.register(
+            "cache_disk_bytes",
+            "Bytes of mesh files in the cache directory",
+            m.cache_disk_bytes.clone(),
+        );
         registry.register("http_requests", "HTTP requests by method and status", m.http_requests.clone());
         registry.register(
             "http_request_duration_seconds",

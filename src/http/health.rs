@@ -27,6 +27,7 @@ pub async fn readyz(State(state): State<AppState>) -> impl IntoResponse {
 pub async fn metrics(State(state): State<AppState>) -> impl IntoResponse {
     let metrics = state.jobs.metrics();
     metrics.cache_bytes.set(i64::try_from(state.jobs.cache_bytes()).unwrap_or(i64::MAX));
+    metrics.cache_disk_bytes.set(i64::try_from(state.jobs.cache_disk_bytes()).unwrap_or(i64::MAX));
     ([(header::CONTENT_TYPE, "application/openmetrics-text; version=1.0.0; charset=utf-8")], metrics.encode())
 }
 

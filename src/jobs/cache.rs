@@ -5,14 +5,18 @@
 //! safe to share between threads, and is widely used. A disk entry is one file,
 //! `{id}.mesh`: a header line `meshfit-cache-v1 <sha256 of body> <stats JSON>` and the body.
 //! The checksum is verified on every read; a file that fails it is deleted and recomputed,
-//! never served.
+//! never served. The files are bounded in bytes too: a second moka cache, plain LRU, indexes
+//! them and deletes the least recently used file when they pass the limit.
 
 use bytes::Bytes;
+use moka::notification::RemovalCause;
+use moka::policy::EvictionPolicy;
 use sha2::{Digest, Sha256};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::SystemTime;
 
 const MAGIC: &str = "meshfit-cache-v1";
 
@@ -38,23 +42,29 @@ pub enum Hit {
 #[derive(Clone)]
 pub struct Cache {
     memory: moka::sync::Cache<String, Arc<Finished>>,
-    dir: Option<PathBuf>,
+    disk: Option<Disk>,
+}
+
+/// The directory of mesh files and an index of them by id, weighed by file size.
+#[derive(Clone)]
+struct Disk {
+    dir: PathBuf,
+    files: moka::sync::Cache<String, u64>,
 }
 
 impl Cache {
-    /// A cache of at most `bytes` bytes of bodies in memory, mirrored in `dir` if given.
+    /// A cache of at most `bytes` bytes of bodies in memory, mirrored in `dir` if given, where
+    /// files take at most `dir_bytes` bytes.
     ///
     /// # Errors
-    /// When `dir` cannot be created.
-    pub fn new(bytes: u64, dir: Option<PathBuf>) -> std::io::Result<Self> {
-        if let Some(dir) = &dir {
-            std::fs::create_dir_all(dir)?;
-        }
+    /// When `dir` cannot be created or listed.
+    pub fn new(bytes: u64, dir: Option<PathBuf>, dir_bytes: u64) -> std::io::Result<Self> {
         let memory = moka::sync::Cache::builder()
             .max_capacity(bytes)
             .weigher(|_: &String, f: &Arc<Finished>| u32::try_from(f.body.len()).unwrap_or(u32::MAX))
             .build();
-        Ok(Self { memory, dir })
+        let disk = dir.map(|dir| Disk::open(dir, dir_bytes)).transpose()?;
+        Ok(Self { memory, disk })
     }
 
     /// The entry for `id` from memory, without touching the disk.
@@ -66,33 +76,46 @@ impl Cache {
     /// workers when a disk is configured.
     pub fn get(&self, id: &str) -> Option<(Arc<Finished>, Hit)> {
         if let Some(f) = self.memory.get(id) {
+            // A mesh served from memory is in use on disk too.
+            if let Some(disk) = &self.disk {
+                disk.files.get(id);
+            }
             return Some((f, Hit::Memory));
         }
-        let path = self.path(id)?;
-        let finished = match read_entry(&path) {
-            Ok(Some(f)) => Arc::new(f),
+        let disk = self.disk.as_ref()?;
+        let path = disk.path(id)?;
+        let (finished, size) = match read_entry(&path) {
+            Ok(Some((f, size))) => (Arc::new(f), size),
             Ok(None) => return None,
             Err(why) => {
                 tracing::warn!(id, %why, "discarding corrupt cache file");
                 let _ = std::fs::remove_file(&path);
+                disk.files.invalidate(id);
                 return None;
             }
         };
+        // Marks it used, or indexes a file another process sharing the directory wrote.
+        if disk.files.get(id).is_none() {
+            disk.add(id, size);
+        }
         self.memory.insert(id.to_owned(), finished.clone());
         Some((finished, Hit::Disk))
     }
 
     /// Whether a disk mirror is configured (lookups may then block).
     pub fn has_disk(&self) -> bool {
-        self.dir.is_some()
+        self.disk.is_some()
     }
 
     /// Stores an entry in memory and, if configured, on disk (blocking).
     pub fn insert(&self, id: &str, finished: Arc<Finished>) {
-        if let Some(path) = self.path(id)
-            && let Err(e) = write_entry(&path, &finished)
+        if let Some(disk) = &self.disk
+            && let Some(path) = disk.path(id)
         {
-            tracing::warn!(id, error = %e, "could not write cache file");
+            match write_entry(&path, &finished) {
+                Ok(size) => disk.add(id, size),
+                Err(e) => tracing::warn!(id, error = %e, "could not write cache file"),
+            }
         }
         self.memory.insert(id.to_owned(), finished);
     }
@@ -103,10 +126,62 @@ impl Cache {
         self.memory.weighted_size()
     }
 
+    /// Bytes of the files this process knows in the cache directory (0 without one).
+    pub fn disk_bytes(&self) -> u64 {
+        self.disk.as_ref().map_or(0, |disk| {
+            disk.files.run_pending_tasks();
+            disk.files.weighted_size()
+        })
+    }
+}
+
+impl Disk {
+    /// Indexes the files an earlier run left in `dir`, oldest first so that they leave first,
+    /// and deletes the oldest of them beyond `bytes`.
+    fn open(dir: PathBuf, bytes: u64) -> std::io::Result<Self> {
+        std::fs::create_dir_all(&dir)?;
+        let files = moka::sync::Cache::builder()
+            .max_capacity(bytes)
+            .weigher(|_: &String, size: &u64| u32::try_from(*size).unwrap_or(u32::MAX))
+            // Plain LRU: the mesh unused for longest goes first, never the one just written.
+            .eviction_policy(EvictionPolicy::lru())
+            .eviction_listener({
+                let dir = dir.clone();
+                move |id: Arc<String>, _, cause| {
+                    if cause == RemovalCause::Size {
+                        let _ = std::fs::remove_file(dir.join(format!("{id}.mesh")));
+                    }
+                }
+            })
+            .build();
+        let disk = Self { dir, files };
+        let mut found: Vec<(SystemTime, String, u64)> = std::fs::read_dir(&disk.dir)?
+            .filter_map(|entry| {
+                let entry = entry.ok()?;
+                let id = entry.file_name().to_str()?.strip_suffix(".mesh")?.to_owned();
+                let meta = entry.metadata().ok()?;
+                disk.path(&id).map(|_| (meta.modified().unwrap_or(SystemTime::UNIX_EPOCH), id, meta.len()))
+            })
+            .collect();
+        found.sort();
+        for (_, id, size) in found {
+            disk.add(&id, size);
+        }
+        Ok(disk)
+    }
+
+    /// Indexes file `id` of `size` bytes as just used, deleting the least recently used files
+    /// if that passes the limit.
+    fn add(&self, id: &str, size: u64) {
+        self.files.insert(id.to_owned(), size);
+        // Evict now rather than when moka next gets round to it.
+        self.files.run_pending_tasks();
+    }
+
     fn path(&self, id: &str) -> Option<PathBuf> {
         // Ids are our own hex digests; anything else never names a file.
         let safe = id.len() == 64 && id.bytes().all(|b| b.is_ascii_hexdigit());
-        self.dir.as_ref().filter(|_| safe).map(|d| d.join(format!("{id}.mesh")))
+        safe.then(|| self.dir.join(format!("{id}.mesh")))
     }
 }
 
@@ -114,7 +189,8 @@ fn checksum(body: &[u8]) -> String {
     format!("{:x}", Sha256::digest(body))
 }
 
-fn write_entry(path: &Path, f: &Finished) -> std::io::Result<()> {
+/// Writes the file and returns its size in bytes.
+fn write_entry(path: &Path, f: &Finished) -> std::io::Result<u64> {
     // Write to a temporary name of our own and rename, so a crash never leaves a half file
     // under the id and two writers (threads or processes sharing the directory) never
     // interleave.
@@ -123,10 +199,12 @@ fn write_entry(path: &Path, f: &Finished) -> std::io::Result<()> {
     let tmp = path.with_extension(unique);
     let written = (|| {
         let mut file = std::io::BufWriter::new(std::fs::File::create_new(&tmp)?);
-        writeln!(file, "{MAGIC} {} {}", checksum(&f.body), f.stats)?;
+        let header = format!("{MAGIC} {} {}\n", checksum(&f.body), f.stats);
+        file.write_all(header.as_bytes())?;
         file.write_all(&f.body)?;
         file.into_inner()?.sync_all()?;
-        std::fs::rename(&tmp, path)
+        std::fs::rename(&tmp, path)?;
+        Ok((header.len() + f.body.len()) as u64)
     })();
     if written.is_err() {
         let _ = std::fs::remove_file(&tmp);
@@ -134,7 +212,8 @@ fn write_entry(path: &Path, f: &Finished) -> std::io::Result<()> {
     written
 }
 
-fn read_entry(path: &Path) -> Result<Option<Finished>, String> {
+/// The entry in the file at `path` and the file's size, `None` if there is no file.
+fn read_entry(path: &Path) -> Result<Option<(Finished, u64)>, String> {
     let data = match std::fs::read(path) {
         Ok(d) => d,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
@@ -152,7 +231,7 @@ fn read_entry(path: &Path) -> Result<Option<Finished>, String> {
     if checksum(&body) != sum {
         return Err("checksum mismatch".into());
     }
-    Ok(Some(Finished { body, stats }))
+    Ok(Some((Finished { body, stats }, data.len() as u64)))
 }
 
 #[cfg(test)]
@@ -177,8 +256,8 @@ mod tests {
     #[test]
     fn an_entry_written_to_disk_is_read_back_by_a_new_cache() {
         let dir = temp_dir("roundtrip");
-        Cache::new(1 << 20, Some(dir.clone())).unwrap().insert(ID, entry());
-        let (got, hit) = Cache::new(1 << 20, Some(dir.clone())).unwrap().get(ID).unwrap();
+        Cache::new(1 << 20, Some(dir.clone()), 1 << 20).unwrap().insert(ID, entry());
+        let (got, hit) = Cache::new(1 << 20, Some(dir.clone()), 1 << 20).unwrap().get(ID).unwrap();
         assert_eq!((got, hit), (entry(), Hit::Disk));
         std::fs::remove_dir_all(dir).unwrap();
     }
@@ -186,12 +265,12 @@ mod tests {
     #[test]
     fn a_corrupt_file_is_deleted_and_reported_as_a_miss() {
         let dir = temp_dir("corrupt");
-        Cache::new(1 << 20, Some(dir.clone())).unwrap().insert(ID, entry());
+        Cache::new(1 << 20, Some(dir.clone()), 1 << 20).unwrap().insert(ID, entry());
         let path = dir.join(format!("{ID}.mesh"));
         let mut data = std::fs::read(&path).unwrap();
         *data.last_mut().unwrap() ^= 1;
         std::fs::write(&path, data).unwrap();
-        assert_eq!(Cache::new(1 << 20, Some(dir.clone())).unwrap().get(ID), None);
+        assert_eq!(Cache::new(1 << 20, Some(dir.clone()), 1 << 20).unwrap().get(ID), None);
         assert!(!path.exists(), "the corrupt file should be gone");
         std::fs::remove_dir_all(dir).unwrap();
     }
@@ -199,8 +278,61 @@ mod tests {
     #[test]
     fn ids_that_are_not_our_digests_never_touch_the_disk() {
         let dir = temp_dir("ids");
-        let cache = Cache::new(1 << 20, Some(dir.clone())).unwrap();
-        assert_eq!(cache.path("../../etc/passwd"), None);
+        let cache = Cache::new(1 << 20, Some(dir.clone()), 1 << 20).unwrap();
+        assert_eq!(cache.disk.as_ref().unwrap().path("../../etc/passwd"), None);
+        std::fs::remove_dir_all(dir).unwrap();
+    }
+
+    fn id(k: u8) -> String {
+        format!("{k:064x}")
+    }
+
+    fn files(dir: &Path) -> Vec<String> {
+        let mut names: Vec<String> =
+            std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
+        names.sort();
+        names
+    }
+
+    #[test]
+    fn the_directory_keeps_within_its_limit_dropping_the_least_recently_used_file() {
+        let dir = temp_dir("limit");
+        std::fs::create_dir_all(&dir).unwrap();
+        let size = write_entry(&dir.join("probe"), &entry()).unwrap();
+        std::fs::remove_file(dir.join("probe")).unwrap();
+        // Room for three files; memory is too small to hold any, so reads go to disk.
+        let cache = Cache::new(0, Some(dir.clone()), 3 * size).unwrap();
+        for k in 1..=3 {
+            cache.insert(&id(k), entry());
+        }
+        cache.memory_bytes(); // lets moka drop what memory cannot hold
+        assert_eq!(cache.get(&id(1)).map(|(_, hit)| hit), Some(Hit::Disk));
+        cache.insert(&id(4), entry());
+        // 2 was used least recently: 1 was read after it.
+        assert_eq!(files(&dir), [1, 3, 4].map(|k| format!("{}.mesh", id(k))));
+        assert_eq!(cache.disk_bytes(), 3 * size);
+        assert!(cache.get(&id(2)).is_none());
+        std::fs::remove_dir_all(dir).unwrap();
+    }
+
+    #[test]
+    fn a_restart_with_a_smaller_limit_deletes_the_oldest_files() {
+        let dir = temp_dir("restart");
+        let cache = Cache::new(1 << 20, Some(dir.clone()), 1 << 20).unwrap();
+        for k in 1..=4 {
+            cache.insert(&id(k), entry());
+        }
+        // Written in the order 3, 1, 4, 2, a second apart.
+        let epoch = SystemTime::UNIX_EPOCH + std::time::Duration::from_secs(1_700_000_000);
+        for (age, k) in [3, 1, 4, 2].into_iter().enumerate() {
+            let file =
+                std::fs::File::options().write(true).open(dir.join(format!("{}.mesh", id(k)))).unwrap();
+            file.set_modified(epoch + std::time::Duration::from_secs(age as u64)).unwrap();
+        }
+        let size = cache.disk_bytes() / 4;
+        let reopened = Cache::new(1 << 20, Some(dir.clone()), 2 * size).unwrap();
+        assert_eq!(files(&dir), [2, 4].map(|k| format!("{}.mesh", id(k))));
+        assert_eq!(reopened.get(&id(4)).map(|(_, hit)| hit), Some(Hit::Disk));
         std::fs::remove_dir_all(dir).unwrap();
     }
 }

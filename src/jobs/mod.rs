@@ -330,6 +330,11 @@ impl Jobs {
         self.inner.cache.memory_bytes()
     }
 
+    /// Bytes of mesh files in the cache directory.
+    pub fn cache_disk_bytes(&self) -> u64 {
+        self.inner.cache.disk_bytes()
+    }
+
     /// Whether a new job would be accepted now.
     pub fn is_ready(&self) -> bool {
         !self.inner.closed.load(Ordering::SeqCst) && self.inner.has_room()

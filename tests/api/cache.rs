@@ -56,3 +56,27 @@ async fn a_corrupt_cache_file_is_recomputed_not_served() {
     assert_eq!(recomputed["triangles"], original["triangles"]);
     second.shutdown().await;
 }
+
+#[tokio::test]
+async fn the_cache_directory_stays_within_its_byte_limit() {
+    let dir = temp_dir("limit");
+    let mut config = with_dir(&dir);
+    config.cache_dir_bytes = 100_000;
+    let app = spawn_with(config).await;
+    let mut last = String::new();
+    for n in [500, 510, 520, 530] {
+        let doc: Value = app
+            .post("/v1/meshes", &json!({"function": "x*y", "max_vertices": n}))
+            .await
+            .json()
+            .await
+            .unwrap();
+        last = doc["id"].as_str().unwrap().to_owned();
+    }
+    let files: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap()).collect();
+    let total: u64 = files.iter().map(|f| f.metadata().unwrap().len()).sum();
+    assert!(total <= 100_000 && files.len() < 4, "{} files, {total} bytes", files.len());
+    assert!(files.iter().any(|f| f.file_name().to_string_lossy().starts_with(&last)), "the newest is kept");
+    assert_eq!(app.metric("meshfit_cache_disk_bytes").await, total as f64);
+    app.shutdown().await;
+}

@@ -30,6 +30,7 @@ pub fn test_config() -> Config {
         job_time_limit: Duration::from_secs(30),
         cache_bytes: 256 << 20,
         cache_dir: None,
+        cache_dir_bytes: 64 << 20,
         shutdown_grace: Duration::from_secs(2),
         log_format: meshfit::config::LogFormat::Text,
     }
