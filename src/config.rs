@@ -135,7 +135,8 @@ impl TryFrom<RawConfig> for Config {
                     config.cache_dir = (!v.is_empty()).then(|| PathBuf::from(v));
                     Ok(())
                 }
-                "MESHFIT_CACHE_DIR_BYTES" => number().map(|n| config.cache_dir_bytes = n),
+                "MESHFIT_CACHE_DIR_BYTES" => number()
+                    .and_then(|n| (n >= 1).then(|| config.cache_dir_bytes = n).ok_or("must be at least 1")),
                 "MESHFIT_SHUTDOWN_GRACE_MS" => {
                     number().map(|n| config.shutdown_grace = Duration::from_millis(n))
                 }
@@ -196,9 +197,10 @@ mod tests {
             ("MESHFIT_WORKERS", "0"),
             ("MESHFIT_ADDR", "localhost"),
             ("MESHFIT_QEUE", "3"),
+            ("MESHFIT_CACHE_DIR_BYTES", "0"),
         ]))
         .unwrap_err();
-        assert_eq!(err.0.len(), 3, "{err}");
+        assert_eq!(err.0.len(), 4, "{err}");
         assert!(err.0.iter().any(|p| p.starts_with("MESHFIT_WORKERS=\"0\"")), "{err}");
         assert!(err.0.iter().any(|p| p.contains("MESHFIT_QEUE") && p.contains("unknown")), "{err}");
     }

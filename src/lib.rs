@@ -59,7 +59,11 @@ pub async fn serve(
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
     let metrics = Arc::new(metrics::Metrics::default());
-    let cache = jobs::Cache::new(config.cache_bytes, config.cache_dir.clone(), config.cache_dir_bytes)?;
+    let (bytes, dir, dir_bytes) = (config.cache_bytes, config.cache_dir.clone(), config.cache_dir_bytes);
+    // Opening a cache directory lists it and may prune it: blocking work.
+    let cache = tokio::task::spawn_blocking(move || jobs::Cache::new(bytes, dir, dir_bytes))
+        .await
+        .map_err(std::io::Error::other)??;
     let jobs = jobs::Jobs::new(config.workers.get(), config.queue, cache, metrics);
     let limits = jobs::Limits {
         max_vertices: config.max_vertices,

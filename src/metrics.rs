@@ -43,7 +43,7 @@ pub struct Metrics {
     pub cache_misses: Counter,
     /// Bytes of meshes held in memory.
     pub cache_bytes: Gauge,
-    /// Bytes of mesh files in the cache directory.
+    /// Bytes of the mesh files this server has indexed in the cache directory.
     pub cache_disk_bytes: Gauge,
     /// Requests, by method and status.
     pub http_requests: Family<RequestLabels, Counter>,
@@ -76,7 +76,7 @@ impl Default for Metrics {
         registry.register("cache_bytes", "Bytes of meshes held in memory", m.cache_bytes.clone());
         registry.register(
             "cache_disk_bytes",
-            "Bytes of mesh files in the cache directory",
+            "Bytes of the mesh files this server has indexed in the cache directory",
             m.cache_disk_bytes.clone(),
         );
         registry.register("http_requests", "HTTP requests by method and status", m.http_requests.clone());

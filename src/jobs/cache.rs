@@ -49,7 +49,13 @@ pub struct Cache {
 #[derive(Clone)]
 struct Disk {
     dir: PathBuf,
+    /// The most bytes of files to keep.
+    limit: u64,
     files: moka::sync::Cache<String, u64>,
+    /// Ids the index dropped for size, whose files are still to delete. moka may evict while
+    /// any caller touches the index, async ones included, so the eviction listener only
+    /// notes the id; [`Disk::evict`], called where blocking is fine, deletes the file.
+    evicted: Arc<std::sync::Mutex<Vec<String>>>,
 }
 
 impl Cache {
@@ -67,26 +73,34 @@ impl Cache {
         Ok(Self { memory, disk })
     }
 
-    /// The entry for `id` from memory, without touching the disk.
+    /// The entry for `id` from memory, without reading the disk; a hit marks its file as used
+    /// in the disk index.
     pub fn get_memory(&self, id: &str) -> Option<Arc<Finished>> {
-        self.memory.get(id)
+        let found = self.memory.get(id);
+        if found.is_some()
+            && let Some(disk) = &self.disk
+        {
+            // A mesh served from memory is in use: its file should not go first.
+            disk.files.get(id);
+        }
+        found
     }
 
     /// The entry for `id`, from memory or else from disk. Blocking: call it off the async
     /// workers when a disk is configured.
     pub fn get(&self, id: &str) -> Option<(Arc<Finished>, Hit)> {
-        if let Some(f) = self.memory.get(id) {
-            // A mesh served from memory is in use on disk too.
-            if let Some(disk) = &self.disk {
-                disk.files.get(id);
-            }
+        if let Some(f) = self.get_memory(id) {
             return Some((f, Hit::Memory));
         }
         let disk = self.disk.as_ref()?;
         let path = disk.path(id)?;
         let (finished, size) = match read_entry(&path) {
             Ok(Some((f, size))) => (Arc::new(f), size),
-            Ok(None) => return None,
+            Ok(None) => {
+                // Deleted behind the index's back (evicted meanwhile, or by another server).
+                disk.files.invalidate(id);
+                return None;
+            }
             Err(why) => {
                 tracing::warn!(id, %why, "discarding corrupt cache file");
                 let _ = std::fs::remove_file(&path);
@@ -107,14 +121,20 @@ impl Cache {
         self.disk.is_some()
     }
 
-    /// Stores an entry in memory and, if configured, on disk (blocking).
+    /// Stores an entry in memory and, if configured, on disk (blocking). A mesh whose file
+    /// would not fit in the directory's whole limit stays in memory only.
     pub fn insert(&self, id: &str, finished: Arc<Finished>) {
         if let Some(disk) = &self.disk
             && let Some(path) = disk.path(id)
         {
-            match write_entry(&path, &finished) {
-                Ok(size) => disk.add(id, size),
-                Err(e) => tracing::warn!(id, error = %e, "could not write cache file"),
+            let header = header(&finished);
+            if (header.len() + finished.body.len()) as u64 > disk.limit {
+                tracing::debug!(id, "mesh larger than the cache directory's limit: not written");
+            } else {
+                match write_entry(&path, &header, &finished.body) {
+                    Ok(size) => disk.add(id, size),
+                    Err(e) => tracing::warn!(id, error = %e, "could not write cache file"),
+                }
             }
         }
         self.memory.insert(id.to_owned(), finished);
@@ -126,47 +146,55 @@ impl Cache {
         self.memory.weighted_size()
     }
 
-    /// Bytes of the files this process knows in the cache directory (0 without one).
+    /// Bytes of the mesh files this server has indexed in the cache directory (0 without
+    /// one). Current as of the last write: it runs no maintenance, so async callers never wait.
     pub fn disk_bytes(&self) -> u64 {
-        self.disk.as_ref().map_or(0, |disk| {
-            disk.files.run_pending_tasks();
-            disk.files.weighted_size()
-        })
+        self.disk.as_ref().map_or(0, |disk| disk.files.weighted_size())
     }
 }
 
 impl Disk {
     /// Indexes the files an earlier run left in `dir`, oldest first so that they leave first,
-    /// and deletes the oldest of them beyond `bytes`.
-    fn open(dir: PathBuf, bytes: u64) -> std::io::Result<Self> {
+    /// and deletes the oldest of them beyond `limit` bytes. Also sweeps temporary files a crash
+    /// left behind (those more than an hour old: a younger one may be another server's write).
+    fn open(dir: PathBuf, limit: u64) -> std::io::Result<Self> {
         std::fs::create_dir_all(&dir)?;
+        let evicted = Arc::new(std::sync::Mutex::new(Vec::new()));
         let files = moka::sync::Cache::builder()
-            .max_capacity(bytes)
+            .max_capacity(limit)
             .weigher(|_: &String, size: &u64| u32::try_from(*size).unwrap_or(u32::MAX))
-            // Plain LRU: the mesh unused for longest goes first, never the one just written.
+            // Plain LRU, the mesh unused for longest first: TinyLFU's admission filter could
+            // turn away the file just written.
             .eviction_policy(EvictionPolicy::lru())
             .eviction_listener({
-                let dir = dir.clone();
+                let evicted = evicted.clone();
                 move |id: Arc<String>, _, cause| {
                     if cause == RemovalCause::Size {
-                        let _ = std::fs::remove_file(dir.join(format!("{id}.mesh")));
+                        evicted.lock().unwrap_or_else(|e| e.into_inner()).push(id.to_string());
                     }
                 }
             })
             .build();
-        let disk = Self { dir, files };
-        let mut found: Vec<(SystemTime, String, u64)> = std::fs::read_dir(&disk.dir)?
-            .filter_map(|entry| {
-                let entry = entry.ok()?;
-                let id = entry.file_name().to_str()?.strip_suffix(".mesh")?.to_owned();
-                let meta = entry.metadata().ok()?;
-                disk.path(&id).map(|_| (meta.modified().unwrap_or(SystemTime::UNIX_EPOCH), id, meta.len()))
-            })
-            .collect();
+        let disk = Self { dir, limit, files, evicted };
+        let an_hour_ago = SystemTime::now() - std::time::Duration::from_secs(3600);
+        let mut found = Vec::new();
+        for entry in std::fs::read_dir(&disk.dir)?.filter_map(Result::ok) {
+            let (Some(name), Ok(meta)) = (entry.file_name().to_str().map(str::to_owned), entry.metadata())
+            else {
+                continue;
+            };
+            let modified = meta.modified().unwrap_or(SystemTime::UNIX_EPOCH);
+            if let Some(id) = name.strip_suffix(".mesh").filter(|id| disk.path(id).is_some()) {
+                found.push((modified, id.to_owned(), meta.len()));
+            } else if name.ends_with(".tmp") && modified < an_hour_ago {
+                let _ = std::fs::remove_file(entry.path());
+            }
+        }
         found.sort();
         for (_, id, size) in found {
-            disk.add(&id, size);
+            disk.files.insert(id, size);
         }
+        disk.evict();
         Ok(disk)
     }
 
@@ -174,8 +202,19 @@ impl Disk {
     /// if that passes the limit.
     fn add(&self, id: &str, size: u64) {
         self.files.insert(id.to_owned(), size);
-        // Evict now rather than when moka next gets round to it.
+        self.evict();
+    }
+
+    /// Applies the limit now rather than when moka next gets round to it, and deletes the
+    /// files the index dropped, unless they have come back since (written again).
+    fn evict(&self) {
         self.files.run_pending_tasks();
+        let evicted = std::mem::take(&mut *self.evicted.lock().unwrap_or_else(|e| e.into_inner()));
+        for id in evicted {
+            if !self.files.contains_key(&id) {
+                let _ = std::fs::remove_file(self.dir.join(format!("{id}.mesh")));
+            }
+        }
     }
 
     fn path(&self, id: &str) -> Option<PathBuf> {
@@ -189,8 +228,13 @@ fn checksum(body: &[u8]) -> String {
     format!("{:x}", Sha256::digest(body))
 }
 
-/// Writes the file and returns its size in bytes.
-fn write_entry(path: &Path, f: &Finished) -> std::io::Result<u64> {
+/// The first line of an entry's file.
+fn header(f: &Finished) -> String {
+    format!("{MAGIC} {} {}\n", checksum(&f.body), f.stats)
+}
+
+/// Writes the file, `header` then `body`, and returns its size in bytes.
+fn write_entry(path: &Path, header: &str, body: &[u8]) -> std::io::Result<u64> {
     // Write to a temporary name of our own and rename, so a crash never leaves a half file
     // under the id and two writers (threads or processes sharing the directory) never
     // interleave.
@@ -199,12 +243,11 @@ fn write_entry(path: &Path, f: &Finished) -> std::io::Result<u64> {
     let tmp = path.with_extension(unique);
     let written = (|| {
         let mut file = std::io::BufWriter::new(std::fs::File::create_new(&tmp)?);
-        let header = format!("{MAGIC} {} {}\n", checksum(&f.body), f.stats);
         file.write_all(header.as_bytes())?;
-        file.write_all(&f.body)?;
+        file.write_all(body)?;
         file.into_inner()?.sync_all()?;
         std::fs::rename(&tmp, path)?;
-        Ok((header.len() + f.body.len()) as u64)
+        Ok((header.len() + body.len()) as u64)
     })();
     if written.is_err() {
         let _ = std::fs::remove_file(&tmp);
@@ -297,21 +340,43 @@ mod tests {
     #[test]
     fn the_directory_keeps_within_its_limit_dropping_the_least_recently_used_file() {
         let dir = temp_dir("limit");
-        std::fs::create_dir_all(&dir).unwrap();
-        let size = write_entry(&dir.join("probe"), &entry()).unwrap();
-        std::fs::remove_file(dir.join("probe")).unwrap();
-        // Room for three files; memory is too small to hold any, so reads go to disk.
+        let size = (header(&entry()).len() + entry().body.len()) as u64;
+        // Room for three files; no memory cache (capacity 0 turns moka off), so reads go to disk.
         let cache = Cache::new(0, Some(dir.clone()), 3 * size).unwrap();
         for k in 1..=3 {
             cache.insert(&id(k), entry());
         }
-        cache.memory_bytes(); // lets moka drop what memory cannot hold
         assert_eq!(cache.get(&id(1)).map(|(_, hit)| hit), Some(Hit::Disk));
         cache.insert(&id(4), entry());
         // 2 was used least recently: 1 was read after it.
         assert_eq!(files(&dir), [1, 3, 4].map(|k| format!("{}.mesh", id(k))));
         assert_eq!(cache.disk_bytes(), 3 * size);
         assert!(cache.get(&id(2)).is_none());
+        std::fs::remove_dir_all(dir).unwrap();
+    }
+
+    #[test]
+    fn a_mesh_served_from_memory_keeps_its_file() {
+        let dir = temp_dir("memory-hit");
+        let size = (header(&entry()).len() + entry().body.len()) as u64;
+        let cache = Cache::new(1 << 20, Some(dir.clone()), 3 * size).unwrap();
+        for k in 1..=3 {
+            cache.insert(&id(k), entry());
+        }
+        assert!(cache.get_memory(&id(1)).is_some());
+        cache.insert(&id(4), entry());
+        assert_eq!(files(&dir), [1, 3, 4].map(|k| format!("{}.mesh", id(k))));
+        std::fs::remove_dir_all(dir).unwrap();
+    }
+
+    #[test]
+    fn a_mesh_larger_than_the_limit_stays_in_memory_only() {
+        let dir = temp_dir("too-big");
+        let size = (header(&entry()).len() + entry().body.len()) as u64;
+        let cache = Cache::new(1 << 20, Some(dir.clone()), size - 1).unwrap();
+        cache.insert(&id(1), entry());
+        assert!(files(&dir).is_empty());
+        assert_eq!(cache.get(&id(1)).map(|(_, hit)| hit), Some(Hit::Memory));
         std::fs::remove_dir_all(dir).unwrap();
     }
 
@@ -329,9 +394,15 @@ mod tests {
                 std::fs::File::options().write(true).open(dir.join(format!("{}.mesh", id(k)))).unwrap();
             file.set_modified(epoch + std::time::Duration::from_secs(age as u64)).unwrap();
         }
+        // A crash's leftover, and another server's write in progress.
+        std::fs::File::create(dir.join("old.1.tmp")).unwrap().set_modified(epoch).unwrap();
+        std::fs::File::create(dir.join("new.2.tmp")).unwrap();
         let size = cache.disk_bytes() / 4;
         let reopened = Cache::new(1 << 20, Some(dir.clone()), 2 * size).unwrap();
-        assert_eq!(files(&dir), [2, 4].map(|k| format!("{}.mesh", id(k))));
+        let mut expected = vec!["new.2.tmp".to_owned()];
+        expected.extend([2, 4].map(|k| format!("{}.mesh", id(k))));
+        expected.sort();
+        assert_eq!(files(&dir), expected);
         assert_eq!(reopened.get(&id(4)).map(|(_, hit)| hit), Some(Hit::Disk));
         std::fs::remove_dir_all(dir).unwrap();
     }

@@ -330,7 +330,7 @@ impl Jobs {
         self.inner.cache.memory_bytes()
     }
 
-    /// Bytes of mesh files in the cache directory.
+    /// Bytes of the mesh files this server has indexed in the cache directory.
     pub fn cache_disk_bytes(&self) -> u64 {
         self.inner.cache.disk_bytes()
     }

@@ -58,25 +58,26 @@ async fn a_corrupt_cache_file_is_recomputed_not_served() {
 }
 
 #[tokio::test]
-async fn the_cache_directory_stays_within_its_byte_limit() {
+async fn the_cache_directory_stays_within_its_byte_limit_keeping_what_is_in_use() {
     let dir = temp_dir("limit");
     let mut config = with_dir(&dir);
     config.cache_dir_bytes = 100_000;
     let app = spawn_with(config).await;
-    let mut last = String::new();
-    for n in [500, 510, 520, 530] {
-        let doc: Value = app
-            .post("/v1/meshes", &json!({"function": "x*y", "max_vertices": n}))
-            .await
-            .json()
-            .await
-            .unwrap();
-        last = doc["id"].as_str().unwrap().to_owned();
+    let mesh = |n: u32| json!({"function": "x*y", "max_vertices": n});
+    let first: Value = app.post("/v1/meshes", &mesh(500)).await.json().await.unwrap();
+    let first = first["id"].as_str().unwrap().to_owned();
+    for n in [510, 520, 530] {
+        assert_eq!(app.post("/v1/meshes", &mesh(n)).await.status(), 200);
+        // Asked for again, from memory: its file is the most recently used.
+        assert_eq!(app.post("/v1/meshes", &mesh(500)).await.headers()["x-cache"], "hit");
     }
     let files: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap()).collect();
     let total: u64 = files.iter().map(|f| f.metadata().unwrap().len()).sum();
     assert!(total <= 100_000 && files.len() < 4, "{} files, {total} bytes", files.len());
-    assert!(files.iter().any(|f| f.file_name().to_string_lossy().starts_with(&last)), "the newest is kept");
+    assert!(
+        files.iter().any(|f| f.file_name().to_string_lossy().starts_with(&first)),
+        "the mesh in use is kept"
+    );
     assert_eq!(app.metric("meshfit_cache_disk_bytes").await, total as f64);
     app.shutdown().await;
 }
