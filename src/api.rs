@@ -15,7 +15,7 @@ pub struct JobRequest {
     pub function: Option<String>,
     /// F sampled on a grid. Exactly one of `function` and `grid`.
     pub grid: Option<GridInput>,
-    /// The rectangle; default [0,1]² for a function, [0,nx−1]×[0,ny−1] for a grid.
+    /// The rectangle; default \[0,1\]² for a function, \[0,nx−1\]×\[0,ny−1\] for a grid.
     pub domain: Option<DomainInput>,
     /// The vertex budget n (default 10000, at least 4).
     pub max_vertices: Option<u64>,

@@ -53,7 +53,7 @@ pub enum ExprErrorKind {
     },
     /// Parentheses or commas that do not pair up.
     Unbalanced(&'static str),
-    /// Nesting deeper than [`MAX_DEPTH`] pending values.
+    /// Nesting deeper than `MAX_DEPTH` (64) pending values.
     TooDeep,
 }
 
