@@ -49,17 +49,8 @@ impl Mesh {
     /// `stack` is the caller's scratch space, so the hot loop does not allocate; it is empty on
     /// return. `on_flip` is told the half-edge of each new diagonal (its two triangles are the
     /// ones the flip rewrote).
-    pub fn legalize(&mut self, stack: &mut Vec<u32>, mut on_flip: impl FnMut(&Self, u32)) -> u32 {
-        let mut flips = 0;
-        while let Some(e) = stack.pop() {
-            if self.is_illegal(e) {
-                let [p, q] = self.flip(e);
-                on_flip(self, p + 1);
-                stack.extend([p, q]);
-                flips += 1;
-            }
-        }
-        flips
+    pub fn legalize(&mut self, stack: &mut Vec<u32>, on_flip: impl FnMut(&Self, u32)) -> u32 {
+        self.lawson::<false>(stack, on_flip)
     }
 
     /// Lawson's algorithm for any set of suspect edges: `stack` holds half-edges that may be
@@ -69,14 +60,27 @@ impl Mesh {
     ///
     /// Unlike [`Mesh::legalize`], a flip here may create an edge that does not end at the new
     /// vertex; `on_flip` is told the half-edge of every diagonal a flip makes.
-    pub fn legalize_all(&mut self, stack: &mut Vec<u32>, mut on_flip: impl FnMut(&Self, u32)) -> u32 {
+    pub fn legalize_all(&mut self, stack: &mut Vec<u32>, on_flip: impl FnMut(&Self, u32)) -> u32 {
+        self.lawson::<true>(stack, on_flip)
+    }
+
+    /// The flip loop of both: `OUTER` also checks the two edges that do not face the apex.
+    #[inline]
+    fn lawson<const OUTER: bool>(
+        &mut self,
+        stack: &mut Vec<u32>,
+        mut on_flip: impl FnMut(&Self, u32),
+    ) -> u32 {
         let mut flips = 0;
         while let Some(e) = stack.pop() {
             if self.is_illegal(e) {
                 let [p, q] = self.flip(e);
                 on_flip(self, p + 1);
                 // p = u→w and q = w→v face the apex; next(q) = v→m and prev(p) = m→u don't.
-                stack.extend([p, q, super::mesh::next(q), super::mesh::prev(p)]);
+                stack.extend([p, q]);
+                if OUTER {
+                    stack.extend([super::mesh::next(q), super::mesh::prev(p)]);
+                }
                 flips += 1;
             }
         }

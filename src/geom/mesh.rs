@@ -159,6 +159,12 @@ impl Mesh {
         self.half[prev(e) as usize].origin
     }
 
+    /// The squared length of `e`'s edge.
+    #[inline]
+    pub fn len_sq(&self, e: u32) -> f64 {
+        self.point(self.origin(e)).distance_sq(self.point(self.dest(e)))
+    }
+
     /// The twin of `e`, or [`NONE`] when `e` is on the boundary.
     #[inline]
     pub fn twin(&self, e: u32) -> u32 {

@@ -153,17 +153,15 @@ fn split_edge(mesh: &Mesh, t: u32, slot: &Slot) -> u32 {
     if slot.edges.iter().all(|&e| e < slot.error) {
         return longest;
     }
-    let len_sq = |e: u32| mesh.point(mesh.origin(e)).distance_sq(mesh.point(mesh.dest(e)));
-    let floor = SPLIT_LENGTH_SQ_RATIO * len_sq(longest);
+    let floor = SPLIT_LENGTH_SQ_RATIO * mesh.len_sq(longest);
     let error = |e: u32| slot.edges[(e % 3) as usize];
     (3 * t..3 * t + 3)
-        .fold(longest, |best, e| if error(e) > error(best) && len_sq(e) >= floor { e } else { best })
+        .fold(longest, |best, e| if error(e) > error(best) && mesh.len_sq(e) >= floor { e } else { best })
 }
 
 /// The half-edge of triangle `t`'s longest edge; among equal lengths, the first.
 fn longest_edge(mesh: &Mesh, t: u32) -> u32 {
-    let len_sq = |e: u32| mesh.point(mesh.origin(e)).distance_sq(mesh.point(mesh.dest(e)));
-    (3 * t..3 * t + 3).fold(3 * t, |best, e| if len_sq(e) > len_sq(best) { e } else { best })
+    (3 * t..3 * t + 3).fold(3 * t, |best, e| if mesh.len_sq(e) > mesh.len_sq(best) { e } else { best })
 }
 
 /// The end of the longest-edge propagation path from `t`: follow longest edges across
@@ -171,7 +169,6 @@ fn longest_edge(mesh: &Mesh, t: u32) -> u32 {
 /// along the path, so it ends; its last edge is the longest edge of both its triangles (or
 /// on the boundary), so bisecting it keeps the mesh conforming.
 fn terminal_edge(mesh: &Mesh, t: u32) -> u32 {
-    let len_sq = |e: u32| mesh.point(mesh.origin(e)).distance_sq(mesh.point(mesh.dest(e)));
     let mut e = longest_edge(mesh, t);
     loop {
         let f = mesh.twin(e);
@@ -179,7 +176,7 @@ fn terminal_edge(mesh: &Mesh, t: u32) -> u32 {
             return e;
         }
         let g = longest_edge(mesh, f / 3);
-        if len_sq(g) <= len_sq(e) {
+        if mesh.len_sq(g) <= mesh.len_sq(e) {
             return e;
         }
         e = g;

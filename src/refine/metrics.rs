@@ -60,8 +60,7 @@ pub(super) fn lattice_point([a, b, c]: &[Vertex; 3], [i, j, k]: [u8; 3]) -> (Poi
 /// 9 points inside its edges and 3 inside it; F_n equals F at the corners). A grid is compared
 /// at every grid node exactly, each node once. Samples where F is not finite are skipped.
 pub fn estimate_error<S: Surface + ?Sized>(mesh: &Mesh, surface: &S) -> ErrorEstimate {
-    let min_angle_deg =
-        (0..mesh.num_triangles()).map(|t| min_angle(mesh, t)).fold(f64::INFINITY, f64::min).to_degrees();
+    let min_angle_deg = min_angle_deg(mesh);
     let (max_error, rms_error, samples) = match surface.grid() {
         Some(grid) => grid_error(mesh, grid),
         None => lattice_error(mesh, surface),
@@ -74,6 +73,11 @@ fn corners(mesh: &Mesh, t: usize) -> [(Point, f64); 3] {
         let v = mesh.vertex(v);
         (v.point(), v.z)
     })
+}
+
+/// The smallest interior angle of any triangle, in degrees.
+pub(super) fn min_angle_deg(mesh: &Mesh) -> f64 {
+    (0..mesh.num_triangles()).map(|t| min_angle(mesh, t)).fold(f64::INFINITY, f64::min).to_degrees()
 }
 
 fn min_angle(mesh: &Mesh, t: usize) -> f64 {
@@ -115,15 +119,35 @@ fn lattice_error<S: Surface + ?Sized>(mesh: &Mesh, surface: &S) -> (f64, f64, u6
 
 /// Compares every grid node once, visiting the nodes each triangle covers.
 fn grid_error(mesh: &Mesh, grid: &Grid) -> (f64, f64, u64) {
-    let (nx, ny) = (grid.nx(), grid.ny());
-    let mut seen = vec![0u64; (nx * ny).div_ceil(64)];
     let (mut max, mut sum_sq, mut samples) = (0.0f64, 0.0, 0u64);
+    let to_grid = |p: Point| {
+        let (u, v) = grid.to_grid(p);
+        Point::new(u, v)
+    };
+    for_each_covered_node(mesh, grid.nx(), grid.ny(), to_grid, |i, j, linear| {
+        let err = (grid.value(i, j) - linear).abs();
+        max = max.max(err);
+        sum_sq += err * err;
+        samples += 1;
+    });
+    let rms = if samples > 0 { (sum_sq / samples as f64).sqrt() } else { 0.0 };
+    (max, rms, samples)
+}
+
+/// Calls `visit(i, j, F_n)` once for every node (i, j) of an `nx × ny` grid that a triangle
+/// of `mesh` covers, `to_grid` giving a point's position in grid units.
+fn for_each_covered_node(
+    mesh: &Mesh,
+    nx: usize,
+    ny: usize,
+    to_grid: impl Fn(Point) -> Point,
+    mut visit: impl FnMut(usize, usize, f64),
+) {
+    // Nodes on an edge belong to both its triangles: a bit per node keeps them to one visit.
+    let mut seen = vec![0u64; (nx * ny).div_ceil(64)];
     for t in 0..mesh.num_triangles() {
         let corners = corners(mesh, t);
-        let in_grid = corners.map(|(p, _)| {
-            let (u, v) = grid.to_grid(p);
-            Point::new(u, v)
-        });
+        let in_grid = corners.map(|(p, _)| to_grid(p));
         let Some(plane) = raster::Plane::new(in_grid, corners.map(|(_, z)| z)) else {
             continue;
         };
@@ -132,16 +156,11 @@ fn grid_error(mesh: &Mesh, grid: &Grid) -> (f64, f64, u64) {
                 let index = j * nx + i;
                 if seen[index / 64] & (1 << (index % 64)) == 0 {
                     seen[index / 64] |= 1 << (index % 64);
-                    let err = (grid.value(i, j) - linear).abs();
-                    max = max.max(err);
-                    sum_sq += err * err;
-                    samples += 1;
+                    visit(i, j, linear);
                 }
             }
         });
     }
-    let rms = if samples > 0 { (sum_sq / samples as f64).sqrt() } else { 0.0 };
-    (max, rms, samples)
 }
 
 /// E_max on a dense sample: an `n × n` grid over the rectangle plus every edge midpoint and
@@ -150,7 +169,6 @@ fn grid_error(mesh: &Mesh, grid: &Grid) -> (f64, f64, u64) {
 pub fn dense_max_error<S: Surface + ?Sized>(mesh: &Mesh, surface: &S, n: usize) -> f64 {
     let r = mesh.rect();
     let (hx, hy) = ((r.x1() - r.x0()) / (n - 1) as f64, (r.y1() - r.y0()) / (n - 1) as f64);
-    let mut seen = vec![0u64; (n * n).div_ceil(64)];
     let mut max = 0.0f64;
     let mut compare = |p: Point, linear: f64| {
         let exact = surface.eval(p);
@@ -165,20 +183,10 @@ pub fn dense_max_error<S: Surface + ?Sized>(mesh: &Mesh, surface: &S, n: usize) 
     for t in 0..mesh.num_triangles() {
         let [(a, za), (b, zb), (c, zc)] = corners(mesh, t);
         compare(Point::new((a.x + b.x + c.x) / 3.0, (a.y + b.y + c.y) / 3.0), (za + zb + zc) / 3.0);
-        // The grid points inside, each compared once.
-        let in_grid = [a, b, c].map(|p| Point::new((p.x - r.x0()) / hx, (p.y - r.y0()) / hy));
-        let Some(plane) = raster::Plane::new(in_grid, [za, zb, zc]) else {
-            continue;
-        };
-        raster::for_each_span(in_grid, n, n, |j, i0, i1| {
-            for (i, linear) in (i0..=i1).zip(plane.row(i0, j)) {
-                let index = j * n + i;
-                if seen[index / 64] & (1 << (index % 64)) == 0 {
-                    seen[index / 64] |= 1 << (index % 64);
-                    compare(Point::new(r.x0() + i as f64 * hx, r.y0() + j as f64 * hy), linear);
-                }
-            }
-        });
     }
+    let to_grid = |p: Point| Point::new((p.x - r.x0()) / hx, (p.y - r.y0()) / hy);
+    for_each_covered_node(mesh, n, n, to_grid, |i, j, linear| {
+        compare(Point::new(r.x0() + i as f64 * hx, r.y0() + j as f64 * hy), linear);
+    });
     max
 }

@@ -1,6 +1,7 @@
 //! Tests of the refinement loop: the paper's figures, invariants after every insertion,
 //! oracles for the queue and V_n, stop rules and determinism.
 
+use super::metrics::min_angle_deg;
 use super::variation::candidate;
 use super::*;
 use crate::geom::{NONE, Point, Rect, predicates::is_ccw};
@@ -399,11 +400,6 @@ struct ErrorChecker {
     method: Method,
     min_angle_bound: f64,
     failure: Option<String>,
-}
-
-fn min_angle_deg(mesh: &Mesh) -> f64 {
-    let estimate = estimate_error(mesh, &|_: f64, _: f64| 0.0);
-    estimate.min_angle_deg
 }
 
 impl Observer for ErrorChecker {
