@@ -1,6 +1,6 @@
 //! Wire types of the HTTP API (serde only). Field docs here are the ones in openapi.yaml.
 
-use crate::refine::{Criterion, Method};
+use crate::refine::{Criterion, Method, Stats};
 use serde::de::{self, Deserializer, IgnoredAny, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
 use std::cell::Cell;
@@ -168,7 +168,11 @@ pub struct JobStatus {
     pub progress: Option<ProgressEvent>,
     /// The run's stats, once succeeded.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub stats: Option<serde_json::Value>,
+    pub stats: Option<Stats>,
+    /// How long the engine ran, in milliseconds, once finished (not part of the mesh: it is
+    /// the one thing that differs between two runs of a request).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub elapsed_ms: Option<f64>,
     /// The problem document, once failed.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub problem: Option<serde_json::Value>,

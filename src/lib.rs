@@ -33,6 +33,7 @@ pub mod jobs;
 pub mod metrics;
 pub mod output;
 pub mod refine;
+pub mod result;
 pub mod source;
 pub mod telemetry;
 

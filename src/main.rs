@@ -5,12 +5,14 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 use meshfit::config::{Config, RawConfig};
 use meshfit::geom::Rect;
-use meshfit::output::json;
+use meshfit::output::{self, Format, Options, json};
 use meshfit::refine::{Criterion, Method, Params, estimate_error, refine};
+use meshfit::result::MeshResult;
 use meshfit::source::{Expression, Grid, Source};
 use std::io::{BufWriter, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::Arc;
 use std::time::Duration;
 
 #[derive(Parser)]
@@ -168,8 +170,39 @@ struct MeshArgs {
     #[arg(long, value_name = "MS")]
     time_limit_ms: Option<u64>,
     /// Print only the stats and the E_n estimate.
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = ["format", "output"])]
     stats: bool,
+    /// The output format: json, obj, ply, stl, vtu, msh, glb, svg or png [default: from the
+    /// extension of --output, else json].
+    #[arg(long, value_name = "FORMAT", value_parser = parse_format)]
+    format: Option<Format>,
+    /// Write to this file instead of stdout.
+    #[arg(long, short, value_name = "FILE")]
+    output: Option<PathBuf>,
+    /// Factor on z for the 3-D formats a viewer shows to scale (glb).
+    #[arg(long, value_name = "FACTOR", default_value_t = 1.0)]
+    z_scale: f64,
+    /// Width in pixels of a png picture.
+    #[arg(long, value_name = "PIXELS", default_value_t = 1024)]
+    size: u32,
+}
+
+fn parse_format(s: &str) -> Result<Format, String> {
+    Format::from_name(s).ok_or_else(|| format!("unknown format `{s}`; known formats: {}", Format::names()))
+}
+
+impl MeshArgs {
+    /// --format, else the format --output's extension names, else JSON.
+    fn format(&self) -> Result<Format> {
+        if let Some(f) = self.format {
+            return Ok(f);
+        }
+        let Some(path) = &self.output else { return Ok(Format::Json) };
+        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+        Format::from_name(ext).with_context(|| {
+            format!("cannot tell the format of {} from its extension; give --format", path.display())
+        })
+    }
 }
 
 fn parse_domain(s: &str) -> Result<Rect, String> {
@@ -222,15 +255,38 @@ fn mesh(args: &MeshArgs) -> Result<()> {
     if let Some(ms) = args.time_limit_ms {
         params = params.with_time_limit(Duration::from_millis(ms));
     }
-    let result = refine(&source, rect, &params, &mut ())?;
-    let mut out = BufWriter::new(std::io::stdout().lock());
-    if args.stats {
-        json::write_stats(&result.stats, estimate_error(&result.mesh, &source), &mut out)?;
-    } else {
-        json::write_mesh(&result, &mut out)?;
+    let format = args.format()?;
+    if !(args.z_scale.is_finite()) {
+        bail!("--z-scale must be a finite number");
     }
-    writeln!(out)?;
-    out.flush().context("writing to stdout")
+    let result = refine(&source, rect, &params, &mut ())?;
+    if args.stats {
+        let mut out = BufWriter::new(std::io::stdout().lock());
+        json::write_stats(&result.stats, estimate_error(&result.mesh, &source), &mut out)?;
+        writeln!(out)?;
+        return out.flush().context("writing to stdout");
+    }
+    let options = Options { id: None, z_scale: args.z_scale, size: args.size };
+    let encoding = output::encode(&Arc::new(MeshResult::from(result)), format, &options);
+    match &args.output {
+        Some(path) => {
+            let file =
+                std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+            let mut out = BufWriter::new(file);
+            encoding
+                .write_to(&mut out)
+                .and_then(|()| out.flush())
+                .with_context(|| format!("writing {}", path.display()))
+        }
+        None => {
+            let mut out = BufWriter::new(std::io::stdout().lock());
+            encoding.write_to(&mut out)?;
+            if format == Format::Json {
+                writeln!(out)?;
+            }
+            out.flush().context("writing to stdout")
+        }
+    }
 }
 
 fn main() -> ExitCode {

@@ -2,17 +2,18 @@
 
 use super::AppState;
 use super::extract::{Body, parse_json};
+use super::negotiate::{self, Wanted};
 use super::problem::ApiError;
-use crate::api::{JobRequest, JobStatus, Links, ProgressEvent, with_grid_limit};
-use crate::jobs::{
-    Finished, Found, JobError, JobSpec, Outcome, Record, Snapshot, Status, Ticket, Waiter, job_id,
-};
+use super::sse;
+use crate::api::{JobRequest, JobStatus, Links, with_grid_limit};
+use crate::jobs::{Found, JobError, JobSpec, Outcome, Record, Snapshot, Status, Ticket, Waiter, job_id};
+use crate::refine::StopReason;
+use crate::result::MeshResult;
 use axum::extract::{Path, State};
-use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
-use axum::response::sse::{Event, KeepAlive, Sse};
+use axum::http::{HeaderMap, HeaderValue, StatusCode, Uri, header};
 use axum::response::{IntoResponse, Response};
-use futures_util::stream::{self, Stream};
-use std::convert::Infallible;
+use bytes::Bytes;
+use futures_util::stream;
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::time::Instant;
@@ -42,31 +43,6 @@ fn wants_event_stream(headers: &HeaderMap) -> bool {
         .any(|v| v.split(',').any(|t| t.trim().starts_with("text/event-stream")))
 }
 
-fn etag(id: &str) -> HeaderValue {
-    HeaderValue::from_str(&format!("\"{id}\"")).expect("hex is a valid header value")
-}
-
-fn not_modified(headers: &HeaderMap, id: &str) -> bool {
-    let tag = format!("\"{id}\"");
-    headers
-        .get_all(header::IF_NONE_MATCH)
-        .iter()
-        .filter_map(|v| v.to_str().ok())
-        .any(|v| v.split(',').any(|t| t.trim() == tag || t.trim() == "*"))
-}
-
-/// The mesh document with its ETag, or 304 when the client has it.
-fn mesh_response(headers: &HeaderMap, id: &str, finished: &Finished, cache: &'static str) -> Response {
-    let mut response = if not_modified(headers, id) {
-        StatusCode::NOT_MODIFIED.into_response()
-    } else {
-        ([(header::CONTENT_TYPE, "application/json")], finished.body.clone()).into_response()
-    };
-    response.headers_mut().insert(header::ETAG, etag(id));
-    response.headers_mut().insert("x-cache", HeaderValue::from_static(cache));
-    response
-}
-
 /// Where a job is now.
 fn status_of(found: &Found) -> Status {
     match found {
@@ -78,7 +54,7 @@ fn status_of(found: &Found) -> Status {
 
 /// The status document of a job as it is now.
 fn status_body(id: &str, found: &Found) -> JobStatus {
-    let (status, progress, stats, problem) = match found {
+    let (status, progress, stats, problem, elapsed) = match found {
         Found::Job(job) => {
             let s = job.snapshot();
             let (stats, problem) = match &s.outcome {
@@ -87,7 +63,7 @@ fn status_body(id: &str, found: &Found) -> JobStatus {
                 Some(Outcome::Cancelled) => (None, Some(ApiError::Cancelled.to_json())),
                 None => (None, None),
             };
-            (s.status, s.progress, stats, problem)
+            (s.status, s.progress, stats, problem, s.elapsed)
         }
         Found::Done(r) => {
             let problem = match (&r.error, r.status) {
@@ -95,32 +71,62 @@ fn status_body(id: &str, found: &Found) -> JobStatus {
                 (None, Status::Cancelled) => Some(ApiError::Cancelled.to_json()),
                 _ => None,
             };
-            (r.status, r.progress, r.stats.clone(), problem)
+            (r.status, r.progress, r.stats.clone(), problem, r.elapsed)
         }
-        Found::Cached(f) => (Status::Succeeded, None, Some(f.stats.clone()), None),
+        Found::Cached(f) => (Status::Succeeded, None, Some(f.stats.clone()), None, None),
     };
-    JobStatus { id: id.to_owned(), status: status.as_str(), progress, stats, problem, links: Links::of(id) }
+    JobStatus {
+        id: id.to_owned(),
+        status: status.as_str(),
+        progress,
+        stats,
+        elapsed_ms: elapsed.map(|d| d.as_secs_f64() * 1e3),
+        problem,
+        links: Links::of(id),
+    }
 }
 
-/// `POST /v1/meshes`: the mesh, computed or cached; with `Accept: text/event-stream`, progress
-/// events and then the mesh as one `result` event.
+/// Where a finished result is served from: computed now, or a time limit stopped it.
+fn fresh(result: &MeshResult) -> negotiate::Source {
+    match result.stats.stop {
+        StopReason::TimeLimit => negotiate::Source::Partial,
+        _ => negotiate::Source::Miss,
+    }
+}
+
+/// `POST /v1/meshes`: the mesh, computed or cached, in the format asked for; with
+/// `Accept: text/event-stream`, progress events and then the mesh document as one `result`
+/// event.
 pub async fn meshes_create(
     State(state): State<AppState>,
+    uri: Uri,
     headers: HeaderMap,
     body: Body,
 ) -> Result<Response, ApiError> {
-    let (id, spec) = prepare(&state, body).await?;
     let stream = wants_event_stream(&headers);
-    match state.jobs.submit(id.clone(), spec, false).await? {
-        Ticket::Cached(f) if stream => Ok(final_stream(&Outcome::Succeeded(f)).into_response()),
-        Ticket::Cached(f) => Ok(mesh_response(&headers, &id, &f, "hit")),
-        Ticket::Failed(e) if stream => Ok(final_stream(&Outcome::Failed(e)).into_response()),
+    // A format nobody writes is refused before any work is done.
+    let wanted = if stream { None } else { Some(Wanted::from_request(&uri, &headers)?) };
+    let (id, spec) = prepare(&state, body).await?;
+    let ticket = state.jobs.submit(id.clone(), spec, false).await?;
+    let Some(wanted) = wanted else {
+        return Ok(match ticket {
+            Ticket::Cached(r) => final_stream(&id, &Outcome::Succeeded(r)),
+            Ticket::Failed(e) => final_stream(&id, &Outcome::Failed(e)),
+            Ticket::Job(waiter) => job_stream(waiter, 0),
+        });
+    };
+    match ticket {
+        Ticket::Cached(r) => {
+            negotiate::result_response(&headers, &wanted, &id, r, negotiate::Source::Hit, None).await
+        }
         Ticket::Failed(e) => Err(e.into()),
-        Ticket::Job(waiter) if stream => Ok(job_stream(waiter, 0).into_response()),
         // The waiter is dropped with this future if the client hangs up, which cancels a job
         // nobody else waits on.
         Ticket::Job(waiter) => match waiter.job().outcome().await {
-            Outcome::Succeeded(f) => Ok(mesh_response(&headers, &id, &f, "miss")),
+            Outcome::Succeeded(r) => {
+                let elapsed = waiter.job().snapshot().elapsed;
+                negotiate::result_response(&headers, &wanted, &id, r.clone(), fresh(&r), elapsed).await
+            }
             Outcome::Failed(e) => Err(e.into()),
             Outcome::Cancelled => Err(ApiError::Cancelled),
         },
@@ -133,7 +139,8 @@ pub async fn jobs_create(State(state): State<AppState>, body: Body) -> Result<Re
     let (code, status) = match state.jobs.submit(id.clone(), spec, true).await? {
         Ticket::Cached(f) => (StatusCode::OK, status_body(&id, &Found::Cached(f))),
         Ticket::Failed(e) => {
-            let record = Record { status: Status::Failed, progress: None, stats: None, error: Some(e) };
+            let record =
+                Record { status: Status::Failed, progress: None, stats: None, error: Some(e), elapsed: None };
             (StatusCode::OK, status_body(&id, &Found::Done(Arc::new(record))))
         }
         Ticket::Job(waiter) => (StatusCode::ACCEPTED, status_body(&id, &Found::Job(waiter.job().clone()))),
@@ -153,34 +160,62 @@ pub async fn jobs_show(State(state): State<AppState>, Path(id): Path<String>) ->
     Ok(axum::Json(status_body(&id, &found)).into_response())
 }
 
-/// The outcome of a finished job, its mesh fetched back from the cache.
-async fn finished_outcome(state: &AppState, id: &str, found: Found) -> Option<Outcome> {
+/// The outcome of a finished job, its result fetched back from the cache, with where the
+/// result came from and how long the engine ran.
+async fn finished_outcome(
+    state: &AppState,
+    id: &str,
+    found: Found,
+) -> Option<(Outcome, negotiate::Source, Option<Duration>)> {
+    let source_of = |r: &MeshResult| match fresh(r) {
+        negotiate::Source::Partial => negotiate::Source::Partial,
+        _ => negotiate::Source::Hit,
+    };
     match found {
-        Found::Cached(f) => Some(Outcome::Succeeded(f)),
-        Found::Job(job) => job.snapshot().outcome,
+        Found::Cached(r) => Some((Outcome::Succeeded(r), negotiate::Source::Hit, None)),
+        Found::Job(job) => {
+            let s = job.snapshot();
+            let source = match &s.outcome {
+                Some(Outcome::Succeeded(r)) => source_of(r),
+                _ => negotiate::Source::Hit,
+            };
+            s.outcome.map(|o| (o, source, s.elapsed))
+        }
         Found::Done(r) => Some(match (&r.error, r.status) {
-            (Some(e), _) => Outcome::Failed(e.clone()),
-            (None, Status::Cancelled) => Outcome::Cancelled,
-            _ => match state.jobs.cached(id).await {
-                Some(f) => Outcome::Succeeded(f),
-                None => Outcome::Failed(JobError::Evicted),
-            },
+            (Some(e), _) => (Outcome::Failed(e.clone()), negotiate::Source::Hit, r.elapsed),
+            (None, Status::Cancelled) => (Outcome::Cancelled, negotiate::Source::Hit, r.elapsed),
+            _ => {
+                let stopped_by_time = r.stats.as_ref().is_some_and(|s| s.stop == StopReason::TimeLimit);
+                let found = match stopped_by_time {
+                    true => state.jobs.partial(id).map(|m| (m, negotiate::Source::Partial)),
+                    false => state.jobs.cached(id).await.map(|m| (m, negotiate::Source::Hit)),
+                };
+                match found {
+                    Some((m, source)) => (Outcome::Succeeded(m), source, r.elapsed),
+                    None => (Outcome::Failed(JobError::Evicted), negotiate::Source::Hit, r.elapsed),
+                }
+            }
         }),
     }
 }
 
-/// `GET /v1/jobs/{id}/mesh`: 200 with the mesh, 409 while it is not finished.
+/// `GET /v1/jobs/{id}/mesh`: 200 with the mesh in the format asked for, 409 while it is not
+/// finished.
 pub async fn jobs_mesh(
     State(state): State<AppState>,
     Path(id): Path<String>,
+    uri: Uri,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
+    let wanted = Wanted::from_request(&uri, &headers)?;
     let found = find(&state, &id).await?;
     let status = status_of(&found).as_str();
     match finished_outcome(&state, &id, found).await {
-        Some(Outcome::Succeeded(f)) => Ok(mesh_response(&headers, &id, &f, "hit")),
-        Some(Outcome::Failed(e)) => Err(e.into()),
-        Some(Outcome::Cancelled) => Err(ApiError::Cancelled),
+        Some((Outcome::Succeeded(r), source, elapsed)) => {
+            negotiate::result_response(&headers, &wanted, &id, r, source, elapsed).await
+        }
+        Some((Outcome::Failed(e), ..)) => Err(e.into()),
+        Some((Outcome::Cancelled, ..)) => Err(ApiError::Cancelled),
         None => Err(ApiError::NotFinished(status)),
     }
 }
@@ -203,14 +238,14 @@ pub async fn jobs_events(
         .and_then(|v| v.trim().parse::<u64>().ok())
         .unwrap_or(0);
     if let Some(waiter) = state.jobs.watch(&id) {
-        return Ok(job_stream(waiter, last_seen).into_response());
+        return Ok(job_stream(waiter, last_seen));
     }
     let found = find(&state, &id).await?;
     if last_seen == FINAL_EVENT_ID {
         return Ok(StatusCode::NO_CONTENT.into_response());
     }
     match finished_outcome(&state, &id, found).await {
-        Some(outcome) => Ok(final_stream(&outcome).into_response()),
+        Some((outcome, ..)) => Ok(final_stream(&id, &outcome)),
         // Finished between the two looks: the record is there now.
         None => Err(ApiError::Internal("job vanished between lookups".into())),
     }
@@ -230,22 +265,22 @@ pub async fn jobs_cancel(
     Ok(axum::Json(status_body(&id, &found)).into_response())
 }
 
-fn progress_event(seq: u64, p: &ProgressEvent) -> Event {
-    Event::default().event("progress").id(seq.to_string()).json_data(p).expect("progress serializes")
-}
-
-fn final_event(outcome: &Outcome) -> Event {
-    let event = Event::default().id(FINAL_EVENT_ID.to_string());
+/// The final event of job `id`: its result, or the problem that ended it.
+fn final_event(id: &str, outcome: &Outcome) -> Box<dyn Iterator<Item = Bytes> + Send> {
     match outcome {
-        Outcome::Succeeded(f) => event.event("result").data(String::from_utf8_lossy(&f.body)),
-        Outcome::Failed(e) => event.event("error").data(ApiError::from(e.clone()).to_json().to_string()),
-        Outcome::Cancelled => event.event("error").data(ApiError::Cancelled.to_json().to_string()),
+        Outcome::Succeeded(r) => Box::new(sse::result(FINAL_EVENT_ID, id, r)),
+        Outcome::Failed(e) => {
+            Box::new(std::iter::once(sse::error(FINAL_EVENT_ID, &ApiError::from(e.clone()).to_json())))
+        }
+        Outcome::Cancelled => {
+            Box::new(std::iter::once(sse::error(FINAL_EVENT_ID, &ApiError::Cancelled.to_json())))
+        }
     }
 }
 
 /// Just the final event, for a job that has finished.
-fn final_stream(outcome: &Outcome) -> Sse<impl Stream<Item = Result<Event, Infallible>> + use<>> {
-    Sse::new(stream::iter([Ok(final_event(outcome))])).keep_alive(KeepAlive::default())
+fn final_stream(id: &str, outcome: &Outcome) -> Response {
+    sse::response(stream::iter(final_event(id, outcome)))
 }
 
 struct Watch {
@@ -254,22 +289,27 @@ struct Watch {
     rx: tokio::sync::watch::Receiver<Snapshot>,
     last_seen: u64,
     last_progress: Option<Instant>,
-    done: bool,
+    /// The rest of the final event, once the job has finished.
+    rest: Option<Box<dyn Iterator<Item = Bytes> + Send>>,
 }
 
-/// Progress events (throttled) and the final event of a job, skipping ids ≤ `last_seen`.
-fn job_stream(waiter: Waiter, last_seen: u64) -> Sse<impl Stream<Item = Result<Event, Infallible>>> {
+/// Progress events (throttled) and the final event of a job, skipping ids ≤ `last_seen`, with
+/// a keep-alive comment whenever the job is silent for [`sse::KEEP_ALIVE`].
+fn job_stream(waiter: Waiter, last_seen: u64) -> Response {
     let rx = waiter.job().subscribe();
-    let watch = Watch { waiter, rx, last_seen, last_progress: None, done: false };
+    let watch = Watch { waiter, rx, last_seen, last_progress: None, rest: None };
     let events = stream::unfold(watch, |mut w| async move {
-        if w.done {
-            return None;
-        }
         loop {
+            if let Some(rest) = &mut w.rest {
+                return rest.next().map(|chunk| (chunk, w));
+            }
             let snapshot = w.rx.borrow_and_update().clone();
             if let Some(outcome) = &snapshot.outcome {
-                w.done = true;
-                return (w.last_seen < FINAL_EVENT_ID).then(|| (Ok(final_event(outcome)), w));
+                if w.last_seen == FINAL_EVENT_ID {
+                    return None;
+                }
+                w.rest = Some(final_event(w.waiter.job().id(), outcome));
+                continue;
             }
             if let Some(progress) = snapshot.progress.filter(|_| snapshot.seq > w.last_seen) {
                 let due = w.last_progress.map(|t| t + PROGRESS_EVERY);
@@ -283,13 +323,17 @@ fn job_stream(waiter: Waiter, last_seen: u64) -> Sse<impl Stream<Item = Result<E
                 }
                 w.last_seen = snapshot.seq;
                 w.last_progress = Some(Instant::now());
-                return Some((Ok(progress_event(snapshot.seq, &progress)), w));
+                return Some((sse::progress(snapshot.seq, &progress), w));
             }
-            if w.rx.changed().await.is_err() {
-                tracing::warn!(job = %w.waiter.job().id(), "job state closed without an outcome");
-                return None;
+            match tokio::time::timeout(sse::KEEP_ALIVE, w.rx.changed()).await {
+                Err(_) => return Some((sse::keep_alive(), w)),
+                Ok(Ok(())) => {}
+                Ok(Err(_)) => {
+                    tracing::warn!(job = %w.waiter.job().id(), "job state closed without an outcome");
+                    return None;
+                }
             }
         }
     });
-    Sse::new(events).keep_alive(KeepAlive::default())
+    sse::response(events)
 }

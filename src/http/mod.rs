@@ -3,7 +3,9 @@
 mod extract;
 mod health;
 mod jobs;
+pub mod negotiate;
 pub mod problem;
+mod sse;
 
 use crate::jobs::{Jobs, Limits};
 use crate::metrics::RequestLabels;

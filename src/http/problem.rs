@@ -1,6 +1,7 @@
 //! ApiError: every failure the API reports, written as RFC 9457 `application/problem+json`.
 
 use crate::jobs::{JobError, SpecError, SubmitError};
+use crate::output::Format;
 use crate::refine::RefineError;
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
@@ -27,6 +28,8 @@ pub enum ApiError {
     NotFound(String),
     /// 405 `method-not-allowed`.
     MethodNotAllowed,
+    /// 406 `not-acceptable`: a format (by `?format=` or `Accept`) that no encoder writes.
+    NotAcceptable(String),
     /// 409 `not-finished`: the job has no mesh yet.
     NotFinished(&'static str),
     /// 409 `job-cancelled`: the job was cancelled before it finished.
@@ -117,6 +120,12 @@ impl ApiError {
                 "Method not allowed",
                 "this resource does not support that method".into(),
             ),
+            ApiError::NotAcceptable(asked) => {
+                let formats: Vec<&str> = Format::ALL.iter().map(|f| f.name()).collect();
+                ext.insert("formats".into(), json!(formats));
+                let detail = format!("no format matches `{asked}`; known formats: {}", Format::names());
+                (StatusCode::NOT_ACCEPTABLE, "not-acceptable", "Format not available", detail)
+            }
             ApiError::NotFinished(status) => {
                 ext.insert("job_status".into(), json!(status));
                 (StatusCode::CONFLICT, "not-finished", "Job has no mesh yet", format!("the job is {status}"))

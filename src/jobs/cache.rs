@@ -1,33 +1,21 @@
 //! Finished meshes: a byte-bounded in-memory cache, optionally backed by files that survive a
 //! restart.
 //!
-//! moka rather than a hand-made LRU: it bounds the cache by a weigher (the body's bytes), is
-//! safe to share between threads, and is widely used. A disk entry is one file,
-//! `{id}.mesh`: a header line `meshfit-cache-v1 <sha256 of body> <stats JSON>` and the body.
-//! The checksum is verified on every read; a file that fails it is deleted and recomputed,
-//! never served. The files are bounded in bytes too: a second moka cache, plain LRU, indexes
+//! moka rather than a hand-made LRU: it bounds the cache by a weigher (the result's bytes), is
+//! safe to share between threads, and is widely used. A disk entry is one file, `{id}.mesh`,
+//! in the checksummed compact form of [`compact`]. The checksum (over the stats and the id
+//! too) is verified on every read; a file that fails it is deleted and recomputed, never
+//! served. The files are bounded in bytes too: a second moka cache, plain LRU, indexes
 //! them and deletes the least recently used file when they pass the limit.
 
-use bytes::Bytes;
+use crate::result::{MeshResult, compact};
 use moka::notification::RemovalCause;
 use moka::policy::EvictionPolicy;
-use sha2::{Digest, Sha256};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::SystemTime;
-
-const MAGIC: &str = "meshfit-cache-v1";
-
-/// A finished mesh: the document as sent, and its stats for status responses.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Finished {
-    /// The mesh document, `{"id", "vertices", "triangles", "stats"}`.
-    pub body: Bytes,
-    /// The document's `stats` member.
-    pub stats: serde_json::Value,
-}
 
 /// Where a lookup found its entry.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -41,7 +29,10 @@ pub enum Hit {
 /// The cache of finished meshes by job id.
 #[derive(Clone)]
 pub struct Cache {
-    memory: moka::sync::Cache<String, Arc<Finished>>,
+    memory: moka::sync::Cache<String, Arc<MeshResult>>,
+    /// Results of runs a time limit stopped, kept for the job's own clients (`GET /mesh`) but
+    /// never the answer to a new request: how far such a run got depends on the machine.
+    partial: moka::sync::Cache<String, Arc<MeshResult>>,
     disk: Option<Disk>,
 }
 
@@ -67,15 +58,19 @@ impl Cache {
     pub fn new(bytes: u64, dir: Option<PathBuf>, dir_bytes: u64) -> std::io::Result<Self> {
         let memory = moka::sync::Cache::builder()
             .max_capacity(bytes)
-            .weigher(|_: &String, f: &Arc<Finished>| u32::try_from(f.body.len()).unwrap_or(u32::MAX))
+            .weigher(|_: &String, r: &Arc<MeshResult>| u32::try_from(r.num_bytes()).unwrap_or(u32::MAX))
+            .build();
+        let partial = moka::sync::Cache::builder()
+            .max_capacity(bytes / 4)
+            .weigher(|_: &String, r: &Arc<MeshResult>| u32::try_from(r.num_bytes()).unwrap_or(u32::MAX))
             .build();
         let disk = dir.map(|dir| Disk::open(dir, dir_bytes)).transpose()?;
-        Ok(Self { memory, disk })
+        Ok(Self { memory, partial, disk })
     }
 
     /// The entry for `id` from memory, without reading the disk; a hit marks its file as used
     /// in the disk index.
-    pub fn get_memory(&self, id: &str) -> Option<Arc<Finished>> {
+    pub fn get_memory(&self, id: &str) -> Option<Arc<MeshResult>> {
         let found = self.memory.get(id);
         if found.is_some()
             && let Some(disk) = &self.disk
@@ -88,13 +83,13 @@ impl Cache {
 
     /// The entry for `id`, from memory or else from disk. Blocking: call it off the async
     /// workers when a disk is configured.
-    pub fn get(&self, id: &str) -> Option<(Arc<Finished>, Hit)> {
+    pub fn get(&self, id: &str) -> Option<(Arc<MeshResult>, Hit)> {
         if let Some(f) = self.get_memory(id) {
             return Some((f, Hit::Memory));
         }
         let disk = self.disk.as_ref()?;
         let path = disk.path(id)?;
-        let (finished, size) = match read_entry(&path) {
+        let (finished, size) = match read_entry(&path, id) {
             Ok(Some((f, size))) => (Arc::new(f), size),
             Ok(None) => {
                 // Deleted behind the index's back (evicted meanwhile, or by another server).
@@ -123,27 +118,34 @@ impl Cache {
 
     /// Stores an entry in memory and, if configured, on disk (blocking). A mesh whose file
     /// would not fit in the directory's whole limit stays in memory only.
-    pub fn insert(&self, id: &str, finished: Arc<Finished>) {
+    pub fn insert(&self, id: &str, finished: Arc<MeshResult>) {
         if let Some(disk) = &self.disk
             && let Some(path) = disk.path(id)
         {
-            let header = header(&finished);
-            if (header.len() + finished.body.len()) as u64 > disk.limit {
-                tracing::debug!(id, "mesh larger than the cache directory's limit: not written");
-            } else {
-                match write_entry(&path, &header, &finished.body) {
-                    Ok(size) => disk.add(id, size),
-                    Err(e) => tracing::warn!(id, error = %e, "could not write cache file"),
-                }
+            match write_entry(&path, id, &finished, disk.limit) {
+                Ok(Some(size)) => disk.add(id, size),
+                Ok(None) => tracing::debug!(id, "mesh larger than the cache directory's limit: not written"),
+                Err(e) => tracing::warn!(id, error = %e, "could not write cache file"),
             }
         }
         self.memory.insert(id.to_owned(), finished);
     }
 
-    /// Bytes of bodies held in memory.
+    /// Keeps the result of a run a time limit stopped, in memory only, apart from the answers.
+    pub fn insert_partial(&self, id: &str, result: Arc<MeshResult>) {
+        self.partial.insert(id.to_owned(), result);
+    }
+
+    /// The result of a run of `id` that a time limit stopped, if still held.
+    pub fn get_partial(&self, id: &str) -> Option<Arc<MeshResult>> {
+        self.partial.get(id)
+    }
+
+    /// Bytes of results held in memory.
     pub fn memory_bytes(&self) -> u64 {
         self.memory.run_pending_tasks();
-        self.memory.weighted_size()
+        self.partial.run_pending_tasks();
+        self.memory.weighted_size() + self.partial.weighted_size()
     }
 
     /// Bytes of the mesh files this server has indexed in the cache directory (0 without
@@ -224,17 +226,9 @@ impl Disk {
     }
 }
 
-fn checksum(body: &[u8]) -> String {
-    format!("{:x}", Sha256::digest(body))
-}
-
-/// The first line of an entry's file.
-fn header(f: &Finished) -> String {
-    format!("{MAGIC} {} {}\n", checksum(&f.body), f.stats)
-}
-
-/// Writes the file, `header` then `body`, and returns its size in bytes.
-fn write_entry(path: &Path, header: &str, body: &[u8]) -> std::io::Result<u64> {
+/// Writes `result` to the file for `id` and returns its size, or `None` (and no file) when
+/// it would be larger than `limit`.
+fn write_entry(path: &Path, id: &str, result: &MeshResult, limit: u64) -> std::io::Result<Option<u64>> {
     // Write to a temporary name of our own and rename, so a crash never leaves a half file
     // under the id and two writers (threads or processes sharing the directory) never
     // interleave.
@@ -243,49 +237,46 @@ fn write_entry(path: &Path, header: &str, body: &[u8]) -> std::io::Result<u64> {
     let tmp = path.with_extension(unique);
     let written = (|| {
         let mut file = std::io::BufWriter::new(std::fs::File::create_new(&tmp)?);
-        file.write_all(header.as_bytes())?;
-        file.write_all(body)?;
-        file.into_inner()?.sync_all()?;
+        let size = compact::write(result, id, &mut file)?;
+        if size > limit {
+            return Ok(None);
+        }
+        file.flush()?;
+        file.into_inner().map_err(|e| e.into_error())?.sync_all()?;
         std::fs::rename(&tmp, path)?;
-        Ok((header.len() + body.len()) as u64)
+        Ok(Some(size))
     })();
-    if written.is_err() {
+    if !matches!(written, Ok(Some(_))) {
         let _ = std::fs::remove_file(&tmp);
     }
     written
 }
 
-/// The entry in the file at `path` and the file's size, `None` if there is no file.
-fn read_entry(path: &Path) -> Result<Option<(Finished, u64)>, String> {
+/// The result in the file at `path` and the file's size, `None` if there is no file.
+fn read_entry(path: &Path, id: &str) -> Result<Option<(MeshResult, u64)>, String> {
     let data = match std::fs::read(path) {
         Ok(d) => d,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
         Err(e) => return Err(e.to_string()),
     };
-    let newline = data.iter().position(|&b| b == b'\n').ok_or("no header line")?;
-    let header = std::str::from_utf8(&data[..newline]).map_err(|_| "header is not UTF-8")?;
-    let mut parts = header.splitn(3, ' ');
-    if parts.next() != Some(MAGIC) {
-        return Err("unknown format".into());
-    }
-    let sum = parts.next().ok_or("no checksum")?;
-    let stats = serde_json::from_str(parts.next().ok_or("no stats")?).map_err(|e| e.to_string())?;
-    let body = Bytes::copy_from_slice(&data[newline + 1..]);
-    if checksum(&body) != sum {
-        return Err("checksum mismatch".into());
-    }
-    Ok(Some((Finished { body, stats }, data.len() as u64)))
+    let result = compact::read(&data, id).map_err(|e| e.to_string())?;
+    Ok(Some((result, data.len() as u64)))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    fn entry() -> Arc<Finished> {
-        Arc::new(Finished {
-            body: Bytes::from_static(b"{\"id\":1}"),
-            stats: serde_json::json!({"vertices": 4}),
-        })
+    fn entry() -> Arc<MeshResult> {
+        static SAMPLE: std::sync::OnceLock<Arc<MeshResult>> = std::sync::OnceLock::new();
+        SAMPLE
+            .get_or_init(|| Arc::new(crate::result::testing::sample(8, crate::refine::Criterion::Error)))
+            .clone()
+    }
+
+    /// The size of `entry()`'s file.
+    fn file_size() -> u64 {
+        compact::write(&entry(), &id(1), std::io::sink()).unwrap()
     }
 
     fn temp_dir(name: &str) -> PathBuf {
@@ -340,7 +331,7 @@ mod tests {
     #[test]
     fn the_directory_keeps_within_its_limit_dropping_the_least_recently_used_file() {
         let dir = temp_dir("limit");
-        let size = (header(&entry()).len() + entry().body.len()) as u64;
+        let size = file_size();
         // Room for three files; no memory cache (capacity 0 turns moka off), so reads go to disk.
         let cache = Cache::new(0, Some(dir.clone()), 3 * size).unwrap();
         for k in 1..=3 {
@@ -358,7 +349,7 @@ mod tests {
     #[test]
     fn a_mesh_served_from_memory_keeps_its_file() {
         let dir = temp_dir("memory-hit");
-        let size = (header(&entry()).len() + entry().body.len()) as u64;
+        let size = file_size();
         let cache = Cache::new(1 << 20, Some(dir.clone()), 3 * size).unwrap();
         for k in 1..=3 {
             cache.insert(&id(k), entry());
@@ -372,7 +363,7 @@ mod tests {
     #[test]
     fn a_mesh_larger_than_the_limit_stays_in_memory_only() {
         let dir = temp_dir("too-big");
-        let size = (header(&entry()).len() + entry().body.len()) as u64;
+        let size = file_size();
         let cache = Cache::new(1 << 20, Some(dir.clone()), size - 1).unwrap();
         cache.insert(&id(1), entry());
         assert!(files(&dir).is_empty());

@@ -10,7 +10,7 @@ use sha2::{Digest, Sha256};
 
 /// Bumped whenever the engine may produce a different mesh for the same request, so that a
 /// cache (in memory or on disk) never serves a mesh the current engine would not make.
-pub const ENGINE_VERSION: &str = "meshfit-engine-3";
+pub const ENGINE_VERSION: &str = "meshfit-engine-4";
 
 /// The lowercase hex SHA-256 id of `spec`.
 pub fn job_id(spec: &JobSpec) -> String {

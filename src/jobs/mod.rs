@@ -10,18 +10,18 @@ mod cache;
 mod key;
 mod spec;
 
-pub use cache::{Cache, Finished, Hit};
+pub use cache::{Cache, Hit};
 pub use key::{ENGINE_VERSION, job_id};
 pub use spec::{DEFAULT_MAX_VERTICES, JobSpec, Limits, SpecError};
 
 use crate::api::ProgressEvent;
 use crate::metrics::{Metrics, StateLabel};
-use crate::output::json::MeshDocument;
-use crate::refine::{Observer, Progress, RefineError, StopReason, refine};
-use bytes::Bytes;
+use crate::refine::{Observer, Progress, RefineError, Stats, StopReason, refine};
+use crate::result::MeshResult;
 use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
+use std::time::Duration;
 use tokio::sync::{Notify, Semaphore, watch};
 
 /// Where a job is in its life.
@@ -70,7 +70,7 @@ pub enum JobError {
 #[derive(Debug, Clone, PartialEq)]
 pub enum Outcome {
     /// With a mesh.
-    Succeeded(Arc<Finished>),
+    Succeeded(Arc<MeshResult>),
     /// With an error.
     Failed(JobError),
     /// Cancelled by a client, by every waiting client leaving, or by shutdown.
@@ -89,6 +89,8 @@ pub struct Snapshot {
     pub progress: Option<ProgressEvent>,
     /// Set once finished.
     pub outcome: Option<Outcome>,
+    /// How long the engine ran, once finished.
+    pub elapsed: Option<Duration>,
 }
 
 /// One refinement, shared by everyone waiting on it.
@@ -151,9 +153,10 @@ impl Job {
         !self.cancel.load(Ordering::Relaxed) && !self.is_finished()
     }
 
-    fn finish(&self, outcome: Outcome) {
+    fn finish(&self, outcome: Outcome, elapsed: Option<Duration>) {
         self.state.send_modify(|s| {
             s.seq += 1;
+            s.elapsed = elapsed;
             s.status = match outcome {
                 Outcome::Succeeded(_) => Status::Succeeded,
                 Outcome::Failed(_) => Status::Failed,
@@ -198,9 +201,11 @@ pub struct Record {
     /// The last progress report.
     pub progress: Option<ProgressEvent>,
     /// The stats, when succeeded.
-    pub stats: Option<serde_json::Value>,
+    pub stats: Option<Stats>,
     /// The error, when failed.
     pub error: Option<JobError>,
+    /// How long the engine ran.
+    pub elapsed: Option<Duration>,
 }
 
 impl Record {
@@ -210,14 +215,14 @@ impl Record {
             Some(Outcome::Failed(e)) => (None, Some(e.clone())),
             _ => (None, None),
         };
-        Self { status: snapshot.status, progress: snapshot.progress, stats, error }
+        Self { status: snapshot.status, progress: snapshot.progress, stats, error, elapsed: snapshot.elapsed }
     }
 }
 
 /// What a submission found or started.
 pub enum Ticket {
     /// The result was cached.
-    Cached(Arc<Finished>),
+    Cached(Arc<MeshResult>),
     /// A job, new or already under way, with this client registered as waiting on it (for a
     /// detached submission, the registration is dropped at once and changes nothing).
     Job(Waiter),
@@ -246,7 +251,7 @@ pub enum Found {
     /// A finished job.
     Done(Arc<Record>),
     /// A result from the cache with no job record (e.g. after a restart).
-    Cached(Arc<Finished>),
+    Cached(Arc<MeshResult>),
 }
 
 /// How many finished job records are kept for status queries (results live in the cache).
@@ -385,8 +390,13 @@ impl Jobs {
         }
         inner.waiting.fetch_add(1, Ordering::SeqCst);
         inner.metrics.jobs_queued.inc();
-        let (state, _) =
-            watch::channel(Snapshot { seq: 0, status: Status::Queued, progress: None, outcome: None });
+        let (state, _) = watch::channel(Snapshot {
+            seq: 0,
+            status: Status::Queued,
+            progress: None,
+            outcome: None,
+            elapsed: None,
+        });
         let job = Arc::new(Job {
             id: id.clone(),
             state,
@@ -424,8 +434,14 @@ impl Jobs {
         }
     }
 
+    /// The result a time limit stopped for job `id`, if still held (never a new request's
+    /// answer; see [`Cache::insert_partial`]).
+    pub fn partial(&self, id: &str) -> Option<Arc<MeshResult>> {
+        self.inner.cache.get_partial(id)
+    }
+
     /// The cached mesh with this id, if any.
-    pub async fn cached(&self, id: &str) -> Option<Arc<Finished>> {
+    pub async fn cached(&self, id: &str) -> Option<Arc<MeshResult>> {
         let cache = &self.inner.cache;
         if let Some(f) = cache.get_memory(id) {
             return Some(f);
@@ -476,14 +492,15 @@ async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec) {
                 .await
                 .unwrap_or_else(|e| {
                     tracing::error!(job = %job.id, error = %e, "refinement panicked");
-                    Outcome::Failed(JobError::Internal("the refinement panicked".into()))
+                    (Outcome::Failed(JobError::Internal("the refinement panicked".into())), None)
                 });
             inner.metrics.jobs_running.dec();
             drop(permit);
             outcome
         }
-        _ => Outcome::Cancelled,
+        _ => (Outcome::Cancelled, None),
     };
+    let (outcome, elapsed) = outcome;
     let state = match &outcome {
         Outcome::Succeeded(_) => "succeeded",
         Outcome::Failed(_) => "failed",
@@ -491,7 +508,7 @@ async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec) {
     };
     inner.metrics.jobs_finished.get_or_create(&StateLabel { state }).inc();
     tracing::info!(job = %job.id, state, "job finished");
-    job.finish(outcome);
+    job.finish(outcome, elapsed);
     // Waiting clients hold the job (and its mesh) until they have read it; the table keeps
     // only the record.
     let record = Arc::new(Record::of(&job.snapshot()));
@@ -532,21 +549,20 @@ impl Observer for JobObserver<'_> {
     }
 }
 
-/// The blocking part: refine, write the document, cache it.
-fn compute(job: &Job, spec: &JobSpec, cache: &Cache) -> Outcome {
-    let result = match refine(&*spec.source, spec.domain, &spec.params, &mut JobObserver { job }) {
+/// The blocking part: refine and keep the result, with how long the engine ran. A result a
+/// time limit stopped goes apart from the cache's answers: another run would reach another
+/// vertex count.
+fn compute(job: &Job, spec: &JobSpec, cache: &Cache) -> (Outcome, Option<Duration>) {
+    let refinement = match refine(&*spec.source, spec.domain, &spec.params, &mut JobObserver { job }) {
         Ok(r) => r,
-        Err(e) => return Outcome::Failed(JobError::Refine(e)),
+        Err(e) => return (Outcome::Failed(JobError::Refine(e)), None),
     };
-    if result.stats.stop == StopReason::Cancelled {
-        return Outcome::Cancelled;
+    let elapsed = Some(refinement.elapsed);
+    let result = Arc::new(MeshResult::from(refinement));
+    match result.stats.stop {
+        StopReason::Cancelled => return (Outcome::Cancelled, elapsed),
+        StopReason::TimeLimit => cache.insert_partial(&job.id, result.clone()),
+        _ => cache.insert(&job.id, result.clone()),
     }
-    let body = match serde_json::to_vec(&MeshDocument::with_id(&result, &job.id)) {
-        Ok(body) => Bytes::from(body),
-        Err(e) => return Outcome::Failed(JobError::Internal(e.to_string())),
-    };
-    let stats = serde_json::to_value(&result.stats).expect("stats serialize");
-    let finished = Arc::new(Finished { body, stats });
-    cache.insert(&job.id, finished.clone());
-    Outcome::Succeeded(finished)
+    (Outcome::Succeeded(result), elapsed)
 }

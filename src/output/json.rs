@@ -1,68 +1,48 @@
-//! The mesh document: `{"vertices": [[x, y, z], ...], "triangles": [[i, j, k], ...], "stats": {...}}`.
+//! The mesh document: `{"id": ..., "vertices": [[x, y, z], ...], "triangles": [[i, j, k], ...],
+//! "stats": {...}}`.
 //!
 //! Numbers are written by serde_json's shortest round-trip formatting, so a reader gets back
-//! the exact f64 values. Vertices are in insertion order, triangles counter-clockwise.
+//! the exact f64 values. Vertices are in insertion order, triangles counter-clockwise. The
+//! document has no line breaks, so it also fits in one server-sent event's `data` line.
 
-use crate::refine::{ErrorEstimate, Refinement, Stats};
+use super::{Encoding, Options, Part};
+use crate::refine::{ErrorEstimate, Stats};
+use crate::result::MeshResult;
 use serde::Serialize;
-use serde::ser::{SerializeStruct, Serializer};
 use std::io::{self, Write};
+use std::sync::Arc;
 
-/// Borrowed view of a refinement that serialises as the mesh document without copying it;
-/// the API's document starts with the job id.
-pub struct MeshDocument<'a> {
-    refinement: &'a Refinement,
-    id: Option<&'a str>,
-}
-
-impl<'a> MeshDocument<'a> {
-    /// The document without an id (the command line's).
-    pub fn new(refinement: &'a Refinement) -> Self {
-        Self { refinement, id: None }
+/// The document, with `"id"` first when the options carry one (the API's).
+pub fn encode(result: &Arc<MeshResult>, options: &Options) -> Encoding {
+    let mut head = b"{".to_vec();
+    if let Some(id) = &options.id {
+        head.extend_from_slice(b"\"id\":");
+        serde_json::to_writer(&mut head, id).expect("a string serializes");
+        head.push(b',');
     }
-
-    /// The document with `"id"` first (the API's).
-    pub fn with_id(refinement: &'a Refinement, id: &'a str) -> Self {
-        Self { refinement, id: Some(id) }
-    }
-}
-
-impl Serialize for MeshDocument<'_> {
-    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        let mesh = &self.refinement.mesh;
-        let mut doc = serializer.serialize_struct("MeshDocument", 4)?;
-        if let Some(id) = self.id {
-            doc.serialize_field("id", id)?;
-        }
-        doc.serialize_field("vertices", &Vertices(mesh.vertices()))?;
-        doc.serialize_field("triangles", &Triangles(mesh))?;
-        doc.serialize_field("stats", &self.refinement.stats)?;
-        doc.end()
-    }
-}
-
-struct Vertices<'a>(&'a [crate::geom::Vertex]);
-
-impl Serialize for Vertices<'_> {
-    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        serializer.collect_seq(self.0.iter().map(|v| [v.x, v.y, v.z]))
-    }
-}
-
-struct Triangles<'a>(&'a crate::geom::Mesh);
-
-impl Serialize for Triangles<'_> {
-    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        serializer.collect_seq(self.0.triangles())
-    }
-}
-
-/// Writes the mesh document to `out`.
-///
-/// # Errors
-/// Whatever writing to `out` returns.
-pub fn write_mesh(refinement: &Refinement, out: &mut impl Write) -> io::Result<()> {
-    serde_json::to_writer(&mut *out, &MeshDocument::new(refinement)).map_err(io::Error::from)
+    head.extend_from_slice(b"\"vertices\":[");
+    let mut tail = b"],\"stats\":".to_vec();
+    serde_json::to_writer(&mut tail, &result.stats).expect("stats serialize");
+    tail.push(b'}');
+    let (r, s) = (result.clone(), result.clone());
+    Encoding::new(vec![
+        Part::Bytes(head),
+        Part::rows(result.vertices.len(), move |i, out| {
+            let v = r.vertices[i];
+            if i > 0 {
+                out.push(b',');
+            }
+            serde_json::to_writer(out, &[v.x, v.y, v.z]).expect("finite numbers serialize");
+        }),
+        Part::Bytes(b"],\"triangles\":[".to_vec()),
+        Part::rows(result.triangles.len(), move |i, out| {
+            if i > 0 {
+                out.push(b',');
+            }
+            serde_json::to_writer(out, &s.triangles[i]).expect("integers serialize");
+        }),
+        Part::Bytes(tail),
+    ])
 }
 
 /// The stats-only document: `{"stats": {...}, "error": {...}}`.
@@ -80,4 +60,38 @@ pub struct StatsDocument<'a> {
 /// Whatever writing to `out` returns.
 pub fn write_stats(stats: &Stats, error: ErrorEstimate, out: &mut impl Write) -> io::Result<()> {
     serde_json::to_writer_pretty(&mut *out, &StatsDocument { stats, error }).map_err(io::Error::from)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::refine::Criterion;
+    use crate::result::testing::sample;
+
+    #[test]
+    fn the_document_parses_back_to_the_exact_result() {
+        let result = Arc::new(sample(500, Criterion::Error));
+        let options = Options { id: Some("abc".into()), ..Options::default() };
+        let doc: serde_json::Value = serde_json::from_slice(&encode(&result, &options).to_vec()).unwrap();
+        assert_eq!(doc["id"], "abc");
+        let vertices = doc["vertices"].as_array().unwrap();
+        assert_eq!(vertices.len(), result.vertices.len());
+        for (got, v) in vertices.iter().zip(&result.vertices) {
+            let xyz: [f64; 3] = serde_json::from_value(got.clone()).unwrap();
+            assert_eq!(xyz, [v.x, v.y, v.z]);
+        }
+        let triangles: Vec<[u32; 3]> = serde_json::from_value(doc["triangles"].clone()).unwrap();
+        assert_eq!(triangles, result.triangles);
+        let stats: Stats = serde_json::from_value(doc["stats"].clone()).unwrap();
+        assert_eq!(stats, result.stats);
+        assert!(doc["stats"].get("elapsed_ms").is_none(), "the body depends on the request alone");
+    }
+
+    #[test]
+    fn without_an_id_the_document_starts_with_the_vertices() {
+        let result = Arc::new(sample(4, Criterion::Variation));
+        let text = String::from_utf8(encode(&result, &Options::default()).to_vec()).unwrap();
+        assert!(text.starts_with("{\"vertices\":[[-1.0,0.0,"), "{text}");
+        assert!(!text.contains('\n'));
+    }
 }

@@ -1,3 +1,221 @@
-//! Writing a finished refinement out.
+//! Results as bytes: each format a client can ask for, encoded from a [`MeshResult`].
+//!
+//! An encoder does not write the whole file at once. It returns an [`Encoding`]: a list of
+//! parts, each either fixed bytes (a header) or rows made on demand (one vertex, one triangle).
+//! [`Encoding::write_to`] writes it to a file or stdout; [`Encoding::into_chunks`] makes it
+//! piece by piece for an HTTP body, so a client reading a 10^6-vertex mesh costs one chunk of
+//! memory beyond the shared result, however slowly it reads.
 
 pub mod json;
+
+use crate::result::MeshResult;
+use std::io::{self, Write};
+use std::sync::Arc;
+
+/// A way to write a mesh out.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Format {
+    /// The mesh document (JSON).
+    Json,
+}
+
+impl Format {
+    /// Every format, in the order they are listed to clients.
+    pub const ALL: &[Format] = &[Format::Json];
+
+    /// The name used by `?format=`, `--format` and as the file extension.
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Json => "json",
+        }
+    }
+
+    /// The media type of the response.
+    pub fn media_type(self) -> &'static str {
+        match self {
+            Format::Json => "application/json",
+        }
+    }
+
+    /// The format called `name` (case-insensitive).
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.iter().copied().find(|f| f.name().eq_ignore_ascii_case(name))
+    }
+
+    /// The format whose media type is `media_type` (parameters and case ignored).
+    pub fn from_media_type(media_type: &str) -> Option<Self> {
+        let essence = media_type.split(';').next().unwrap_or("").trim();
+        Self::ALL.iter().copied().find(|f| f.media_type().eq_ignore_ascii_case(essence))
+    }
+
+    /// The names of all formats, comma-separated, for error messages.
+    pub fn names() -> String {
+        Self::ALL.iter().map(|f| f.name()).collect::<Vec<_>>().join(", ")
+    }
+}
+
+impl std::fmt::Display for Format {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// What an encoding may be asked besides the mesh.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Options {
+    /// The job id, written where a format has room for it (the JSON document's `id`).
+    pub id: Option<String>,
+    /// Factor on z for 3-D formats that a viewer shows to scale (glb).
+    pub z_scale: f64,
+    /// Width in pixels of a raster picture (png).
+    pub size: u32,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self { id: None, z_scale: 1.0, size: 1024 }
+    }
+}
+
+/// Writes row `i` of a part.
+type RowFn = Box<dyn Fn(usize, &mut Vec<u8>) + Send + Sync>;
+
+/// One piece of an encoding.
+pub enum Part {
+    /// Bytes known up front.
+    Bytes(Vec<u8>),
+    /// `count` rows, each written on demand.
+    Rows {
+        /// How many.
+        count: usize,
+        /// Appends row `i`.
+        write: RowFn,
+    },
+}
+
+impl Part {
+    /// `count` rows written by `write`.
+    pub fn rows(count: usize, write: impl Fn(usize, &mut Vec<u8>) + Send + Sync + 'static) -> Self {
+        Part::Rows { count, write: Box::new(write) }
+    }
+}
+
+/// A result in one format, as parts to write in order.
+pub struct Encoding {
+    parts: Vec<Part>,
+}
+
+/// How many bytes a chunk of [`Encoding::into_chunks`] gathers before it is handed on.
+const CHUNK_BYTES: usize = 64 * 1024;
+
+impl Encoding {
+    /// The parts, in order.
+    pub fn new(parts: Vec<Part>) -> Self {
+        Self { parts }
+    }
+
+    /// Writes everything to `out`.
+    ///
+    /// # Errors
+    /// Whatever writing to `out` returns.
+    pub fn write_to(self, out: &mut impl Write) -> io::Result<()> {
+        for chunk in self.into_chunks() {
+            out.write_all(&chunk)?;
+        }
+        Ok(())
+    }
+
+    /// The bytes in chunks of about 64 KiB, made as they are asked for.
+    pub fn into_chunks(self) -> Chunks {
+        Chunks { parts: self.parts.into_iter(), current: None, buf: Vec::new() }
+    }
+
+    /// All of it in one buffer (tests, small results).
+    pub fn to_vec(self) -> Vec<u8> {
+        let mut out = Vec::new();
+        self.write_to(&mut out).expect("writing to a Vec does not fail");
+        out
+    }
+}
+
+/// The chunks of an [`Encoding`].
+pub struct Chunks {
+    parts: std::vec::IntoIter<Part>,
+    /// The rows part being written and its next row.
+    current: Option<(usize, RowFn, usize)>,
+    buf: Vec<u8>,
+}
+
+impl Iterator for Chunks {
+    type Item = Vec<u8>;
+
+    fn next(&mut self) -> Option<Vec<u8>> {
+        self.buf.reserve(CHUNK_BYTES);
+        while self.buf.len() < CHUNK_BYTES {
+            if let Some((count, write, next)) = &mut self.current {
+                while *next < *count && self.buf.len() < CHUNK_BYTES {
+                    write(*next, &mut self.buf);
+                    *next += 1;
+                }
+                if *next == *count {
+                    self.current = None;
+                }
+                continue;
+            }
+            match self.parts.next() {
+                Some(Part::Bytes(bytes)) if self.buf.is_empty() && bytes.len() >= CHUNK_BYTES => {
+                    // A large fixed part (a rendered picture) goes out as it is, uncopied.
+                    return Some(bytes);
+                }
+                Some(Part::Bytes(bytes)) => self.buf.extend_from_slice(&bytes),
+                Some(Part::Rows { count, write }) => self.current = Some((count, write, 0)),
+                None => break,
+            }
+        }
+        (!self.buf.is_empty()).then(|| std::mem::take(&mut self.buf))
+    }
+}
+
+/// `result` in `format`.
+pub fn encode(result: &Arc<MeshResult>, format: Format, options: &Options) -> Encoding {
+    match format {
+        Format::Json => json::encode(result, options),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chunks_hold_every_byte_in_order_and_stay_near_the_chunk_size() {
+        let rows = 100_000;
+        let encoding = Encoding::new(vec![
+            Part::Bytes(b"head".to_vec()),
+            Part::rows(rows, |i, out| out.extend_from_slice(format!("{i},").as_bytes())),
+            Part::Bytes(vec![b'x'; 3 * CHUNK_BYTES]),
+            Part::rows(0, |_, _| unreachable!()),
+            Part::Bytes(b"tail".to_vec()),
+        ]);
+        let chunks: Vec<Vec<u8>> = encoding.into_chunks().collect();
+        let mut expected = b"head".to_vec();
+        (0..rows).for_each(|i| expected.extend_from_slice(format!("{i},").as_bytes()));
+        expected.extend(vec![b'x'; 3 * CHUNK_BYTES]);
+        expected.extend_from_slice(b"tail");
+        assert_eq!(chunks.concat(), expected);
+        // Every chunk but the last is full (a row may pass the mark by its own length).
+        for c in &chunks[..chunks.len() - 1] {
+            assert!(c.len() >= CHUNK_BYTES && c.len() < 4 * CHUNK_BYTES, "{}", c.len());
+        }
+    }
+
+    #[test]
+    fn names_and_media_types_map_back_to_their_format() {
+        for &f in Format::ALL {
+            assert_eq!(Format::from_name(f.name()), Some(f));
+            assert_eq!(Format::from_name(&f.name().to_uppercase()), Some(f));
+            assert_eq!(Format::from_media_type(&format!("{}; q=0.9", f.media_type())), Some(f));
+        }
+        assert_eq!(Format::from_name("xyz"), None);
+    }
+}

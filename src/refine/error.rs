@@ -62,13 +62,13 @@ impl Estimates {
     }
 }
 
-/// Refines `mesh` worst triangle first until a stop rule fires. Returns why it stopped and the
-/// largest e(T) at that point.
+/// Refines `mesh` worst triangle first until a stop rule fires. Returns why it stopped and
+/// e(T) of every triangle at that point, by triangle index.
 pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
     mesh: &mut Mesh,
     sampler: &mut Sampler<'_, S>,
     run: &mut Run<'_, O>,
-) -> Result<(StopReason, f64), RefineError> {
+) -> Result<(StopReason, Vec<f64>), RefineError> {
     let n = run.params.max_vertices();
     // Sized for the budget (capped for huge ones), so the run does not copy them as they grow.
     let room = n.min(1 << 24);
@@ -130,8 +130,8 @@ pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
         }
         run.observer.inserted(mesh, split.vertex);
     };
-    let worst = (0..mesh.num_triangles()).map(|t| estimates.slots[t].error).fold(0.0, f64::max);
-    Ok((stop, worst))
+    let errors = estimates.slots[..mesh.num_triangles()].iter().map(|s| s.error).collect();
+    Ok((stop, errors))
 }
 
 /// How long, relative to the longest edge and in squared length, an edge must be for

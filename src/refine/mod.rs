@@ -59,7 +59,7 @@ use crate::source::Surface;
 use std::time::{Duration, Instant};
 
 /// Why a refinement stopped. Reaching a budget is an outcome, not an error.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum StopReason {
     /// The mesh has `max_vertices` vertices.
@@ -115,7 +115,7 @@ pub trait Observer {
 impl Observer for () {}
 
 /// Counters and the outcome of a run.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Stats {
     /// Vertices n.
     pub vertices: usize,
@@ -136,13 +136,6 @@ pub struct Stats {
     pub stop: StopReason,
     /// Whether the final mesh passes the exact in-circle test on every interior edge.
     pub delaunay: bool,
-    /// Wall-clock time of the run, the one field that differs between identical runs.
-    #[serde(rename = "elapsed_ms", serialize_with = "as_millis")]
-    pub elapsed: Duration,
-}
-
-fn as_millis<S: serde::Serializer>(d: &Duration, s: S) -> Result<S::Ok, S::Error> {
-    s.serialize_f64(d.as_secs_f64() * 1e3)
 }
 
 /// A finished refinement.
@@ -150,8 +143,13 @@ fn as_millis<S: serde::Serializer>(d: &Duration, s: S) -> Result<S::Ok, S::Error
 pub struct Refinement {
     /// The mesh.
     pub mesh: Mesh,
-    /// What happened.
+    /// For the `error` criterion: e(T) of each triangle of the final mesh, by triangle index.
+    pub triangle_errors: Option<Vec<f64>>,
+    /// What happened. Everything in it is the same for every run of one request.
     pub stats: Stats,
+    /// Wall-clock time of the run, the one thing that differs between identical runs (kept
+    /// out of [`Stats`] so that a result's bytes depend on the request alone).
+    pub elapsed: Duration,
 }
 
 /// Why a refinement failed.
@@ -208,13 +206,15 @@ where
         flips: 0,
         retired: 0,
     };
-    let (stop, max_triangle_error) = match params.criterion() {
+    let (stop, triangle_errors) = match params.criterion() {
         Criterion::Variation => (variation::refine(&mut mesh, &mut sampler, &mut run)?, None),
         Criterion::Error => {
-            let (stop, worst) = error::refine(&mut mesh, &mut sampler, &mut run)?;
-            (stop, Some(worst))
+            let (stop, errors) = error::refine(&mut mesh, &mut sampler, &mut run)?;
+            (stop, Some(errors))
         }
     };
+    let max_triangle_error =
+        triangle_errors.as_ref().map(|e: &Vec<f64>| e.iter().copied().fold(0.0, f64::max));
     let stats = Stats {
         vertices: mesh.num_vertices(),
         triangles: mesh.num_triangles(),
@@ -225,9 +225,8 @@ where
         evaluations: sampler.evaluations,
         stop,
         delaunay: mesh.is_delaunay(),
-        elapsed: start.elapsed(),
     };
-    Ok(Refinement { mesh, stats })
+    Ok(Refinement { mesh, triangle_errors, stats, elapsed: start.elapsed() })
 }
 
 /// F with a count of evaluations; a non-finite value is an error naming the point.

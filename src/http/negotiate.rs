@@ -1,0 +1,216 @@
+//! Which format a response takes, and the response that carries a result in it.
+//!
+//! `?format=` wins over `Accept`; without either the answer is the JSON document. A format
+//! nobody knows is a 406 listing the known ones.
+
+use super::problem::ApiError;
+use crate::output::{self, Format, Options};
+use crate::result::MeshResult;
+use axum::body::Body;
+use axum::extract::Query;
+use axum::http::{HeaderMap, HeaderValue, StatusCode, Uri, header};
+use axum::response::{IntoResponse, Response};
+use bytes::Bytes;
+use std::convert::Infallible;
+use std::sync::Arc;
+use std::time::Duration;
+
+/// The query string of routes that answer a result.
+#[derive(Debug, Default, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct OutputQuery {
+    format: Option<String>,
+    z_scale: Option<f64>,
+    size: Option<u32>,
+}
+
+/// The largest picture `?size=` may ask for, in pixels a side.
+pub const MAX_PICTURE_SIZE: u32 = 8192;
+
+/// What the client asked a result to look like.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Wanted {
+    /// The format.
+    pub format: Format,
+    /// Options of the encoding (the id is filled in by the response).
+    pub options: Options,
+}
+
+impl Wanted {
+    /// Reads `?format=`, `?z_scale=`, `?size=` and the `Accept` header.
+    ///
+    /// # Errors
+    /// 406 for a format nobody knows; 422 for a malformed query or an option out of range.
+    pub fn from_request(uri: &Uri, headers: &HeaderMap) -> Result<Self, ApiError> {
+        let Query(query) = Query::<OutputQuery>::try_from_uri(uri)
+            .map_err(|e| ApiError::InvalidRequest(format!("query string: {}", e.body_text())))?;
+        let format = match &query.format {
+            Some(name) => Format::from_name(name).ok_or_else(|| ApiError::NotAcceptable(name.clone()))?,
+            None => from_accept(headers)?,
+        };
+        let mut options = Options::default();
+        if let Some(z) = query.z_scale {
+            if !z.is_finite() {
+                return Err(ApiError::InvalidRequest(format!("z_scale must be a finite number, got {z}")));
+            }
+            options.z_scale = z + 0.0;
+        }
+        if let Some(size) = query.size {
+            if !(16..=MAX_PICTURE_SIZE).contains(&size) {
+                return Err(ApiError::InvalidRequest(format!(
+                    "size must be from 16 to {MAX_PICTURE_SIZE} pixels, got {size}"
+                )));
+            }
+            options.size = size;
+        }
+        Ok(Self { format, options })
+    }
+
+    /// The entity tag of `id` in this form: the bare id for the default document, so a format
+    /// or option never shares a tag with other bytes.
+    fn etag(&self, id: &str) -> HeaderValue {
+        let mut tag = format!("\"{id}");
+        if self.format != Format::Json {
+            tag.push('.');
+            tag.push_str(self.format.name());
+        }
+        let defaults = Options::default();
+        if self.options.z_scale != defaults.z_scale {
+            tag.push_str(&format!(";z={}", self.options.z_scale));
+        }
+        if self.options.size != defaults.size {
+            tag.push_str(&format!(";size={}", self.options.size));
+        }
+        tag.push('"');
+        HeaderValue::from_str(&tag).expect("hex, a name and numbers make a valid header value")
+    }
+}
+
+/// The first format the `Accept` header names that we write; `*/*` (or no header) is JSON.
+/// `text/event-stream` is left to the routes that stream.
+fn from_accept(headers: &HeaderMap) -> Result<Format, ApiError> {
+    let mut asked = Vec::new();
+    for value in headers.get_all(header::ACCEPT).iter().filter_map(|v| v.to_str().ok()) {
+        for range in value.split(',').map(|r| r.split(';').next().unwrap_or("").trim()) {
+            if range.is_empty() || range == "text/event-stream" {
+                continue;
+            }
+            if range == "*/*" || range == "application/*" {
+                return Ok(Format::Json);
+            }
+            if let Some(format) = Format::from_media_type(range) {
+                return Ok(format);
+            }
+            asked.push(range.to_owned());
+        }
+    }
+    match asked.is_empty() {
+        true => Ok(Format::Json),
+        false => Err(ApiError::NotAcceptable(asked.join(", "))),
+    }
+}
+
+/// Where a response's result came from, for `x-cache`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Source {
+    /// Computed for this request.
+    Miss,
+    /// From the cache.
+    Hit,
+    /// A run a time limit stopped: not the request's cached answer, so no entity tag.
+    Partial,
+}
+
+/// `result` of job `id` in the wanted form, or 304 when the client has these bytes.
+/// `elapsed` (the engine's time) goes into `Server-Timing`, never into the body.
+pub async fn result_response(
+    headers: &HeaderMap,
+    wanted: &Wanted,
+    id: &str,
+    result: Arc<MeshResult>,
+    source: Source,
+    elapsed: Option<Duration>,
+) -> Result<Response, ApiError> {
+    let etag = (source != Source::Partial).then(|| wanted.etag(id));
+    let mut response = match &etag {
+        Some(tag) if not_modified(headers, tag) => StatusCode::NOT_MODIFIED.into_response(),
+        _ => {
+            let (format, options) =
+                (wanted.format, Options { id: Some(id.to_owned()), ..wanted.options.clone() });
+            // Pictures are drawn whole: off the async workers.
+            let encoding = tokio::task::spawn_blocking(move || output::encode(&result, format, &options))
+                .await
+                .map_err(|e| ApiError::Internal(format!("encoding panicked: {e}")))?;
+            let chunks = encoding.into_chunks().map(|c| Ok::<_, Infallible>(Bytes::from(c)));
+            let mut response = Body::from_stream(futures_util::stream::iter(chunks)).into_response();
+            let media = HeaderValue::from_static(wanted.format.media_type());
+            response.headers_mut().insert(header::CONTENT_TYPE, media);
+            response
+        }
+    };
+    let h = response.headers_mut();
+    if let Some(tag) = etag {
+        h.insert(header::ETAG, tag);
+    }
+    h.insert(header::VARY, HeaderValue::from_static("accept"));
+    let cache = match source {
+        Source::Miss => "miss",
+        Source::Hit => "hit",
+        Source::Partial => "partial",
+    };
+    h.insert("x-cache", HeaderValue::from_static(cache));
+    if let Some(elapsed) = elapsed {
+        let timing = format!("engine;dur={:.3}", elapsed.as_secs_f64() * 1e3);
+        h.insert("server-timing", HeaderValue::from_str(&timing).expect("ascii"));
+    }
+    Ok(response)
+}
+
+fn not_modified(headers: &HeaderMap, tag: &HeaderValue) -> bool {
+    let tag = tag.to_str().expect("our tags are ascii");
+    headers
+        .get_all(header::IF_NONE_MATCH)
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .any(|v| v.split(',').any(|t| t.trim() == tag || t.trim() == "*"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn wanted(uri: &str, accept: Option<&str>) -> Result<Wanted, ApiError> {
+        let mut headers = HeaderMap::new();
+        if let Some(a) = accept {
+            headers.insert(header::ACCEPT, HeaderValue::from_str(a).unwrap());
+        }
+        Wanted::from_request(&uri.parse().unwrap(), &headers)
+    }
+
+    #[test]
+    fn the_query_wins_over_accept_and_json_is_the_default() {
+        assert_eq!(wanted("/m", None).unwrap().format, Format::Json);
+        assert_eq!(wanted("/m", Some("*/*")).unwrap().format, Format::Json);
+        assert_eq!(wanted("/m?format=json", Some("image/png")).unwrap().format, Format::Json);
+    }
+
+    #[test]
+    fn an_unknown_format_is_not_acceptable() {
+        assert!(matches!(wanted("/m?format=dxf", None), Err(ApiError::NotAcceptable(n)) if n == "dxf"));
+        assert!(matches!(wanted("/m", Some("text/csv")), Err(ApiError::NotAcceptable(_))));
+    }
+
+    #[test]
+    fn options_out_of_range_are_refused() {
+        assert!(matches!(wanted("/m?size=1", None), Err(ApiError::InvalidRequest(_))));
+        assert!(matches!(wanted("/m?colour=red", None), Err(ApiError::InvalidRequest(_))));
+        assert_eq!(wanted("/m?z_scale=2.5", None).unwrap().options.z_scale, 2.5);
+    }
+
+    #[test]
+    fn each_form_of_a_result_has_its_own_entity_tag() {
+        let tag = |uri| wanted(uri, None).unwrap().etag("ab").to_str().unwrap().to_owned();
+        assert_eq!(tag("/m"), "\"ab\"");
+        assert_eq!(tag("/m?format=json&z_scale=2"), "\"ab;z=2\"");
+    }
+}

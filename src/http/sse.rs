@@ -1,0 +1,55 @@
+//! Server-sent events written as bytes.
+//!
+//! axum's `Event` holds its data in one buffer per client; a `result` event of a 10^6-vertex
+//! mesh would be a copy of the whole document for every client. Here the result event is the
+//! shared result encoded chunk by chunk as the client reads it, so twenty stalled readers hold
+//! twenty chunks, not twenty meshes. The JSON document has no line breaks, so it is one
+//! `data:` line.
+
+use crate::api::ProgressEvent;
+use crate::output::{self, Format, Options};
+use crate::result::MeshResult;
+use axum::body::Body;
+use axum::http::{HeaderValue, header};
+use axum::response::{IntoResponse, Response};
+use bytes::Bytes;
+use futures_util::{Stream, StreamExt};
+use std::convert::Infallible;
+use std::sync::Arc;
+use std::time::Duration;
+
+/// How long a stream may stay silent before a comment line keeps proxies from closing it.
+pub const KEEP_ALIVE: Duration = Duration::from_secs(15);
+
+/// The comment sent when nothing else has been for [`KEEP_ALIVE`].
+pub fn keep_alive() -> Bytes {
+    Bytes::from_static(b":\n\n")
+}
+
+/// A `progress` event with id `seq`.
+pub fn progress(seq: u64, p: &ProgressEvent) -> Bytes {
+    let data = serde_json::to_string(p).expect("progress serializes");
+    Bytes::from(format!("event: progress\nid: {seq}\ndata: {data}\n\n"))
+}
+
+/// An `error` event carrying a problem document.
+pub fn error(id: u64, problem: &serde_json::Value) -> Bytes {
+    Bytes::from(format!("event: error\nid: {id}\ndata: {problem}\n\n"))
+}
+
+/// A `result` event carrying the JSON document of `result`, in chunks made as they are read.
+pub fn result(id: u64, job: &str, result: &Arc<MeshResult>) -> impl Iterator<Item = Bytes> + Send + use<> {
+    let options = Options { id: Some(job.to_owned()), ..Options::default() };
+    let head = Bytes::from(format!("event: result\nid: {id}\ndata: "));
+    let document = output::encode(result, Format::Json, &options).into_chunks().map(Bytes::from);
+    std::iter::once(head).chain(document).chain(std::iter::once(Bytes::from_static(b"\n\n")))
+}
+
+/// The response for a stream of event bytes.
+pub fn response(events: impl Stream<Item = Bytes> + Send + 'static) -> Response {
+    let mut response = Body::from_stream(events.map(Ok::<_, Infallible>)).into_response();
+    let h = response.headers_mut();
+    h.insert(header::CONTENT_TYPE, HeaderValue::from_static("text/event-stream"));
+    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-cache"));
+    response
+}

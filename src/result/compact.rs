@@ -1,0 +1,244 @@
+//! The compact binary form of a [`MeshResult`], as stores keep it: little-endian arrays behind a
+//! short header, and a SHA-256 of everything before it at the end.
+//!
+//! ```text
+//! magic "MESHFIT\0" · u32 version · u32 flags (bit 0: triangle errors)
+//! u64 vertices · u64 triangles · u32 id length · id · u32 stats length · stats (JSON)
+//! vertices (x, y, z as f64) · triangles (3 × u32) · [triangle errors (f64)]
+//! SHA-256 of all the above
+//! ```
+//! The checksum covers the header, the id and the stats too, so a file renamed to another id
+//! or with edited stats is refused like one with a flipped bit in the arrays.
+
+use super::MeshResult;
+use crate::geom::Vertex;
+use sha2::{Digest, Sha256};
+use std::io::{self, Write};
+
+const MAGIC: &[u8; 8] = b"MESHFIT\0";
+const VERSION: u32 = 2;
+const HAS_ERRORS: u32 = 1;
+const CHECKSUM_LEN: usize = 32;
+
+/// Why bytes are not the compact form of a result with the expected id.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum CompactError {
+    /// Not this format, or another version of it.
+    #[error("not a meshfit result (version {VERSION})")]
+    Format,
+    /// Shorter or longer than its header says.
+    #[error("{0}")]
+    Length(String),
+    /// The checksum does not match the contents.
+    #[error("checksum mismatch")]
+    Checksum,
+    /// A well-formed result of another id.
+    #[error("the file holds result {0}")]
+    Id(String),
+    /// The stats are not valid.
+    #[error("stats: {0}")]
+    Stats(String),
+    /// A triangle names a vertex that is not there.
+    #[error("triangle {0} names a vertex out of range")]
+    Triangle(usize),
+}
+
+/// Hashes what passes through to the writer.
+struct Hashing<W> {
+    out: W,
+    hash: Sha256,
+    written: u64,
+}
+
+impl<W: Write> Write for Hashing<W> {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        let n = self.out.write(buf)?;
+        self.hash.update(&buf[..n]);
+        self.written += n as u64;
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.out.flush()
+    }
+}
+
+/// Writes `result`, stored under `id`, to `out` and returns the bytes written.
+///
+/// # Errors
+/// Whatever writing to `out` returns.
+pub fn write(result: &MeshResult, id: &str, out: impl Write) -> io::Result<u64> {
+    let stats = serde_json::to_vec(&result.stats).map_err(io::Error::other)?;
+    let mut w = Hashing { out, hash: Sha256::new(), written: 0 };
+    let flags = if result.triangle_errors.is_some() { HAS_ERRORS } else { 0 };
+    w.write_all(MAGIC)?;
+    w.write_all(&VERSION.to_le_bytes())?;
+    w.write_all(&flags.to_le_bytes())?;
+    w.write_all(&(result.vertices.len() as u64).to_le_bytes())?;
+    w.write_all(&(result.triangles.len() as u64).to_le_bytes())?;
+    for part in [id.as_bytes(), &stats] {
+        w.write_all(&(part.len() as u32).to_le_bytes())?;
+        w.write_all(part)?;
+    }
+    let mut buf = Vec::with_capacity(1 << 16);
+    let flush = |w: &mut Hashing<_>, buf: &mut Vec<u8>, force: bool| {
+        if force || buf.len() >= 1 << 16 {
+            w.write_all(buf)?;
+            buf.clear();
+        }
+        Ok::<_, io::Error>(())
+    };
+    for v in &result.vertices {
+        for c in [v.x, v.y, v.z] {
+            buf.extend_from_slice(&c.to_le_bytes());
+        }
+        flush(&mut w, &mut buf, false)?;
+    }
+    for t in &result.triangles {
+        for i in t {
+            buf.extend_from_slice(&i.to_le_bytes());
+        }
+        flush(&mut w, &mut buf, false)?;
+    }
+    for e in result.triangle_errors.iter().flatten() {
+        buf.extend_from_slice(&e.to_le_bytes());
+        flush(&mut w, &mut buf, false)?;
+    }
+    flush(&mut w, &mut buf, true)?;
+    let sum = w.hash.finalize_reset();
+    w.write_all(&sum)?;
+    w.flush()?;
+    Ok(w.written)
+}
+
+/// Reads little-endian fields off the front of a slice.
+struct Reader<'a>(&'a [u8]);
+
+impl<'a> Reader<'a> {
+    fn take(&mut self, n: usize) -> Result<&'a [u8], CompactError> {
+        if self.0.len() < n {
+            return Err(CompactError::Length("truncated".into()));
+        }
+        let (head, rest) = self.0.split_at(n);
+        self.0 = rest;
+        Ok(head)
+    }
+
+    fn u32(&mut self) -> Result<u32, CompactError> {
+        Ok(u32::from_le_bytes(self.take(4)?.try_into().expect("4 bytes")))
+    }
+
+    fn u64(&mut self) -> Result<u64, CompactError> {
+        Ok(u64::from_le_bytes(self.take(8)?.try_into().expect("8 bytes")))
+    }
+}
+
+fn f64s(bytes: &[u8]) -> impl Iterator<Item = f64> + '_ {
+    bytes.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes")))
+}
+
+/// The result in `bytes`, which must be stored under `id`.
+///
+/// # Errors
+/// When the bytes are not this format, do not add up, fail the checksum, hold another id or
+/// name vertices that are not there. Sizes are checked before anything is allocated.
+pub fn read(bytes: &[u8], id: &str) -> Result<MeshResult, CompactError> {
+    let Some(body_len) = bytes.len().checked_sub(CHECKSUM_LEN) else {
+        return Err(CompactError::Format);
+    };
+    let (body, sum) = bytes.split_at(body_len);
+    let mut r = Reader(body);
+    if r.take(MAGIC.len()).ok() != Some(MAGIC.as_slice()) || r.u32()? != VERSION {
+        return Err(CompactError::Format);
+    }
+    if Sha256::digest(body).as_slice() != sum {
+        return Err(CompactError::Checksum);
+    }
+    let flags = r.u32()?;
+    let (nv, nt) = (r.u64()?, r.u64()?);
+    let stored_id = r.u32().and_then(|n| r.take(n as usize))?;
+    if stored_id != id.as_bytes() {
+        return Err(CompactError::Id(String::from_utf8_lossy(stored_id).into_owned()));
+    }
+    let stats = r.u32().and_then(|n| r.take(n as usize))?;
+    let stats = serde_json::from_slice(stats).map_err(|e| CompactError::Stats(e.to_string()))?;
+    let has_errors = flags & HAS_ERRORS != 0;
+    let expected = u128::from(nv) * 24 + u128::from(nt) * (12 + if has_errors { 8 } else { 0 });
+    if expected != r.0.len() as u128 {
+        return Err(CompactError::Length(format!(
+            "{nv} vertices and {nt} triangles need {expected} bytes, found {}",
+            r.0.len()
+        )));
+    }
+    let (nv, nt) = (nv as usize, nt as usize);
+    let vertices = r.take(24 * nv)?.chunks_exact(24).map(|c| {
+        let mut xyz = f64s(c);
+        let mut next = || xyz.next().expect("24 bytes");
+        Vertex { x: next(), y: next(), z: next() }
+    });
+    let vertices: Vec<Vertex> = vertices.collect();
+    let triangles: Vec<[u32; 3]> = r
+        .take(12 * nt)?
+        .chunks_exact(12)
+        .map(|c| [0, 4, 8].map(|k| u32::from_le_bytes(c[k..k + 4].try_into().expect("4 bytes"))))
+        .collect();
+    if let Some(t) = triangles.iter().position(|t| t.iter().any(|&v| v as usize >= nv)) {
+        return Err(CompactError::Triangle(t));
+    }
+    let triangle_errors = has_errors.then(|| f64s(r.0).collect());
+    Ok(MeshResult { vertices, triangles, triangle_errors, stats })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::refine::Criterion;
+    use crate::result::testing::sample;
+
+    const ID: &str = "ab12";
+
+    fn bytes(result: &MeshResult) -> Vec<u8> {
+        let mut out = Vec::new();
+        let n = write(result, ID, &mut out).unwrap();
+        assert_eq!(n, out.len() as u64);
+        out
+    }
+
+    #[test]
+    fn a_result_reads_back_equal_with_and_without_triangle_errors() {
+        for criterion in [Criterion::Error, Criterion::Variation] {
+            let result = sample(300, criterion);
+            assert_eq!(result.triangle_errors.is_some(), criterion == Criterion::Error);
+            assert_eq!(read(&bytes(&result), ID).unwrap(), result);
+        }
+    }
+
+    #[test]
+    fn every_flipped_byte_is_refused() {
+        let data = bytes(&sample(20, Criterion::Error));
+        for k in 0..data.len() {
+            let mut bad = data.clone();
+            bad[k] ^= 0x10;
+            assert!(read(&bad, ID).is_err(), "byte {k} of {} flipped and accepted", data.len());
+        }
+    }
+
+    #[test]
+    fn edited_stats_with_a_stale_checksum_are_refused() {
+        let data = bytes(&sample(20, Criterion::Error));
+        let text = String::from_utf8_lossy(&data).into_owned();
+        let at = text.find("\"vertices\":20").expect("stats hold the count");
+        let mut bad = data.clone();
+        bad[at + 12] = b'1';
+        assert_eq!(read(&bad, ID), Err(CompactError::Checksum));
+    }
+
+    #[test]
+    fn a_truncated_file_or_another_id_is_refused() {
+        let data = bytes(&sample(20, Criterion::Variation));
+        for len in [0, 8, 40, data.len() - 33, data.len() - 1] {
+            assert!(read(&data[..len], ID).is_err(), "truncated to {len}");
+        }
+        assert_eq!(read(&data, "cd34"), Err(CompactError::Id(ID.into())));
+    }
+}

@@ -1,0 +1,81 @@
+//! A finished job as data: the mesh's arrays and its stats.
+//!
+//! Everything after the engine works on this: stores keep it (in memory as is, on disk in the
+//! checksummed form of [`compact`]), and `output` encodes it in the format a client asks for.
+//! Nothing in it depends on the machine or the moment: the same request gives the same
+//! result, bit for bit.
+
+pub mod compact;
+
+use crate::geom::Vertex;
+use crate::refine::{Refinement, Stats};
+
+/// A refined mesh: vertices in insertion order (any prefix is an earlier step's vertex set),
+/// counter-clockwise triangles, and what is known per triangle.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeshResult {
+    /// x, y and F(x, y), in insertion order; the first four are the rectangle's corners.
+    pub vertices: Vec<Vertex>,
+    /// Vertex ids of each triangle, counter-clockwise.
+    pub triangles: Vec<[u32; 3]>,
+    /// e(T) of each triangle (criterion `error` only).
+    pub triangle_errors: Option<Vec<f64>>,
+    /// The run's counters and outcome.
+    pub stats: Stats,
+}
+
+impl From<Refinement> for MeshResult {
+    fn from(r: Refinement) -> Self {
+        Self {
+            vertices: r.mesh.vertices().to_vec(),
+            triangles: r.mesh.triangles().collect(),
+            triangle_errors: r.triangle_errors,
+            stats: r.stats,
+        }
+    }
+}
+
+impl MeshResult {
+    /// Bytes the arrays take in memory: what a cache weighs it by.
+    pub fn num_bytes(&self) -> usize {
+        let errors = self.triangle_errors.as_ref().map_or(0, Vec::len);
+        size_of::<Self>()
+            + self.vertices.len() * size_of::<Vertex>()
+            + self.triangles.len() * size_of::<[u32; 3]>()
+            + errors * size_of::<f64>()
+    }
+
+    /// The smallest and largest z, or (0, 0) for no vertices.
+    pub fn z_range(&self) -> (f64, f64) {
+        let mut zs = self.vertices.iter().map(|v| v.z);
+        let first = zs.next().unwrap_or(0.0);
+        zs.fold((first, first), |(lo, hi), z| (lo.min(z), hi.max(z)))
+    }
+
+    /// The rectangle [x0, x1] × [y0, y1] the vertices span.
+    pub fn bounds(&self) -> [f64; 4] {
+        let mut b = [f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY];
+        for v in &self.vertices {
+            b = [b[0].min(v.x), b[1].max(v.x), b[2].min(v.y), b[3].max(v.y)];
+        }
+        b
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod testing {
+    //! A small result for the tests of stores and encoders.
+
+    use super::MeshResult;
+    use crate::geom::Rect;
+    use crate::refine::{Criterion, Params, refine};
+
+    /// A refined mesh of a bump on [-1, 2] × [0, 1] with `n` vertices, with or without
+    /// per-triangle errors.
+    pub(crate) fn sample(n: usize, criterion: Criterion) -> MeshResult {
+        let f = |x: f64, y: f64| (-4.0 * ((x - 0.3).powi(2) + (y - 0.6).powi(2))).exp() - 0.25;
+        let rect = Rect::new(-1.0, 2.0, 0.0, 1.0).unwrap();
+        let params = Params::new(n).unwrap().with_criterion(criterion);
+        refine(&f, rect, &params, &mut ()).unwrap().into()
+    }
+}
