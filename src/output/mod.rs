@@ -6,6 +6,7 @@
 //! piece by piece for an HTTP body, so a client reading a 10^6-vertex mesh costs one chunk of
 //! memory beyond the shared result, however slowly it reads.
 
+pub mod colour;
 pub mod json;
 
 use crate::result::MeshResult;
