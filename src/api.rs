@@ -18,6 +18,7 @@ pub struct JobRequest {
     /// The rectangle; default \[0,1\]² for a function, \[0,nx−1\]×\[0,ny−1\] for a grid.
     pub domain: Option<DomainInput>,
     /// The vertex budget n (default 10000, at least 4).
+    #[serde(default, deserialize_with = "optional_count")]
     pub max_vertices: Option<u64>,
     /// Stop when the worst criterion value is at most this: the largest sampled triangle error
     /// for `error`, the largest |zi − zj| over edges for `variation`.
@@ -27,7 +28,47 @@ pub struct JobRequest {
     /// `error` (default) or `variation` (the paper's).
     pub criterion: Option<Criterion>,
     /// Stop after this many milliseconds; capped by the server's job time limit.
+    #[serde(default, deserialize_with = "optional_count")]
     pub time_limit_ms: Option<u64>,
+}
+
+/// A count: a non-negative integer. JSON has one number type, so `1000.0` and `1e3` are the
+/// count 1000; `1.5` and `-1` are errors.
+fn count<'de, D: Deserializer<'de>>(d: D) -> Result<u64, D::Error> {
+    struct V;
+    impl Visitor<'_> for V {
+        type Value = u64;
+        fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            f.write_str("a non-negative integer")
+        }
+        fn visit_u64<E>(self, v: u64) -> Result<u64, E> {
+            Ok(v)
+        }
+        fn visit_i64<E: de::Error>(self, v: i64) -> Result<u64, E> {
+            u64::try_from(v).map_err(|_| E::invalid_value(de::Unexpected::Signed(v), &self))
+        }
+        fn visit_f64<E: de::Error>(self, v: f64) -> Result<u64, E> {
+            // 2^64 is the first float above u64::MAX; every float below it with no fraction is
+            // an exact count.
+            if v.fract() == 0.0 && (0.0..18_446_744_073_709_551_616.0).contains(&v) {
+                Ok(v as u64)
+            } else {
+                Err(E::invalid_value(de::Unexpected::Float(v), &self))
+            }
+        }
+    }
+    d.deserialize_any(V)
+}
+
+/// An optional [`count`]; `null` is no count, as for any optional field.
+fn optional_count<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u64>, D::Error> {
+    struct Count(u64);
+    impl<'de> Deserialize<'de> for Count {
+        fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+            count(d).map(Count)
+        }
+    }
+    Ok(Option::<Count>::deserialize(d)?.map(|c| c.0))
 }
 
 /// A sampled grid: `values[j*nx + i] = F(x_i, y_j)`.
@@ -35,8 +76,10 @@ pub struct JobRequest {
 #[serde(deny_unknown_fields)]
 pub struct GridInput {
     /// Nodes along x (at least 2).
+    #[serde(deserialize_with = "count")]
     pub nx: u64,
     /// Nodes along y (at least 2).
+    #[serde(deserialize_with = "count")]
     pub ny: u64,
     /// nx·ny numbers, row-major with x fastest.
     pub values: GridValues,

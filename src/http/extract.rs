@@ -32,8 +32,14 @@ pub fn parse_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, ApiError> {
     if bytes.iter().all(u8::is_ascii_whitespace) {
         return Err(ApiError::MalformedJson("the body is empty; send a JSON object".into()));
     }
-    serde_json::from_slice(bytes).map_err(|e| match e.classify() {
+    let malformed = |e: serde_json::Error| match e.classify() {
         serde_json::error::Category::Data => ApiError::InvalidRequest(e.to_string()),
         _ => ApiError::MalformedJson(e.to_string()),
-    })
+    };
+    // serde's derived structs also take arrays (as tuples); a request is an object.
+    if bytes.iter().find(|b| !b.is_ascii_whitespace()) != Some(&b'{') {
+        serde_json::from_slice::<serde::de::IgnoredAny>(bytes).map_err(malformed)?;
+        return Err(ApiError::InvalidRequest("the body must be a JSON object".into()));
+    }
+    serde_json::from_slice(bytes).map_err(malformed)
 }

@@ -51,7 +51,61 @@ pub fn job_id(spec: &JobSpec) -> String {
     field(&mut h, "tolerance", &p.tolerance().map_or(Vec::new(), |t| t.to_bits().to_le_bytes().to_vec()));
     field(&mut h, "method", p.method().to_string().as_bytes());
     field(&mut h, "criterion", p.criterion().to_string().as_bytes());
-    let ms = p.time_limit().map_or(0, |t| t.as_millis() as u64);
-    field(&mut h, "time_limit_ms", &ms.to_le_bytes());
+    // The limit the client named, not the one in force: server settings never change ids.
+    let ms = spec.requested_time_limit.map_or(Vec::new(), |t| (t.as_millis() as u64).to_le_bytes().to_vec());
+    field(&mut h, "time_limit_ms", &ms);
     format!("{:x}", h.finalize())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::api::JobRequest;
+    use crate::jobs::Limits;
+    use crate::output::{self, Format, Options};
+    use crate::refine::refine;
+    use crate::result::MeshResult;
+    use std::sync::Arc;
+    use std::time::Duration;
+
+    fn limits(job_time_limit: Duration) -> Limits {
+        Limits { max_vertices: 1 << 20, max_grid_points: 1 << 20, max_expression_len: 100, job_time_limit }
+    }
+
+    fn spec(body: &str, limits: &Limits) -> JobSpec {
+        let request: JobRequest = serde_json::from_str(body).unwrap();
+        JobSpec::from_request(request, limits).unwrap()
+    }
+
+    #[test]
+    fn the_server_time_limit_never_changes_an_id() {
+        let body = r#"{"function": "x*y", "max_vertices": 500}"#;
+        let (short, long) = (limits(Duration::from_secs(1)), limits(Duration::from_secs(600)));
+        assert_eq!(job_id(&spec(body, &short)), job_id(&spec(body, &long)));
+        let named = r#"{"function": "x*y", "max_vertices": 500, "time_limit_ms": 1000}"#;
+        assert_ne!(job_id(&spec(body, &short)), job_id(&spec(named, &short)), "a named limit is asked for");
+    }
+
+    /// One request's id and the SHA-256 of its mesh document, pinned with the engine version:
+    /// a change that alters meshes fails here until it bumps [`ENGINE_VERSION`] on purpose
+    /// (then update both figures with what this test prints).
+    #[test]
+    fn a_pinned_request_gives_the_pinned_id_and_bytes_under_this_engine_version() {
+        let spec = spec(
+            r#"{"function": "x*x*y - y*y + 0.5*x", "max_vertices": 2000, "domain": {"x": [-1, 2], "y": [0, 1]}}"#,
+            &limits(Duration::from_secs(60)),
+        );
+        let id = job_id(&spec);
+        let refinement = refine(&*spec.source, spec.domain, &spec.params, &mut ()).unwrap();
+        let result = Arc::new(MeshResult::from(refinement));
+        let options = Options { id: Some(id.clone()), ..Options::default() };
+        let body = output::encode(&result, Format::Json, &options).to_vec();
+        let hash = format!("{:x}", Sha256::digest(&body));
+        let pinned = (
+            "meshfit-engine-4",
+            "55854f41742ce7565ccd204c110696f782e17d9d7258f6941bd79d282ddd45bd",
+            "6ec4b23314a073f72768b3c2b3547f9bd18d09c501bd383bc5fd54661dc48b64",
+        );
+        assert_eq!((ENGINE_VERSION, id.as_str(), hash.as_str()), pinned);
+    }
 }

@@ -32,6 +32,10 @@ pub struct JobSpec {
     pub domain: Rect,
     /// Method, criterion and stop rules, with the time limit already capped.
     pub params: Params,
+    /// The time limit the request named, if any. The id depends on this, never on the
+    /// server's default: a result a time limit stopped is never cached, so every cached
+    /// result is the same whatever limit was in force.
+    pub requested_time_limit: Option<Duration>,
 }
 
 /// Why a request is not a valid job. Each variant says where the problem is.
@@ -147,9 +151,8 @@ impl JobSpec {
         let source = source.with_domain(domain);
         let max_vertices = request.max_vertices.unwrap_or(DEFAULT_MAX_VERTICES);
         at_most("max_vertices", "MESHFIT_MAX_VERTICES", limits.max_vertices, max_vertices)?;
-        let time_limit = request
-            .time_limit_ms
-            .map_or(limits.job_time_limit, |ms| Duration::from_millis(ms).min(limits.job_time_limit));
+        let requested_time_limit = request.time_limit_ms.map(Duration::from_millis);
+        let time_limit = requested_time_limit.map_or(limits.job_time_limit, |t| t.min(limits.job_time_limit));
         let mut params = Params::new(max_vertices as usize)
             .map_err(SpecError::Parameter)?
             .with_method(request.method.unwrap_or_default())
@@ -158,6 +161,6 @@ impl JobSpec {
         if let Some(t) = request.tolerance {
             params = params.with_tolerance(t + 0.0).map_err(SpecError::Parameter)?;
         }
-        Ok(Self { source: Arc::new(source), domain, params })
+        Ok(Self { source: Arc::new(source), domain, params, requested_time_limit })
     }
 }

@@ -36,6 +36,16 @@ fn cases() -> Vec<Case> {
         case("empty body", "", 400, "malformed-json").detail("empty"),
         case("truncated", r#"{"function": "x""#, 400, "malformed-json").detail("line 1"),
         case("an array", "[1, 2]", 422, "invalid-request"),
+        case("an array that fits the fields in order", r#"["x"]"#, 422, "invalid-request").detail("object"),
+        case("a string", r#""x""#, 422, "invalid-request").detail("object"),
+        case("a fractional budget", r#"{"function": "x", "max_vertices": 100.5}"#, 422, "invalid-request")
+            .detail("100.5"),
+        case(
+            "a fractional grid size",
+            r#"{"grid": {"nx": 2.5, "ny": 2, "values": [1, 2, 3, 4]}}"#,
+            422,
+            "invalid-request",
+        ),
         case("no source", "{}", 422, "invalid-source").detail("none given"),
         case(
             "both sources",

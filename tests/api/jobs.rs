@@ -48,7 +48,7 @@ async fn key_order_number_spelling_and_defaults_do_not_change_the_id() {
     let short: Value =
         app.post("/v1/meshes", &json!({"function": "x*y", "tolerance": 1})).await.json().await.unwrap();
     let spelled_out = r#"{"tolerance": 1.0, "criterion": "error", "method": "semi-recursive",
-        "domain": {"y": [0, 1.0], "x": [0.0, 1]}, "max_vertices": 10000, "function": "x*y"}"#;
+        "domain": {"y": [0, 1.0], "x": [0.0, 1]}, "max_vertices": 1e4, "function": "x*y"}"#;
     let long: Value = app.post_raw("/v1/meshes", spelled_out).await.json().await.unwrap();
     assert_eq!(id(short.clone()), id(long));
     let other: Value = app

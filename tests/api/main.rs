@@ -6,4 +6,5 @@ mod errors;
 mod events;
 mod helpers;
 mod jobs;
+mod results;
 mod service;

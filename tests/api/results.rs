@@ -1,0 +1,91 @@
+//! Results as data: the format a client asks for, the same bytes for the same request, and
+//! runs a time limit stopped kept apart from the answers.
+
+use crate::helpers::{read_events, spawn_app};
+use serde_json::{Value, json};
+
+fn body() -> Value {
+    json!({"function": "exp(-3*((x-0.4)^2+(y-0.7)^2))", "max_vertices": 800})
+}
+
+#[tokio::test]
+async fn an_unknown_format_is_406_listing_the_known_ones_before_any_work() {
+    let app = spawn_app().await;
+    let response = app.post("/v1/meshes?format=dxf", &body()).await;
+    assert_eq!(response.status(), 406);
+    assert_eq!(response.headers()["content-type"], "application/problem+json");
+    let problem: Value = response.json().await.unwrap();
+    assert_eq!(problem["type"], "/problems/not-acceptable");
+    assert!(problem["formats"].as_array().unwrap().contains(&json!("json")));
+    assert!(problem["detail"].as_str().unwrap().contains("dxf"));
+    let accept = app.client.post(app.url("/v1/meshes")).header("accept", "text/csv").json(&body());
+    assert_eq!(accept.send().await.unwrap().status(), 406);
+    assert_eq!(app.metric("meshfit_engine_runs_total").await, 0.0, "refused before running");
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn the_format_parameter_wins_over_accept_and_each_form_has_its_own_etag() {
+    let app = spawn_app().await;
+    let plain = app.post("/v1/meshes", &body()).await;
+    let tag = plain.headers()["etag"].to_str().unwrap().to_owned();
+    assert_eq!(plain.headers()["vary"], "accept");
+    let request = app.client.post(app.url("/v1/meshes?format=json&z_scale=3")).header("accept", "image/png");
+    let scaled = request.json(&body()).send().await.unwrap();
+    assert_eq!(scaled.headers()["content-type"], "application/json");
+    assert_eq!(scaled.headers()["x-cache"], "hit");
+    assert_ne!(scaled.headers()["etag"].to_str().unwrap(), tag, "other options, other tag");
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn two_servers_give_the_same_bytes_and_tag_and_the_time_goes_in_a_header() {
+    let (a, b) = (spawn_app().await, spawn_app().await);
+    let (ra, rb) = (a.post("/v1/meshes", &body()).await, b.post("/v1/meshes", &body()).await);
+    assert_eq!(ra.headers()["etag"], rb.headers()["etag"]);
+    let timing = ra.headers()["server-timing"].to_str().unwrap().to_owned();
+    assert!(timing.starts_with("engine;dur="), "{timing}");
+    let (ba, bb) = (ra.bytes().await.unwrap(), rb.bytes().await.unwrap());
+    assert_eq!(ba, bb, "a recomputation is byte-identical");
+    let doc: Value = serde_json::from_slice(&ba).unwrap();
+    assert!(doc["stats"].get("elapsed_ms").is_none());
+    let status: Value =
+        a.get(&format!("/v1/jobs/{}", doc["id"].as_str().unwrap())).await.json().await.unwrap();
+    assert!(status["elapsed_ms"].as_f64().unwrap() > 0.0, "the job record keeps the time: {status}");
+    a.shutdown().await;
+    b.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_run_its_time_limit_stopped_is_served_to_its_job_but_never_cached() {
+    let app = spawn_app().await;
+    let body = json!({"function": "sin(9*x)*cos(7*y)", "max_vertices": 2_000_000, "time_limit_ms": 1});
+    let first = app.post("/v1/meshes", &body).await;
+    assert_eq!(first.status(), 200);
+    assert_eq!(first.headers()["x-cache"], "partial");
+    assert!(first.headers().get("etag").is_none(), "its bytes depend on the machine");
+    let doc: Value = first.json().await.unwrap();
+    assert_eq!(doc["stats"]["stop"], "time_limit");
+    let id = doc["id"].as_str().unwrap().to_owned();
+    let mesh = app.get(&format!("/v1/jobs/{id}/mesh")).await;
+    assert_eq!(mesh.headers()["x-cache"], "partial");
+    let again: Value = mesh.json().await.unwrap();
+    assert_eq!(again["vertices"], doc["vertices"], "the job's own result, not a new run");
+    let second = app.post("/v1/meshes", &body).await;
+    assert_eq!(second.headers()["x-cache"], "partial");
+    assert_eq!(app.metric("meshfit_engine_runs_total").await, 2.0, "not answered from the first run");
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn the_result_event_carries_the_same_document_as_the_mesh_route() {
+    let app = spawn_app().await;
+    let created: Value = app.post("/v1/jobs", &body()).await.json().await.unwrap();
+    let id = created["id"].as_str().unwrap().to_owned();
+    app.wait_finished(&id).await;
+    let mesh = app.get(&format!("/v1/jobs/{id}/mesh")).await.text().await.unwrap();
+    let events = read_events(app.get(&format!("/v1/jobs/{id}/events")).await).await;
+    assert_eq!(events.len(), 1);
+    assert_eq!((events[0].event.as_str(), events[0].data.as_str()), ("result", mesh.as_str()));
+    app.shutdown().await;
+}
