@@ -72,7 +72,9 @@ pub async fn serve(
         max_expression_len: config.max_expression_len,
         job_time_limit: config.job_time_limit,
     };
-    let app = http::router(http::AppState { jobs: jobs.clone(), limits }, config.max_body_bytes);
+    // Indexes are rebuilt in milliseconds; a quarter of the result cache's budget holds plenty.
+    let state = http::AppState::new(jobs.clone(), limits, config.cache_bytes / 4);
+    let app = http::router(state, config.max_body_bytes);
     let on_signal = jobs.clone();
     let grace = config.shutdown_grace;
     let (signalled, mut on_signalled) = tokio::sync::watch::channel(false);

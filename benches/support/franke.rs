@@ -2,6 +2,7 @@
 //! benchmarks and examples/profile_refine.rs.
 
 /// Franke's function as meval text.
+#[allow(dead_code)] // not every bench that includes this file uses it
 pub const FRANKE: &str = "0.75*exp(-((9*x-2)^2 + (9*y-2)^2)/4) + 0.75*exp(-((9*x+1)^2)/49 - (9*y+1)/10) \
                           + 0.5*exp(-((9*x-7)^2 + (9*y-3)^2)/4) - 0.2*exp(-((9*x-4)^2) - (9*y-7)^2)";
 

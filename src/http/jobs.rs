@@ -199,6 +199,19 @@ async fn finished_outcome(
     }
 }
 
+/// The result of finished job `id`: 404 for an unknown job, 409 for one not finished (or
+/// cancelled), the job's problem for one that failed.
+pub(super) async fn finished_result(state: &AppState, id: &str) -> Result<Arc<MeshResult>, ApiError> {
+    let found = find(state, id).await?;
+    let status = status_of(&found).as_str();
+    match finished_outcome(state, id, found).await {
+        Some((Outcome::Succeeded(r), ..)) => Ok(r),
+        Some((Outcome::Failed(e), ..)) => Err(e.into()),
+        Some((Outcome::Cancelled, ..)) => Err(ApiError::Cancelled),
+        None => Err(ApiError::NotFinished(status)),
+    }
+}
+
 /// `GET /v1/jobs/{id}/mesh`: 200 with the mesh in the format asked for, 409 while it is not
 /// finished.
 pub async fn jobs_mesh(

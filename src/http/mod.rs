@@ -1,5 +1,6 @@
 //! The HTTP API: routes, shared state and the layers around them.
 
+mod evaluate;
 mod extract;
 mod health;
 mod jobs;
@@ -33,6 +34,15 @@ pub struct AppState {
     pub jobs: Jobs,
     /// Request limits.
     pub limits: Limits,
+    /// Point-location indexes of results recently evaluated.
+    pub locators: evaluate::Locators,
+}
+
+impl AppState {
+    /// The state of a server whose point-location indexes take at most `locator_bytes`.
+    pub fn new(jobs: Jobs, limits: Limits, locator_bytes: u64) -> Self {
+        Self { jobs, limits, locators: evaluate::locators(locator_bytes) }
+    }
 }
 
 /// The API's routes, as listed in openapi.yaml.
@@ -43,6 +53,7 @@ pub const ROUTES: &[(&str, &str)] = &[
     ("delete", "/v1/jobs/{id}"),
     ("get", "/v1/jobs/{id}/events"),
     ("get", "/v1/jobs/{id}/mesh"),
+    ("post", "/v1/jobs/{id}/evaluate"),
     ("get", "/healthz"),
     ("get", "/readyz"),
     ("get", "/metrics"),
@@ -83,6 +94,7 @@ pub fn router(state: AppState, max_body_bytes: usize) -> Router {
         .route("/v1/jobs/{id}", get(jobs::jobs_show).delete(jobs::jobs_cancel))
         .route("/v1/jobs/{id}/events", get(jobs::jobs_events))
         .route("/v1/jobs/{id}/mesh", get(jobs::jobs_mesh))
+        .route("/v1/jobs/{id}/evaluate", post(evaluate::jobs_evaluate))
         .route("/healthz", get(health::healthz))
         .route("/readyz", get(health::readyz))
         .route("/metrics", get(health::metrics))

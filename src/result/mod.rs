@@ -6,6 +6,7 @@
 //! result, bit for bit.
 
 pub mod compact;
+pub mod locate;
 
 use crate::geom::Vertex;
 use crate::refine::{Refinement, Stats};

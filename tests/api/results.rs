@@ -89,3 +89,39 @@ async fn the_result_event_carries_the_same_document_as_the_mesh_route() {
     assert_eq!((events[0].event.as_str(), events[0].data.as_str()), ("result", mesh.as_str()));
     app.shutdown().await;
 }
+
+#[tokio::test]
+async fn evaluate_answers_the_surrogate_at_points_as_json_or_binary() {
+    let app = spawn_app().await;
+    let doc: Value = app.post("/v1/meshes", &body()).await.json().await.unwrap();
+    let id = doc["id"].as_str().unwrap();
+    let v = &doc["vertices"][17];
+    let (x, y, z) = (v[0].as_f64().unwrap(), v[1].as_f64().unwrap(), v[2].as_f64().unwrap());
+    let points = json!({"points": [[x, y], [2.0, 0.5], [0.0, 0.0]]});
+    let answer: Value = app.post(&format!("/v1/jobs/{id}/evaluate"), &points).await.json().await.unwrap();
+    let corner = doc["vertices"][0][2].as_f64().unwrap();
+    assert_eq!(answer, json!({"values": [z, null, corner]}));
+    let binary: Vec<u8> = [x, y, -1.0, 0.5].iter().flat_map(|c| c.to_le_bytes()).collect();
+    let response = app
+        .client
+        .post(app.url(&format!("/v1/jobs/{id}/evaluate")))
+        .header("content-type", "application/octet-stream")
+        .body(binary)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.headers()["content-type"], "application/octet-stream");
+    let bytes = response.bytes().await.unwrap();
+    let values: Vec<f64> = bytes.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().unwrap())).collect();
+    assert_eq!(values.len(), 2);
+    assert_eq!(values[0], z);
+    assert!(values[1].is_nan(), "outside is NaN in binary");
+    let odd = app
+        .client
+        .post(app.url(&format!("/v1/jobs/{id}/evaluate")))
+        .header("content-type", "application/octet-stream");
+    assert_eq!(odd.body(vec![0u8; 12]).send().await.unwrap().status(), 422);
+    let unknown = app.post(&format!("/v1/jobs/{}/evaluate", "0".repeat(64)), &points).await;
+    assert_eq!(unknown.status(), 404);
+    app.shutdown().await;
+}

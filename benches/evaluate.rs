@@ -1,0 +1,44 @@
+//! F_n at many points: point location by bucket grid and walk, on a 10^5-vertex mesh.
+//!
+//! Run with `cargo bench --bench evaluate`; throughput is in points per second.
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+#[path = "support/franke.rs"]
+mod support;
+
+use meshfit::geom::{Point, Rect};
+use meshfit::refine::{Method, Params, refine};
+use meshfit::result::MeshResult;
+use meshfit::result::locate::Locator;
+use std::hint::black_box;
+use support::franke;
+
+fn evaluate(c: &mut Criterion) {
+    let mut group = c.benchmark_group("evaluate");
+    for method in [Method::SemiRecursive, Method::Recursive] {
+        let params = Params::new(100_000).unwrap().with_method(method);
+        let mesh: MeshResult = refine(&franke, Rect::unit(), &params, &mut ()).unwrap().into();
+        let locator = Locator::new(&mesh);
+        // A fixed scatter of points (a Weyl sequence), in no order the mesh knows.
+        let points: Vec<Point> = (0..1_000_000u64)
+            .map(|k| {
+                Point::new(
+                    (k as f64 * 0.618_033_988_749_894_9).fract(),
+                    (k as f64 * 0.754_877_666_246_692_7).fract(),
+                )
+            })
+            .collect();
+        group.throughput(Throughput::Elements(points.len() as u64));
+        group.sample_size(10);
+        group.bench_function(format!("{method}/franke/100000/1000000_points"), |b| {
+            b.iter(|| points.iter().map(|&p| locator.value(&mesh, p).unwrap_or(0.0)).sum::<f64>())
+        });
+        group.bench_function(format!("{method}/franke/100000/index"), |b| {
+            b.iter(|| Locator::new(black_box(&mesh)))
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, evaluate);
+criterion_main!(benches);

@@ -1,0 +1,94 @@
+//! `POST /v1/jobs/{id}/evaluate`: F_n, the mesh's piecewise linear surrogate, at given points.
+
+use super::AppState;
+use super::extract::{Body, parse_json};
+use super::jobs::finished_result;
+use super::problem::ApiError;
+use crate::geom::Point;
+use crate::result::MeshResult;
+use crate::result::locate::Locator;
+use axum::extract::{Path, State};
+use axum::http::{HeaderMap, HeaderValue, header};
+use axum::response::{IntoResponse, Response};
+use std::sync::{Arc, Weak};
+
+/// The binary form of points and values: little-endian f64s.
+const OCTET_STREAM: &str = "application/octet-stream";
+
+/// Locators of recently evaluated results, each with the result it indexes: a result
+/// recomputed under the same id (after a time limit, say) is another mesh, so a hit counts
+/// only for the very same result.
+pub type Locators = moka::sync::Cache<String, (Weak<MeshResult>, Arc<Locator>)>;
+
+/// A locator cache of at most `bytes` bytes.
+pub fn locators(bytes: u64) -> Locators {
+    moka::sync::Cache::builder()
+        .max_capacity(bytes)
+        .weigher(|_: &String, (_, l): &(Weak<MeshResult>, Arc<Locator>)| {
+            u32::try_from(l.num_bytes()).unwrap_or(u32::MAX)
+        })
+        .build()
+}
+
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Points {
+    points: Vec<[f64; 2]>,
+}
+
+#[derive(serde::Serialize)]
+struct Values {
+    values: Vec<Option<f64>>,
+}
+
+/// `POST /v1/jobs/{id}/evaluate`: `{"points": [[x, y], ...]}` answers `{"values": [...]}`
+/// with `null` outside the domain; an `application/octet-stream` body of (x, y) f64 pairs
+/// answers f64 values, NaN outside.
+pub async fn jobs_evaluate(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    headers: HeaderMap,
+    body: Body,
+) -> Result<Response, ApiError> {
+    let result = finished_result(&state, &id).await?;
+    let binary = headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| v.split(';').next().unwrap_or("").trim().eq_ignore_ascii_case(OCTET_STREAM));
+    let locators = state.locators.clone();
+    let answer = tokio::task::spawn_blocking(move || {
+        let locator = match locators.get(&id) {
+            Some((indexed, locator)) if indexed.upgrade().is_some_and(|r| Arc::ptr_eq(&r, &result)) => {
+                locator
+            }
+            _ => {
+                let locator = Arc::new(Locator::new(&result));
+                locators.insert(id, (Arc::downgrade(&result), locator.clone()));
+                locator
+            }
+        };
+        let value = |x: f64, y: f64| locator.value(&result, Point::new(x, y));
+        if binary {
+            if body.0.len() % 16 != 0 {
+                return Err(ApiError::InvalidRequest(format!(
+                    "a binary body is (x, y) pairs of little-endian f64, 16 bytes each; got {} bytes",
+                    body.0.len()
+                )));
+            }
+            let mut out = Vec::with_capacity(body.0.len() / 2);
+            for pair in body.0.chunks_exact(16) {
+                let x = f64::from_le_bytes(pair[..8].try_into().expect("8 bytes"));
+                let y = f64::from_le_bytes(pair[8..].try_into().expect("8 bytes"));
+                out.extend_from_slice(&value(x, y).unwrap_or(f64::NAN).to_le_bytes());
+            }
+            Ok(([(header::CONTENT_TYPE, HeaderValue::from_static(OCTET_STREAM))], out).into_response())
+        } else {
+            let Points { points } = parse_json(&body.0)?;
+            let values = points.iter().map(|&[x, y]| value(x, y)).collect();
+            Ok(axum::Json(Values { values }).into_response())
+        }
+    })
+    .await
+    .map_err(|e| ApiError::Internal(format!("evaluation panicked: {e}")))?;
+    answer
+}

@@ -1,0 +1,243 @@
+//! Point location in a finished mesh, and F_n (the piecewise linear surrogate) at any point.
+//!
+//! A uniform grid of buckets over the rectangle holds, for each bucket, a triangle that
+//! contains its centre. A query starts there and walks across edges toward the point (a
+//! visibility walk with exact orientation tests), which takes a step or two when buckets are
+//! about the size of triangles. The walk's first edge rotates with the step count, so it also
+//! ends in meshes that are not Delaunay (the recursive method's), where a walk that always
+//! tries edges in one order can cycle (Devillers, Pion and Teillaud, "Walking in a
+//! triangulation", 2002); a walk that still has not arrived after many steps falls back to a
+//! scan, so every answer is exact.
+
+use super::MeshResult;
+use crate::geom::predicates::{Orientation, orientation, signed_area_x2};
+use crate::geom::{NONE, Point};
+
+/// Walk steps after which a query gives up walking and scans (never reached in practice).
+const MAX_WALK: usize = 4096;
+
+/// A bucket grid and edge adjacency over one [`MeshResult`], built once and shared.
+#[derive(Debug, Clone)]
+pub struct Locator {
+    /// [x0, x1, y0, y1] of the mesh.
+    bounds: [f64; 4],
+    cols: usize,
+    rows: usize,
+    /// A triangle containing each bucket's centre, row by row.
+    buckets: Vec<u32>,
+    /// For half-edge 3t + k (from corner k to corner k + 1 of triangle t), the half-edge
+    /// running the other way, or [`NONE`] on the boundary.
+    twins: Vec<u32>,
+}
+
+impl Locator {
+    /// Indexes `mesh`: about one bucket per triangle.
+    pub fn new(mesh: &MeshResult) -> Self {
+        let bounds = mesh.bounds();
+        let triangles = mesh.triangles.len().max(1);
+        let (w, h) = (bounds[1] - bounds[0], bounds[3] - bounds[2]);
+        // Where the criterion packs triangles tight, a bucket still holds many: more buckets
+        // shorten those walks for 4 bytes each.
+        let target = triangles as f64;
+        let cols = ((target * w / h).sqrt().ceil() as usize).clamp(1, 1 << 14);
+        let rows = ((target / cols as f64).ceil() as usize).clamp(1, 1 << 14);
+        let mut locator = Self { bounds, cols, rows, buckets: vec![NONE; cols * rows], twins: twins(mesh) };
+        locator.fill(mesh);
+        locator
+    }
+
+    /// Bytes the index takes, for a cache's weigher.
+    pub fn num_bytes(&self) -> usize {
+        size_of::<Self>() + 4 * (self.buckets.len() + self.twins.len())
+    }
+
+    fn bucket_of(&self, p: Point) -> usize {
+        let [x0, x1, y0, y1] = self.bounds;
+        let col = ((p.x - x0) / (x1 - x0) * self.cols as f64) as usize;
+        let row = ((p.y - y0) / (y1 - y0) * self.rows as f64) as usize;
+        row.min(self.rows - 1) * self.cols + col.min(self.cols - 1)
+    }
+
+    fn centre(&self, col: usize, row: usize) -> Point {
+        let [x0, x1, y0, y1] = self.bounds;
+        Point::new(
+            x0 + (col as f64 + 0.5) * (x1 - x0) / self.cols as f64,
+            y0 + (row as f64 + 0.5) * (y1 - y0) / self.rows as f64,
+        )
+    }
+
+    /// Gives each bucket the first triangle, by index, that contains its centre.
+    fn fill(&mut self, mesh: &MeshResult) {
+        let [x0, x1, y0, y1] = self.bounds;
+        let (sx, sy) = (self.cols as f64 / (x1 - x0), self.rows as f64 / (y1 - y0));
+        for (t, tri) in mesh.triangles.iter().enumerate() {
+            let p = tri.map(|v| point(mesh, v));
+            let (lo_x, hi_x) = (p[0].x.min(p[1].x).min(p[2].x), p[0].x.max(p[1].x).max(p[2].x));
+            let (lo_y, hi_y) = (p[0].y.min(p[1].y).min(p[2].y), p[0].y.max(p[1].y).max(p[2].y));
+            // Buckets whose centres may lie in the bounding box (centre k sits at k + 0.5).
+            let cols = span((lo_x - x0) * sx, (hi_x - x0) * sx, self.cols);
+            let rows = span((lo_y - y0) * sy, (hi_y - y0) * sy, self.rows);
+            for row in rows {
+                for col in cols.clone() {
+                    let b = row * self.cols + col;
+                    if self.buckets[b] == NONE && contains(p, self.centre(col, row)) {
+                        self.buckets[b] = t as u32;
+                    }
+                }
+            }
+        }
+    }
+
+    /// The triangle that contains `p` (on an edge: one of its two), or `None` outside the
+    /// mesh or for a non-finite point.
+    pub fn locate(&self, mesh: &MeshResult, p: Point) -> Option<u32> {
+        let [x0, x1, y0, y1] = self.bounds;
+        if !(x0 <= p.x && p.x <= x1 && y0 <= p.y && p.y <= y1) {
+            return None;
+        }
+        let start = self.buckets[self.bucket_of(p)];
+        let mut t = if start == NONE { 0 } else { start };
+        'walk: for step in 0..MAX_WALK {
+            let corners = mesh.triangles[t as usize].map(|v| point(mesh, v));
+            for j in 0..3 {
+                let k = (step + j) % 3;
+                if orientation(corners[k], corners[(k + 1) % 3], p) == Orientation::Clockwise {
+                    let twin = self.twins[3 * t as usize + k];
+                    if twin == NONE {
+                        return None;
+                    }
+                    t = twin / 3;
+                    continue 'walk;
+                }
+            }
+            return Some(t);
+        }
+        (0..mesh.triangles.len() as u32)
+            .find(|&t| contains(mesh.triangles[t as usize].map(|v| point(mesh, v)), p))
+    }
+
+    /// F_n(p): the value of the mesh's linear interpolant at `p`, `None` outside the mesh.
+    pub fn value(&self, mesh: &MeshResult, p: Point) -> Option<f64> {
+        let t = self.locate(mesh, p)?;
+        let [a, b, c] = mesh.triangles[t as usize].map(|v| mesh.vertices[v as usize]);
+        let (pa, pb, pc) = (a.point(), b.point(), c.point());
+        // Barycentric weights from sub-triangle areas; a point on an edge gets a zero weight.
+        let w = [signed_area_x2(p, pb, pc), signed_area_x2(pa, p, pc), signed_area_x2(pa, pb, p)]
+            .map(|w| w.max(0.0));
+        let z = [a.z, b.z, c.z];
+        // At a vertex, its own value exactly ((w·z)/w can be off by an ulp).
+        match w {
+            [_, 0.0, 0.0] => return Some(z[0]),
+            [0.0, _, 0.0] => return Some(z[1]),
+            [0.0, 0.0, _] => return Some(z[2]),
+            _ => {}
+        }
+        let sum = w[0] + w[1] + w[2];
+        Some((w[0] * z[0] + w[1] * z[1] + w[2] * z[2]) / sum)
+    }
+}
+
+fn point(mesh: &MeshResult, v: u32) -> Point {
+    mesh.vertices[v as usize].point()
+}
+
+/// Whether the counter-clockwise triangle `p` contains `q`, its edges included.
+fn contains(p: [Point; 3], q: Point) -> bool {
+    (0..3).all(|k| orientation(p[k], p[(k + 1) % 3], q) != Orientation::Clockwise)
+}
+
+/// The bucket indices k with centre k + 0.5 in [lo, hi], clamped to 0..n.
+fn span(lo: f64, hi: f64, n: usize) -> std::ops::Range<usize> {
+    let first = (lo - 0.5).ceil().max(0.0) as usize;
+    let last = ((hi - 0.5).floor() + 1.0).clamp(0.0, n as f64) as usize;
+    first.min(n)..last.max(first.min(n))
+}
+
+/// The twin of every half-edge, found by sorting the directed edges once.
+fn twins(mesh: &MeshResult) -> Vec<u32> {
+    let key = |a: u32, b: u32| (u64::from(a) << 32) | u64::from(b);
+    let mut edges: Vec<(u64, u32)> = Vec::with_capacity(3 * mesh.triangles.len());
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        for k in 0..3 {
+            edges.push((key(tri[k], tri[(k + 1) % 3]), (3 * t + k) as u32));
+        }
+    }
+    edges.sort_unstable();
+    let mut twins = vec![NONE; edges.len()];
+    for &(k, e) in &edges {
+        let (a, b) = ((k >> 32) as u32, k as u32);
+        if let Ok(i) = edges.binary_search_by_key(&key(b, a), |&(k, _)| k) {
+            twins[e as usize] = edges[i].1;
+        }
+    }
+    twins
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::refine::{Criterion, Method, Params, refine};
+    use crate::result::testing::sample;
+    use proptest::prelude::*;
+
+    /// The naive oracle: the first triangle, by index, that contains `p`.
+    fn scan(mesh: &MeshResult, p: Point) -> Option<u32> {
+        (0..mesh.triangles.len() as u32)
+            .find(|&t| contains(mesh.triangles[t as usize].map(|v| point(mesh, v)), p))
+    }
+
+    fn recursive_sample(n: usize) -> MeshResult {
+        let f = |x: f64, y: f64| (12.0 * x).sin() * (9.0 * y).cos();
+        let params =
+            Params::new(n).unwrap().with_method(Method::Recursive).with_criterion(Criterion::Variation);
+        refine(&f, crate::geom::Rect::unit(), &params, &mut ()).unwrap().into()
+    }
+
+    proptest! {
+        #[test]
+        fn located_triangles_contain_the_point_and_agree_with_a_scan_on_inside_and_outside(
+            x in -1.5f64..2.5, y in -0.5f64..1.5,
+        ) {
+            for mesh in [sample(700, Criterion::Error), recursive_sample(700)] {
+                let locator = Locator::new(&mesh);
+                let p = Point::new(x, y);
+                let found = locator.locate(&mesh, p);
+                prop_assert_eq!(found.is_some(), scan(&mesh, p).is_some());
+                if let Some(t) = found {
+                    prop_assert!(contains(mesh.triangles[t as usize].map(|v| point(&mesh, v)), p));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_surrogate_is_exact_at_vertices_and_linear_inside_a_triangle() {
+        let mesh = sample(2000, Criterion::Error);
+        let locator = Locator::new(&mesh);
+        for v in mesh.vertices.iter().step_by(7) {
+            assert_eq!(locator.value(&mesh, v.point()), Some(v.z), "at vertex {v:?}");
+        }
+        let [a, b, c] = mesh.triangles[100].map(|v| mesh.vertices[v as usize]);
+        let centroid = Point::new((a.x + b.x + c.x) / 3.0, (a.y + b.y + c.y) / 3.0);
+        let got = locator.value(&mesh, centroid).unwrap();
+        assert!((got - (a.z + b.z + c.z) / 3.0).abs() < 1e-12, "{got}");
+        assert_eq!(locator.value(&mesh, Point::new(2.5, 0.5)), None);
+        assert_eq!(locator.value(&mesh, Point::new(f64::NAN, 0.5)), None);
+    }
+
+    #[test]
+    fn every_bucket_starts_in_a_triangle_that_holds_its_centre() {
+        let mesh = recursive_sample(3000);
+        let locator = Locator::new(&mesh);
+        for row in 0..locator.rows {
+            for col in 0..locator.cols {
+                let t = locator.buckets[row * locator.cols + col];
+                assert_ne!(t, NONE, "bucket ({col}, {row}) is empty");
+                assert!(contains(
+                    mesh.triangles[t as usize].map(|v| point(&mesh, v)),
+                    locator.centre(col, row)
+                ));
+            }
+        }
+    }
+}
