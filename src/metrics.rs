@@ -39,6 +39,8 @@ pub struct Metrics {
     pub engine_runs: Counter,
     /// Requests answered from the cache.
     pub cache_hits: Counter,
+    /// Requests answered by replaying a larger cached run of the same family.
+    pub prefix_hits: Counter,
     /// Requests that had to compute (or join a computation).
     pub cache_misses: Counter,
     /// Bytes of meshes held in memory.
@@ -60,6 +62,7 @@ impl Default for Metrics {
             jobs_finished: Family::default(),
             engine_runs: Counter::default(),
             cache_hits: Counter::default(),
+            prefix_hits: Counter::default(),
             cache_misses: Counter::default(),
             cache_bytes: Gauge::default(),
             cache_disk_bytes: Gauge::default(),
@@ -72,6 +75,11 @@ impl Default for Metrics {
         registry.register("jobs_finished", "Jobs finished, by final state", m.jobs_finished.clone());
         registry.register("engine_runs", "Refinements started", m.engine_runs.clone());
         registry.register("cache_hits", "Requests answered from the cache", m.cache_hits.clone());
+        registry.register(
+            "prefix_hits",
+            "Requests answered by replaying a larger cached run",
+            m.prefix_hits.clone(),
+        );
         registry.register("cache_misses", "Requests not answered from the cache", m.cache_misses.clone());
         registry.register("cache_bytes", "Bytes of meshes held in memory", m.cache_bytes.clone());
         registry.register(

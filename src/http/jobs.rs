@@ -6,7 +6,9 @@ use super::negotiate::{self, Wanted};
 use super::problem::ApiError;
 use super::sse;
 use crate::api::{JobRequest, JobStatus, Links, with_grid_limit};
-use crate::jobs::{Found, JobError, JobSpec, Outcome, Record, Snapshot, Status, Ticket, Waiter, job_id};
+use crate::jobs::{
+    Found, JobError, JobKeys, JobSpec, Outcome, Record, Snapshot, Status, Ticket, Waiter, job_keys,
+};
 use crate::refine::StopReason;
 use crate::result::MeshResult;
 use axum::extract::{Path, State};
@@ -22,17 +24,17 @@ use tokio::time::Instant;
 const PROGRESS_EVERY: Duration = Duration::from_millis(100);
 
 /// Parses, validates and hashes a body off the async workers: a large grid takes real CPU.
-async fn prepare(state: &AppState, body: Body) -> Result<(String, JobSpec), ApiError> {
+async fn prepare(state: &AppState, body: Body) -> Result<(JobKeys, JobSpec), ApiError> {
     let limits = state.limits;
-    let (id, spec) = tokio::task::spawn_blocking(move || {
+    let (keys, spec) = tokio::task::spawn_blocking(move || {
         let request: JobRequest = with_grid_limit(limits.max_grid_points, || parse_json(&body.0))?;
         let spec = JobSpec::from_request(request, &limits)?;
-        Ok::<_, ApiError>((job_id(&spec), spec))
+        Ok::<_, ApiError>((job_keys(&spec), spec))
     })
     .await
     .map_err(|e| ApiError::Internal(format!("request parsing panicked: {e}")))??;
-    tracing::Span::current().record("job_id", id.as_str());
-    Ok((id, spec))
+    tracing::Span::current().record("job_id", keys.id.as_str());
+    Ok((keys, spec))
 }
 
 fn wants_event_stream(headers: &HeaderMap) -> bool {
@@ -106,11 +108,12 @@ pub async fn meshes_create(
     let stream = wants_event_stream(&headers);
     // A format nobody writes is refused before any work is done.
     let wanted = if stream { None } else { Some(Wanted::from_request(&uri, &headers)?) };
-    let (id, spec) = prepare(&state, body).await?;
-    let ticket = state.jobs.submit(id.clone(), spec, false).await?;
+    let (keys, spec) = prepare(&state, body).await?;
+    let id = keys.id.clone();
+    let ticket = state.jobs.submit(keys, spec, false).await?;
     let Some(wanted) = wanted else {
         return Ok(match ticket {
-            Ticket::Cached(r) => final_stream(&id, &Outcome::Succeeded(r)),
+            Ticket::Cached(r) | Ticket::Prefix(r) => final_stream(&id, &Outcome::Succeeded(r)),
             Ticket::Failed(e) => final_stream(&id, &Outcome::Failed(e)),
             Ticket::Job(waiter) => job_stream(waiter, 0),
         });
@@ -118,6 +121,9 @@ pub async fn meshes_create(
     match ticket {
         Ticket::Cached(r) => {
             negotiate::result_response(&headers, &wanted, &id, r, negotiate::Source::Hit, None).await
+        }
+        Ticket::Prefix(r) => {
+            negotiate::result_response(&headers, &wanted, &id, r, negotiate::Source::Prefix, None).await
         }
         Ticket::Failed(e) => Err(e.into()),
         // The waiter is dropped with this future if the client hangs up, which cancels a job
@@ -135,9 +141,10 @@ pub async fn meshes_create(
 
 /// `POST /v1/jobs`: starts (or finds) a job that runs whether or not anyone waits.
 pub async fn jobs_create(State(state): State<AppState>, body: Body) -> Result<Response, ApiError> {
-    let (id, spec) = prepare(&state, body).await?;
-    let (code, status) = match state.jobs.submit(id.clone(), spec, true).await? {
-        Ticket::Cached(f) => (StatusCode::OK, status_body(&id, &Found::Cached(f))),
+    let (keys, spec) = prepare(&state, body).await?;
+    let id = keys.id.clone();
+    let (code, status) = match state.jobs.submit(keys, spec, true).await? {
+        Ticket::Cached(f) | Ticket::Prefix(f) => (StatusCode::OK, status_body(&id, &Found::Cached(f))),
         Ticket::Failed(e) => {
             let record =
                 Record { status: Status::Failed, progress: None, stats: None, error: Some(e), elapsed: None };

@@ -117,6 +117,8 @@ pub enum Source {
     Miss,
     /// From the cache.
     Hit,
+    /// Replayed from a larger cached run of the same family: the bytes of a fresh run.
+    Prefix,
     /// A run a time limit stopped: not the request's cached answer, so no entity tag.
     Partial,
 }
@@ -156,6 +158,7 @@ pub async fn result_response(
     let cache = match source {
         Source::Miss => "miss",
         Source::Hit => "hit",
+        Source::Prefix => "prefix",
         Source::Partial => "partial",
     };
     h.insert("x-cache", HeaderValue::from_static(cache));

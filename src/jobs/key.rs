@@ -12,8 +12,23 @@ use sha2::{Digest, Sha256};
 /// cache (in memory or on disk) never serves a mesh the current engine would not make.
 pub const ENGINE_VERSION: &str = "meshfit-engine-4";
 
+/// A job's id, and the id of its family: the requests that differ from it only in budget,
+/// tolerance or time limit, whose runs are prefixes of one another.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct JobKeys {
+    /// The job id.
+    pub id: String,
+    /// The family id.
+    pub family: String,
+}
+
 /// The lowercase hex SHA-256 id of `spec`.
 pub fn job_id(spec: &JobSpec) -> String {
+    job_keys(spec).id
+}
+
+/// The id and family id of `spec`, from one pass over its fields (a grid is hashed once).
+pub fn job_keys(spec: &JobSpec) -> JobKeys {
     let mut h = Sha256::new();
     // Each field is (name length, name, value length, value): no two specs share an encoding.
     fn header(h: &mut Sha256, name: &str, len: usize) {
@@ -47,14 +62,16 @@ pub fn job_id(spec: &JobSpec) -> String {
         field(&mut h, name, &v.to_bits().to_le_bytes());
     }
     let p = &spec.params;
-    field(&mut h, "max_vertices", &(p.max_vertices() as u64).to_le_bytes());
-    field(&mut h, "tolerance", &p.tolerance().map_or(Vec::new(), |t| t.to_bits().to_le_bytes().to_vec()));
     field(&mut h, "method", p.method().to_string().as_bytes());
     field(&mut h, "criterion", p.criterion().to_string().as_bytes());
+    let mut family = h.clone();
+    field(&mut family, "family", &[]);
+    field(&mut h, "max_vertices", &(p.max_vertices() as u64).to_le_bytes());
+    field(&mut h, "tolerance", &p.tolerance().map_or(Vec::new(), |t| t.to_bits().to_le_bytes().to_vec()));
     // The limit the client named, not the one in force: server settings never change ids.
     let ms = spec.requested_time_limit.map_or(Vec::new(), |t| (t.as_millis() as u64).to_le_bytes().to_vec());
     field(&mut h, "time_limit_ms", &ms);
-    format!("{:x}", h.finalize())
+    JobKeys { id: format!("{:x}", h.finalize()), family: format!("{:x}", family.finalize()) }
 }
 
 #[cfg(test)]
@@ -75,6 +92,29 @@ mod tests {
     fn spec(body: &str, limits: &Limits) -> JobSpec {
         let request: JobRequest = serde_json::from_str(body).unwrap();
         JobSpec::from_request(request, limits).unwrap()
+    }
+
+    #[test]
+    fn budget_tolerance_and_time_limit_change_the_id_but_not_the_family() {
+        let l = limits(Duration::from_secs(60));
+        let base = job_keys(&spec(r#"{"function": "x*y", "max_vertices": 500}"#, &l));
+        for other in [
+            r#"{"function": "x*y", "max_vertices": 400}"#,
+            r#"{"function": "x*y", "max_vertices": 500, "tolerance": 0.1}"#,
+            r#"{"function": "x*y", "max_vertices": 500, "time_limit_ms": 5}"#,
+        ] {
+            let keys = job_keys(&spec(other, &l));
+            assert_ne!(keys.id, base.id, "{other}");
+            assert_eq!(keys.family, base.family, "{other}");
+        }
+        for other in [
+            r#"{"function": "x*y", "method": "recursive"}"#,
+            r#"{"function": "x*y", "criterion": "variation"}"#,
+            r#"{"function": "y*x"}"#,
+            r#"{"function": "x*y", "domain": {"x": [0, 2], "y": [0, 1]}}"#,
+        ] {
+            assert_ne!(job_keys(&spec(other, &l)).family, base.family, "{other}");
+        }
     }
 
     #[test]
@@ -103,8 +143,8 @@ mod tests {
         let hash = format!("{:x}", Sha256::digest(&body));
         let pinned = (
             "meshfit-engine-4",
-            "55854f41742ce7565ccd204c110696f782e17d9d7258f6941bd79d282ddd45bd",
-            "6ec4b23314a073f72768b3c2b3547f9bd18d09c501bd383bc5fd54661dc48b64",
+            "e421e8578f05a8f75df809d4031d0862cee2a6f36848d26719f11cfee51e4408",
+            "4ed52d6e2b48b4c91ac304266e88adceb74c732e0d000cf1db05ec9c6e350a06",
         );
         assert_eq!((ENGINE_VERSION, id.as_str(), hash.as_str()), pinned);
     }

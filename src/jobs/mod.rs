@@ -11,11 +11,12 @@ mod key;
 mod spec;
 
 pub use cache::{Cache, Hit};
-pub use key::{ENGINE_VERSION, job_id};
+pub use key::{ENGINE_VERSION, JobKeys, job_id, job_keys};
 pub use spec::{DEFAULT_MAX_VERTICES, JobSpec, Limits, SpecError};
 
 use crate::api::ProgressEvent;
 use crate::metrics::{Metrics, StateLabel};
+use crate::refine::trace::{Recorder, replay};
 use crate::refine::{Observer, Progress, RefineError, Stats, StopReason, refine};
 use crate::result::MeshResult;
 use std::collections::{HashMap, VecDeque};
@@ -96,6 +97,8 @@ pub struct Snapshot {
 /// One refinement, shared by everyone waiting on it.
 pub struct Job {
     id: String,
+    /// The id of the requests whose runs are prefixes of this one's (see [`JobKeys`]).
+    family: String,
     /// The latest state wins: a slow watcher skips snapshots and the worker never waits on it
     /// (a watch channel, not a queue).
     state: watch::Sender<Snapshot>,
@@ -223,6 +226,8 @@ impl Record {
 pub enum Ticket {
     /// The result was cached.
     Cached(Arc<MeshResult>),
+    /// The result was replayed from a larger cached run of the same family, without F.
+    Prefix(Arc<MeshResult>),
     /// A job, new or already under way, with this client registered as waiting on it (for a
     /// detached submission, the registration is dropped at once and changes nothing).
     Job(Waiter),
@@ -257,6 +262,9 @@ pub enum Found {
 /// How many finished job records are kept for status queries (results live in the cache).
 const FINISHED_KEPT: usize = 10_000;
 
+/// How many families remember their furthest run.
+const FAMILIES_KEPT: u64 = 100_000;
+
 /// The job registry, its workers and its cache. Cheap to clone.
 #[derive(Clone)]
 pub struct Jobs {
@@ -271,6 +279,9 @@ struct Inner {
     /// A std Mutex: held only for map operations, never across an `.await`.
     table: Mutex<Table>,
     cache: Cache,
+    /// Per family, the cached run that went furthest, and its number of steps: the one that
+    /// answers the most smaller requests.
+    families: moka::sync::Cache<String, (String, usize)>,
     metrics: Arc<Metrics>,
     closed: AtomicBool,
 }
@@ -319,6 +330,7 @@ impl Jobs {
                 waiting: AtomicUsize::new(0),
                 table: Mutex::new(Table::default()),
                 cache,
+                families: moka::sync::Cache::new(FAMILIES_KEPT),
                 metrics,
                 closed: AtomicBool::new(false),
             }),
@@ -350,11 +362,16 @@ impl Jobs {
     ///
     /// # Errors
     /// When the queue is full or the server is shutting down.
-    pub async fn submit(&self, id: String, spec: JobSpec, detached: bool) -> Result<Ticket, SubmitError> {
+    pub async fn submit(&self, keys: JobKeys, spec: JobSpec, detached: bool) -> Result<Ticket, SubmitError> {
         let inner = &self.inner;
+        let JobKeys { id, family } = keys;
         if let Some(finished) = self.cached(&id).await {
             inner.metrics.cache_hits.inc();
             return Ok(Ticket::Cached(finished));
+        }
+        if let Some(result) = self.prefix(&id, &family, &spec).await {
+            inner.metrics.prefix_hits.inc();
+            return Ok(Ticket::Prefix(result));
         }
         let mut table = inner.table.lock().expect("job table poisoned");
         match table.jobs.get(&id) {
@@ -399,6 +416,7 @@ impl Jobs {
         });
         let job = Arc::new(Job {
             id: id.clone(),
+            family,
             state,
             cancel: AtomicBool::new(false),
             cancel_notify: Notify::new(),
@@ -432,6 +450,25 @@ impl Jobs {
             Some(Entry::Live(job)) => Some(self.inner.attach(job, false)),
             _ => None,
         }
+    }
+
+    /// The result of `spec` replayed from the furthest cached run of its family, stored under
+    /// `id`; `None` when there is no such run or the request goes past it.
+    async fn prefix(&self, id: &str, family: &str, spec: &JobSpec) -> Option<Arc<MeshResult>> {
+        let (run, _) = self.inner.families.get(family)?;
+        let source = self.cached(&run).await?;
+        let trace = source.trace.clone()?;
+        let (cache, id) = (self.inner.cache.clone(), id.to_owned());
+        let (max_vertices, tolerance) = (spec.params.max_vertices(), spec.params.tolerance());
+        tokio::task::spawn_blocking(move || {
+            let replayed = replay(&trace, &source.vertices, max_vertices, tolerance)?;
+            let result = Arc::new(MeshResult::from(replayed));
+            cache.insert(&id, result.clone());
+            Some(result)
+        })
+        .await
+        .ok()
+        .flatten()
     }
 
     /// The result a time limit stopped for job `id`, if still held (never a new request's
@@ -487,8 +524,8 @@ async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec) {
             job.state.send_modify(|s| s.status = Status::Running);
             inner.metrics.jobs_running.inc();
             inner.metrics.engine_runs.inc();
-            let (worker_job, cache) = (job.clone(), inner.cache.clone());
-            let outcome = tokio::task::spawn_blocking(move || compute(&worker_job, &spec, &cache))
+            let (worker_job, worker) = (job.clone(), inner.clone());
+            let outcome = tokio::task::spawn_blocking(move || compute(&worker_job, &spec, &worker))
                 .await
                 .unwrap_or_else(|e| {
                     tracing::error!(job = %job.id, error = %e, "refinement panicked");
@@ -549,20 +586,30 @@ impl Observer for JobObserver<'_> {
     }
 }
 
-/// The blocking part: refine and keep the result, with how long the engine ran. A result a
-/// time limit stopped goes apart from the cache's answers: another run would reach another
-/// vertex count.
-fn compute(job: &Job, spec: &JobSpec, cache: &Cache) -> (Outcome, Option<Duration>) {
-    let refinement = match refine(&*spec.source, spec.domain, &spec.params, &mut JobObserver { job }) {
+/// The blocking part: refine, tracing the steps, and keep the result, with how long the
+/// engine ran. A result a time limit stopped goes apart from the cache's answers: another
+/// run would reach another vertex count.
+fn compute(job: &Job, spec: &JobSpec, inner: &Inner) -> (Outcome, Option<Duration>) {
+    let mut observer = JobObserver { job };
+    let mut recorder = Recorder::new(&mut observer, spec.params.method(), spec.params.criterion());
+    let refinement = match refine(&*spec.source, spec.domain, &spec.params, &mut recorder) {
         Ok(r) => r,
         Err(e) => return (Outcome::Failed(JobError::Refine(e)), None),
     };
+    let trace = recorder.finish(refinement.stats.stop);
     let elapsed = Some(refinement.elapsed);
-    let result = Arc::new(MeshResult::from(refinement));
+    let steps = trace.splits.len();
+    let result = Arc::new(MeshResult { trace: Some(Arc::new(trace)), ..MeshResult::from(refinement) });
     match result.stats.stop {
         StopReason::Cancelled => return (Outcome::Cancelled, elapsed),
-        StopReason::TimeLimit => cache.insert_partial(&job.id, result.clone()),
-        _ => cache.insert(&job.id, result.clone()),
+        StopReason::TimeLimit => inner.cache.insert_partial(&job.id, result.clone()),
+        _ => {
+            inner.cache.insert(&job.id, result.clone());
+            let further = inner.families.get(&job.family).is_none_or(|(_, known)| steps >= known);
+            if further {
+                inner.families.insert(job.family.clone(), (job.id.clone(), steps));
+            }
+        }
     }
     (Outcome::Succeeded(result), elapsed)
 }

@@ -53,7 +53,8 @@ impl Estimates {
         slot.fresh.then_some(slot.edges[(f % 3) as usize])
     }
 
-    fn set(&mut self, t: u32, error: f64, edges: [f64; 3]) {
+    fn set<O: Observer>(&mut self, t: u32, error: f64, edges: [f64; 3], observer: &mut O) {
+        observer.estimated(t, error);
         let seq = self.next_seq;
         self.next_seq += 1;
         self.invalidate(t);
@@ -82,8 +83,9 @@ pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
     }
     for t in 0..mesh.num_triangles() as u32 {
         let (error, edges) = triangle_error(mesh, t, sampler, &estimates)?;
-        estimates.set(t, error, edges);
+        estimates.set(t, error, edges, run.observer);
     }
+    run.observer.started(sampler.evaluations);
     let recursive = run.params.method() == Method::Recursive;
     // Triangles a step rewrote, re-estimated after it; reused so steps do not allocate.
     let mut touched: Vec<u32> = Vec::with_capacity(32);
@@ -95,6 +97,7 @@ pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
         let Some(worst) = top else {
             break StopReason::Exhausted;
         };
+        run.observer.checked(worst.error);
         if run.is_tolerance_met(worst.error) {
             break StopReason::Tolerance;
         }
@@ -112,6 +115,7 @@ pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
         let Some(split) = split else {
             // The triangle stays as it is, out of the queue.
             run.observer.retired(mesh.origin(e), mesh.dest(e));
+            run.observer.stepped(None, sampler.evaluations);
             continue;
         };
         touched.extend(split.link().iter().map(|&h| h / 3));
@@ -122,13 +126,14 @@ pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
         }
         for &t in &touched {
             let (error, edges) = triangle_error(mesh, t, sampler, &estimates)?;
-            estimates.set(t, error, edges);
+            estimates.set(t, error, edges, run.observer);
         }
         if !touched.contains(&worst.t) {
             // Rivara bisected a neighbour first: the worst triangle is still there, unchanged.
             estimates.queue.set(worst);
         }
         run.observer.inserted(mesh, split.vertex);
+        run.observer.stepped(Some(e), sampler.evaluations);
     };
     let errors = estimates.slots[..mesh.num_triangles()].iter().map(|s| s.error).collect();
     Ok((stop, errors))

@@ -46,6 +46,7 @@
 mod error;
 mod metrics;
 mod params;
+pub mod trace;
 mod variation;
 mod worst_edge;
 mod worst_triangle;
@@ -110,6 +111,21 @@ pub trait Observer {
 
     /// Vertex `vertex` was inserted and the mesh is consistent again (flips done).
     fn inserted(&mut self, _mesh: &Mesh, _vertex: u32) {}
+
+    /// The loop is about to start, after `evaluations` evaluations of F (the corners, and for
+    /// `error` the first two triangles' samples).
+    fn started(&mut self, _evaluations: u64) {}
+
+    /// The worst criterion value `worst` is about to be compared with the tolerance.
+    fn checked(&mut self, _worst: f64) {}
+
+    /// Criterion `error`: triangle `t` now has the estimate e(T) = `error`.
+    fn estimated(&mut self, _t: u32, _error: f64) {}
+
+    /// A step that passed the tolerance check ended: half-edge `split` was split (its id
+    /// before the split), or with `None` an edge was retired; F has now been evaluated
+    /// `evaluations` times in all.
+    fn stepped(&mut self, _split: Option<u32>, _evaluations: u64) {}
 }
 
 impl Observer for () {}
@@ -326,19 +342,44 @@ impl<O: Observer> Run<'_, O> {
             return Ok(None);
         }
         let z = sampler.eval(m)?;
-        let split = mesh.split(e, Vertex { x: m.x, y: m.y, z });
-        if self.params.method() == Method::SemiRecursive {
-            let stack = &mut self.stack;
-            self.flips += u64::from(if split.on_edge {
-                stack.extend_from_slice(split.link());
-                mesh.legalize(stack, &mut on_flip)
-            } else {
-                stack.extend(split.suspects());
-                mesh.legalize_all(stack, &mut on_flip)
-            });
-        }
+        let (split, flips) = insert(
+            mesh,
+            e,
+            Vertex { x: m.x, y: m.y, z },
+            self.params.method(),
+            &mut self.stack,
+            &mut on_flip,
+        );
+        self.flips += u64::from(flips);
         Ok(Some(split))
     }
+}
+
+/// Splits the edge of half-edge `e` at `v` and, with `semi-recursive`, restores the Delaunay
+/// property by Lawson flips, telling `on_flip` the half-edge of each new diagonal. Returns the
+/// split and the number of flips. The one topology step of every loop: refinement's, and a
+/// replay's of a traced run.
+fn insert(
+    mesh: &mut Mesh,
+    e: u32,
+    v: Vertex,
+    method: Method,
+    stack: &mut Vec<u32>,
+    on_flip: impl FnMut(&Mesh, u32),
+) -> (Split, u32) {
+    let split = mesh.split(e, v);
+    let flips = match method {
+        Method::Recursive => 0,
+        Method::SemiRecursive if split.on_edge => {
+            stack.extend_from_slice(split.link());
+            mesh.legalize(stack, on_flip)
+        }
+        Method::SemiRecursive => {
+            stack.extend(split.suspects());
+            mesh.legalize_all(stack, on_flip)
+        }
+    };
+    (split, flips)
 }
 
 #[cfg(test)]

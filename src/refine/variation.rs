@@ -16,6 +16,7 @@ pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
     for edge in mesh.edges() {
         queue.push(candidate(mesh, edge.a, edge.b), mesh.vertices());
     }
+    run.observer.started(sampler.evaluations);
     loop {
         if let Some(stop) = run.stop_before_step(mesh, || queue.peek().map_or(0.0, |c| c.value)) {
             return Ok(stop);
@@ -28,6 +29,7 @@ pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
             queue.pop(mesh.vertices());
             continue;
         };
+        run.observer.checked(worst.value);
         if run.is_tolerance_met(worst.value) {
             return Ok(StopReason::Tolerance);
         }
@@ -44,6 +46,7 @@ pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
         })?;
         let Some(split) = split else {
             run.observer.retired(worst.a, worst.b);
+            run.observer.stepped(None, sampler.evaluations);
             continue;
         };
         // The other edges this step created end at the new vertex: its halves, the edges to
@@ -52,6 +55,7 @@ pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
             queue.push(candidate(mesh, split.vertex, other), mesh.vertices());
         });
         run.observer.inserted(mesh, split.vertex);
+        run.observer.stepped(Some(e), sampler.evaluations);
     }
 }
 

@@ -5,6 +5,10 @@
 //! magic "MESHFIT\0" · u32 version · u32 flags (bit 0: triangle errors)
 //! u64 vertices · u64 triangles · u32 id length · id · u32 stats length · stats (JSON)
 //! vertices (x, y, z as f64) · triangles (3 × u32) · [triangle errors (f64)]
+//! [trace (flag bit 1): u8 method · u8 criterion · u8 stop · u64 base evaluations ·
+//!  u64 checks · u64 steps · u64 estimates · worst (f64 per check) · split half-edges (u32 per
+//!  step) · evaluations (u64 per step) · estimates (u32 triangle, f64 error) ·
+//!  estimate ends (u32 per step, plus one)]
 //! SHA-256 of all the above
 //! ```
 //! The checksum covers the header, the id and the stats too, so a file renamed to another id
@@ -12,12 +16,16 @@
 
 use super::MeshResult;
 use crate::geom::Vertex;
+use crate::refine::trace::Trace;
+use crate::refine::{Criterion, Method, StopReason};
 use sha2::{Digest, Sha256};
 use std::io::{self, Write};
+use std::sync::Arc;
 
 const MAGIC: &[u8; 8] = b"MESHFIT\0";
 const VERSION: u32 = 2;
 const HAS_ERRORS: u32 = 1;
+const HAS_TRACE: u32 = 2;
 const CHECKSUM_LEN: usize = 32;
 
 /// Why bytes are not the compact form of a result with the expected id.
@@ -70,7 +78,8 @@ impl<W: Write> Write for Hashing<W> {
 pub fn write(result: &MeshResult, id: &str, out: impl Write) -> io::Result<u64> {
     let stats = serde_json::to_vec(&result.stats).map_err(io::Error::other)?;
     let mut w = Hashing { out, hash: Sha256::new(), written: 0 };
-    let flags = if result.triangle_errors.is_some() { HAS_ERRORS } else { 0 };
+    let flags = if result.triangle_errors.is_some() { HAS_ERRORS } else { 0 }
+        | if result.trace.is_some() { HAS_TRACE } else { 0 };
     w.write_all(MAGIC)?;
     w.write_all(&VERSION.to_le_bytes())?;
     w.write_all(&flags.to_le_bytes())?;
@@ -104,12 +113,57 @@ pub fn write(result: &MeshResult, id: &str, out: impl Write) -> io::Result<u64> 
         buf.extend_from_slice(&e.to_le_bytes());
         flush(&mut w, &mut buf, false)?;
     }
+    if let Some(trace) = &result.trace {
+        let codes = [
+            METHODS.iter().position(|&m| m == trace.method),
+            CRITERIA.iter().position(|&c| c == trace.criterion),
+            STOPS.iter().position(|&s| s == trace.stop),
+        ];
+        buf.extend(codes.map(|c| c.expect("every value has a code") as u8));
+        for n in [
+            trace.base_evaluations,
+            trace.worst.len() as u64,
+            trace.splits.len() as u64,
+            trace.estimates.len() as u64,
+        ] {
+            buf.extend_from_slice(&n.to_le_bytes());
+        }
+        for w_ in &trace.worst {
+            buf.extend_from_slice(&w_.to_le_bytes());
+            flush(&mut w, &mut buf, false)?;
+        }
+        for (s, e) in trace.splits.iter().zip(&trace.evaluations) {
+            buf.extend_from_slice(&s.to_le_bytes());
+            buf.extend_from_slice(&e.to_le_bytes());
+            flush(&mut w, &mut buf, false)?;
+        }
+        for (t, e) in &trace.estimates {
+            buf.extend_from_slice(&t.to_le_bytes());
+            buf.extend_from_slice(&e.to_le_bytes());
+            flush(&mut w, &mut buf, false)?;
+        }
+        for end in &trace.estimate_ends {
+            buf.extend_from_slice(&end.to_le_bytes());
+            flush(&mut w, &mut buf, false)?;
+        }
+    }
     flush(&mut w, &mut buf, true)?;
     let sum = w.hash.finalize_reset();
     w.write_all(&sum)?;
     w.flush()?;
     Ok(w.written)
 }
+
+/// The codes of a trace's method, criterion and stop reason: their index here.
+const METHODS: [Method; 2] = [Method::Recursive, Method::SemiRecursive];
+const CRITERIA: [Criterion; 2] = [Criterion::Variation, Criterion::Error];
+const STOPS: [StopReason; 5] = [
+    StopReason::MaxVertices,
+    StopReason::Tolerance,
+    StopReason::TimeLimit,
+    StopReason::Cancelled,
+    StopReason::Exhausted,
+];
 
 /// Reads little-endian fields off the front of a slice.
 struct Reader<'a>(&'a [u8]);
@@ -131,6 +185,54 @@ impl<'a> Reader<'a> {
     fn u64(&mut self) -> Result<u64, CompactError> {
         Ok(u64::from_le_bytes(self.take(8)?.try_into().expect("8 bytes")))
     }
+
+    fn code<T: Copy>(&mut self, values: &[T]) -> Result<T, CompactError> {
+        let code = self.take(1)?[0] as usize;
+        values.get(code).copied().ok_or_else(|| CompactError::Length(format!("unknown code {code}")))
+    }
+
+    /// `n` records of `size` bytes each, after checking they are there.
+    fn records(&mut self, n: u64, size: usize) -> Result<std::slice::ChunksExact<'a, u8>, CompactError> {
+        let bytes = usize::try_from(n).ok().and_then(|n| n.checked_mul(size));
+        let bytes = bytes.ok_or_else(|| CompactError::Length(format!("{n} records do not fit")))?;
+        Ok(self.take(bytes)?.chunks_exact(size))
+    }
+}
+
+fn u32_at(c: &[u8], at: usize) -> u32 {
+    u32::from_le_bytes(c[at..at + 4].try_into().expect("4 bytes"))
+}
+
+fn u64_at(c: &[u8], at: usize) -> u64 {
+    u64::from_le_bytes(c[at..at + 8].try_into().expect("8 bytes"))
+}
+
+fn f64_at(c: &[u8], at: usize) -> f64 {
+    f64::from_bits(u64_at(c, at))
+}
+
+/// The trace section, to the end of `r`.
+fn read_trace(r: &mut Reader<'_>) -> Result<Trace, CompactError> {
+    let (method, criterion, stop) = (r.code(&METHODS)?, r.code(&CRITERIA)?, r.code(&STOPS)?);
+    let (base_evaluations, checks, steps, estimates) = (r.u64()?, r.u64()?, r.u64()?, r.u64()?);
+    let worst = r.records(checks, 8)?.map(|c| f64_at(c, 0)).collect();
+    let (splits, evaluations) = r.records(steps, 12)?.map(|c| (u32_at(c, 0), u64_at(c, 4))).unzip();
+    let estimates = r.records(estimates, 12)?.map(|c| (u32_at(c, 0), f64_at(c, 4))).collect();
+    let estimate_ends = r.records(steps.saturating_add(1), 4)?.map(|c| u32_at(c, 0)).collect();
+    if !r.0.is_empty() {
+        return Err(CompactError::Length(format!("{} bytes after the trace", r.0.len())));
+    }
+    Ok(Trace {
+        method,
+        criterion,
+        stop,
+        base_evaluations,
+        worst,
+        splits,
+        evaluations,
+        estimates,
+        estimate_ends,
+    })
 }
 
 fn f64s(bytes: &[u8]) -> impl Iterator<Item = f64> + '_ {
@@ -164,7 +266,11 @@ pub fn read(bytes: &[u8], id: &str) -> Result<MeshResult, CompactError> {
     let stats = serde_json::from_slice(stats).map_err(|e| CompactError::Stats(e.to_string()))?;
     let has_errors = flags & HAS_ERRORS != 0;
     let expected = u128::from(nv) * 24 + u128::from(nt) * (12 + if has_errors { 8 } else { 0 });
-    if expected != r.0.len() as u128 {
+    let fits = match flags & HAS_TRACE {
+        0 => expected == r.0.len() as u128,
+        _ => expected <= r.0.len() as u128,
+    };
+    if !fits {
         return Err(CompactError::Length(format!(
             "{nv} vertices and {nt} triangles need {expected} bytes, found {}",
             r.0.len()
@@ -185,8 +291,15 @@ pub fn read(bytes: &[u8], id: &str) -> Result<MeshResult, CompactError> {
     if let Some(t) = triangles.iter().position(|t| t.iter().any(|&v| v as usize >= nv)) {
         return Err(CompactError::Triangle(t));
     }
-    let triangle_errors = has_errors.then(|| f64s(r.0).collect());
-    Ok(MeshResult { vertices, triangles, triangle_errors, stats })
+    let triangle_errors = match has_errors {
+        true => Some(r.take(8 * nt)?.chunks_exact(8).map(|c| f64_at(c, 0)).collect()),
+        false => None,
+    };
+    let trace = match flags & HAS_TRACE {
+        0 => None,
+        _ => Some(Arc::new(read_trace(&mut r)?)),
+    };
+    Ok(MeshResult { vertices, triangles, triangle_errors, stats, trace })
 }
 
 #[cfg(test)]
@@ -209,6 +322,15 @@ mod tests {
         for criterion in [Criterion::Error, Criterion::Variation] {
             let result = sample(300, criterion);
             assert_eq!(result.triangle_errors.is_some(), criterion == Criterion::Error);
+            assert_eq!(read(&bytes(&result), ID).unwrap(), result);
+        }
+    }
+
+    #[test]
+    fn a_result_with_its_trace_reads_back_equal() {
+        for criterion in [Criterion::Error, Criterion::Variation] {
+            let result = crate::result::testing::traced(300, criterion);
+            assert!(result.trace.is_some());
             assert_eq!(read(&bytes(&result), ID).unwrap(), result);
         }
     }

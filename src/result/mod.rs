@@ -9,7 +9,9 @@ pub mod compact;
 pub mod locate;
 
 use crate::geom::Vertex;
+use crate::refine::trace::Trace;
 use crate::refine::{Refinement, Stats};
+use std::sync::Arc;
 
 /// A refined mesh: vertices in insertion order (any prefix is an earlier step's vertex set),
 /// counter-clockwise triangles, and what is known per triangle.
@@ -23,6 +25,9 @@ pub struct MeshResult {
     pub triangle_errors: Option<Vec<f64>>,
     /// The run's counters and outcome.
     pub stats: Stats,
+    /// What each step of the run did, so that smaller requests are answered from it (none
+    /// for a result that was itself replayed from another).
+    pub trace: Option<Arc<Trace>>,
 }
 
 impl From<Refinement> for MeshResult {
@@ -32,6 +37,7 @@ impl From<Refinement> for MeshResult {
             triangles: r.mesh.triangles().collect(),
             triangle_errors: r.triangle_errors,
             stats: r.stats,
+            trace: None,
         }
     }
 }
@@ -44,6 +50,7 @@ impl MeshResult {
             + self.vertices.len() * size_of::<Vertex>()
             + self.triangles.len() * size_of::<[u32; 3]>()
             + errors * size_of::<f64>()
+            + self.trace.as_ref().map_or(0, |t| t.num_bytes())
     }
 
     /// The smallest and largest z, or (0, 0) for no vertices.
@@ -69,14 +76,32 @@ pub(crate) mod testing {
 
     use super::MeshResult;
     use crate::geom::Rect;
+    use crate::refine::trace::Recorder;
     use crate::refine::{Criterion, Params, refine};
+    use std::sync::Arc;
+
+    fn bump(x: f64, y: f64) -> f64 {
+        (-4.0 * ((x - 0.3).powi(2) + (y - 0.6).powi(2))).exp() - 0.25
+    }
+
+    fn rect() -> Rect {
+        Rect::new(-1.0, 2.0, 0.0, 1.0).unwrap()
+    }
 
     /// A refined mesh of a bump on [-1, 2] × [0, 1] with `n` vertices, with or without
     /// per-triangle errors.
     pub(crate) fn sample(n: usize, criterion: Criterion) -> MeshResult {
-        let f = |x: f64, y: f64| (-4.0 * ((x - 0.3).powi(2) + (y - 0.6).powi(2))).exp() - 0.25;
-        let rect = Rect::new(-1.0, 2.0, 0.0, 1.0).unwrap();
         let params = Params::new(n).unwrap().with_criterion(criterion);
-        refine(&f, rect, &params, &mut ()).unwrap().into()
+        refine(&bump, rect(), &params, &mut ()).unwrap().into()
+    }
+
+    /// [`sample`] with its trace.
+    pub(crate) fn traced(n: usize, criterion: Criterion) -> MeshResult {
+        let params = Params::new(n).unwrap().with_criterion(criterion);
+        let mut quiet = ();
+        let mut recorder = Recorder::new(&mut quiet, params.method(), criterion);
+        let run = refine(&bump, rect(), &params, &mut recorder).unwrap();
+        let trace = recorder.finish(run.stats.stop);
+        MeshResult { trace: Some(Arc::new(trace)), ..run.into() }
     }
 }

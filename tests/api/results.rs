@@ -125,3 +125,59 @@ async fn evaluate_answers_the_surrogate_at_points_as_json_or_binary() {
     assert_eq!(unknown.status(), 404);
     app.shutdown().await;
 }
+
+#[tokio::test]
+async fn smaller_budgets_and_passed_tolerances_are_replayed_byte_for_byte_without_running_f() {
+    let app = spawn_app().await;
+    let grid: Vec<f64> =
+        (0..40 * 30).map(|k| ((k % 40) as f64 * 0.4).sin() + ((k / 40) as f64 * 0.3).cos()).collect();
+    let sources =
+        [json!({"function": "sin(6*x)*cos(4*y)"}), json!({"grid": {"nx": 40, "ny": 30, "values": grid}})];
+    let mut runs = 0.0;
+    for source in sources {
+        for method in ["semi-recursive", "recursive"] {
+            for criterion in ["error", "variation"] {
+                let with = |extra: Value| {
+                    let mut body = source.clone();
+                    body["method"] = json!(method);
+                    body["criterion"] = json!(criterion);
+                    body.as_object_mut().unwrap().extend(extra.as_object().unwrap().clone());
+                    body
+                };
+                let big: Value =
+                    app.post("/v1/meshes", &with(json!({"max_vertices": 3000}))).await.json().await.unwrap();
+                runs += 1.0;
+                // A tolerance the big run passed, and a smaller budget.
+                let passed = big["stats"]["variation"].as_f64().unwrap() * 4.0;
+                for extra in
+                    [json!({"max_vertices": 1234}), json!({"max_vertices": 3000, "tolerance": passed})]
+                {
+                    let body = with(extra);
+                    let replayed = app.post("/v1/meshes", &body).await;
+                    assert_eq!(replayed.headers()["x-cache"], "prefix", "{body}");
+                    let tag = replayed.headers()["etag"].clone();
+                    let bytes = replayed.bytes().await.unwrap();
+                    // A server that has seen nothing else computes it.
+                    let fresh = spawn_app().await;
+                    let computed = fresh.post("/v1/meshes", &body).await;
+                    assert_eq!(computed.headers()["x-cache"], "miss");
+                    assert_eq!(computed.headers()["etag"], tag);
+                    assert_eq!(computed.bytes().await.unwrap(), bytes, "{body}");
+                    fresh.shutdown().await;
+                    // Stored under its own id: the next time it is a plain hit.
+                    assert_eq!(app.post("/v1/meshes", &body).await.headers()["x-cache"], "hit");
+                }
+                assert_eq!(
+                    app.metric("meshfit_engine_runs_total").await,
+                    runs,
+                    "F ran only for the big runs"
+                );
+                let larger = app.post("/v1/meshes", &with(json!({"max_vertices": 3001}))).await;
+                assert_eq!(larger.headers()["x-cache"], "miss", "a larger budget runs fresh");
+                runs += 1.0;
+            }
+        }
+    }
+    assert_eq!(app.metric("meshfit_prefix_hits_total").await, 16.0);
+    app.shutdown().await;
+}
