@@ -9,6 +9,7 @@
 pub mod colour;
 pub mod json;
 mod picture;
+pub mod png;
 pub mod svg;
 
 use crate::result::MeshResult;
@@ -22,17 +23,20 @@ pub enum Format {
     Json,
     /// The mesh seen from above, coloured by z, as SVG.
     Svg,
+    /// The mesh seen from above, coloured by z, as PNG.
+    Png,
 }
 
 impl Format {
     /// Every format, in the order they are listed to clients.
-    pub const ALL: &[Format] = &[Format::Json, Format::Svg];
+    pub const ALL: &[Format] = &[Format::Json, Format::Svg, Format::Png];
 
     /// The name used by `?format=`, `--format` and as the file extension.
     pub fn name(self) -> &'static str {
         match self {
             Format::Json => "json",
             Format::Svg => "svg",
+            Format::Png => "png",
         }
     }
 
@@ -41,6 +45,7 @@ impl Format {
         match self {
             Format::Json => "application/json",
             Format::Svg => "image/svg+xml",
+            Format::Png => "image/png",
         }
     }
 
@@ -188,6 +193,7 @@ pub fn encode(result: &Arc<MeshResult>, format: Format, options: &Options) -> En
     match format {
         Format::Json => json::encode(result, options),
         Format::Svg => svg::encode(result, options),
+        Format::Png => png::encode(result, options),
     }
 }
 
