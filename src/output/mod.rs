@@ -8,6 +8,9 @@
 
 pub mod colour;
 pub mod json;
+mod picture;
+pub mod png;
+pub mod svg;
 
 use crate::result::MeshResult;
 use std::io::{self, Write};
@@ -18,16 +21,22 @@ use std::sync::Arc;
 pub enum Format {
     /// The mesh document (JSON).
     Json,
+    /// The mesh seen from above, coloured by z, as SVG.
+    Svg,
+    /// The mesh seen from above, coloured by z, as PNG.
+    Png,
 }
 
 impl Format {
     /// Every format, in the order they are listed to clients.
-    pub const ALL: &[Format] = &[Format::Json];
+    pub const ALL: &[Format] = &[Format::Json, Format::Svg, Format::Png];
 
     /// The name used by `?format=`, `--format` and as the file extension.
     pub fn name(self) -> &'static str {
         match self {
             Format::Json => "json",
+            Format::Svg => "svg",
+            Format::Png => "png",
         }
     }
 
@@ -35,6 +44,8 @@ impl Format {
     pub fn media_type(self) -> &'static str {
         match self {
             Format::Json => "application/json",
+            Format::Svg => "image/svg+xml",
+            Format::Png => "image/png",
         }
     }
 
@@ -181,6 +192,8 @@ impl Iterator for Chunks {
 pub fn encode(result: &Arc<MeshResult>, format: Format, options: &Options) -> Encoding {
     match format {
         Format::Json => json::encode(result, options),
+        Format::Svg => svg::encode(result, options),
+        Format::Png => png::encode(result, options),
     }
 }
 

@@ -1,0 +1,322 @@
+//! What the two pictures (svg, png) share: where the plot, the colour bar and the text go,
+//! the text itself, each triangle's colour and which triangle draws which edge.
+//!
+//! ```text
+//!  ┌──────────────────────────────────────┐
+//!  │  ┌────────────────────────┐ ┌─┐ max  │
+//!  │  │ the mesh from above,   │ │ │      │
+//!  │  │ north up, to scale     │ │ │      │
+//!  │  └────────────────────────┘ └─┘ min  │
+//!  │  10000 vertices · 19681 triangles ·  │
+//!  └──────────────────────────────────────┘
+//! ```
+//! Lengths are in picture units: pixels for png, view-box units for svg.
+
+use super::colour;
+use crate::result::MeshResult;
+
+/// A rectangle on the picture, y downward.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Frame {
+    pub left: f64,
+    pub top: f64,
+    pub width: f64,
+    pub height: f64,
+}
+
+impl Frame {
+    pub fn right(&self) -> f64 {
+        self.left + self.width
+    }
+
+    pub fn bottom(&self) -> f64 {
+        self.top + self.height
+    }
+}
+
+/// The size of the monospace text a renderer draws, in picture units.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct TextMetrics {
+    /// Advance of one character.
+    pub char_width: f64,
+    /// Height of a glyph cell.
+    pub char_height: f64,
+    /// Distance between the tops of two lines.
+    pub line_height: f64,
+}
+
+/// Where everything goes on a picture `width` units wide.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Layout {
+    pub width: f64,
+    pub height: f64,
+    /// The domain's rectangle: its aspect ratio is the domain's.
+    pub plot: Frame,
+    /// The colour bar, max at the top.
+    pub bar: Frame,
+    /// The colour bar's labels: text, left and top.
+    pub labels: [(String, f64, f64); 2],
+    /// The stats line, wrapped to the width, and the top of its first line.
+    pub lines: Vec<String>,
+    pub text_top: f64,
+    pub line_height: f64,
+    /// Width of an edge.
+    pub line_width: f64,
+    /// x0, x1, y0, y1 of the domain.
+    bounds: [f64; 4],
+    scale: f64,
+}
+
+/// Picture width on which one unit is a line width; wider pictures scale their lines and text.
+const NOMINAL_WIDTH: f64 = 1024.0;
+
+/// Between these mean triangle sides (in line widths) edges fade in: below the first a dense
+/// mesh would look black, above the second they are fully drawn.
+const FADE_FROM: f64 = 3.0;
+const FADE_TO: f64 = 12.0;
+
+/// Opacity of fully drawn edges: light enough that a triangle's colour stays readable.
+const EDGE_OPACITY: f64 = 0.45;
+
+/// Colours of the background and of text and frames.
+pub(crate) const BACKGROUND: [u8; 3] = [255, 255, 255];
+pub(crate) const INK: [u8; 3] = [34, 34, 34];
+
+impl Layout {
+    /// The layout of `result` on a picture `width` units wide with text of `text` size.
+    pub fn new(result: &MeshResult, width: f64, text: TextMetrics) -> Self {
+        let mut bounds = result.bounds();
+        // A refined mesh always spans a rectangle; this keeps an empty one drawable.
+        if !(bounds[1] > bounds[0] && bounds[3] > bounds[2]) {
+            bounds = [0.0, 1.0, 0.0, 1.0];
+        }
+        let (dx, dy) = (bounds[1] - bounds[0], bounds[3] - bounds[2]);
+        let (lo, hi) = result.z_range();
+        let labels = [short(hi), short(lo)];
+        let label_chars = labels.iter().map(|l| l.chars().count()).max().unwrap_or(0) as f64;
+
+        // Sizes are given for a 1024-unit picture and scale with it.
+        let unit = width / NOMINAL_WIDTH;
+        let margin = (24.0 * unit).round().max(2.0);
+        let gap = (20.0 * unit).round().max(2.0);
+        let bar_width = (24.0 * unit).round().max(3.0);
+        let label_gap = (8.0 * unit).round().max(1.0);
+        let label_width = label_chars * text.char_width;
+        let beside = gap + bar_width + label_gap + label_width;
+        let box_width = (width - 2.0 * margin - beside).max(width / 4.0);
+        // A tall domain fits a square box rather than making the picture taller than wide.
+        let scale = (box_width / dx).min(box_width / dy);
+        let (plot_width, plot_height) = (dx * scale, dy * scale);
+        // Centred as a group, so a narrow plot does not leave the bar at the far left.
+        let left = ((width - plot_width - beside) / 2.0).round().max(margin);
+        let plot = Frame { left, top: margin, width: plot_width, height: plot_height };
+        // A flat plot still gets a bar tall enough for its two labels.
+        let bar_height = plot_height.max(3.0 * text.line_height).round();
+        let bar =
+            Frame { left: (plot.right() + gap).round(), top: margin, width: bar_width, height: bar_height };
+        let label_left = bar.right() + label_gap;
+        let [max, min] = labels;
+        let labels = [(max, label_left, bar.top), (min, label_left, bar.bottom() - text.char_height)];
+
+        let per_line = ((width - 2.0 * margin) / text.char_width).floor().max(1.0) as usize;
+        let lines = wrap(&stats_segments(result), per_line);
+        let text_top = (bar.bottom() + 0.75 * margin).round();
+        let height = (text_top + lines.len() as f64 * text.line_height + 0.75 * margin).ceil();
+        Self {
+            width,
+            height,
+            plot,
+            bar,
+            labels,
+            lines,
+            text_top,
+            line_height: text.line_height,
+            line_width: unit.max(1.0),
+            bounds,
+            scale,
+        }
+    }
+
+    /// The picture point of the domain point (x, y), north up.
+    pub fn to_picture(&self, x: f64, y: f64) -> (f64, f64) {
+        let [x0, _, _, y1] = self.bounds;
+        (self.plot.left + (x - x0) * self.scale, self.plot.top + (y1 - y) * self.scale)
+    }
+
+    /// How opaque edges are drawn, given the mean triangle's size: 0 when they would crowd.
+    pub fn edge_opacity(&self, triangles: usize) -> f64 {
+        if triangles == 0 {
+            return 0.0;
+        }
+        let area = self.plot.width * self.plot.height / triangles as f64;
+        // The side of an equilateral triangle of the mean area, in line widths.
+        let side = (area * 4.0 / 3f64.sqrt()).sqrt() / self.line_width;
+        EDGE_OPACITY * ((side - FADE_FROM) / (FADE_TO - FADE_FROM)).clamp(0.0, 1.0)
+    }
+}
+
+/// The colour of triangle `t`: its mean z on the scale of the result's z range.
+pub(crate) fn triangle_colour(result: &MeshResult, t: usize, (lo, hi): (f64, f64)) -> [u8; 3] {
+    let z = result.triangles[t].iter().map(|&v| result.vertices[v as usize].z).sum::<f64>() / 3.0;
+    colour::of(z, lo, hi)
+}
+
+/// The edges triangle `t` draws, so that each edge of the mesh is drawn once: an interior
+/// edge by the triangle that has it from the lower vertex id to the higher (its neighbour has
+/// it the other way), a boundary edge by its only triangle. `bounds` is `result.bounds()`.
+pub(crate) fn owned_edges(
+    result: &MeshResult,
+    bounds: [f64; 4],
+    t: usize,
+) -> impl Iterator<Item = (u32, u32)> + '_ {
+    let [a, b, c] = result.triangles[t];
+    [(a, b), (b, c), (c, a)].into_iter().filter(move |&(p, q)| p < q || on_one_side(result, bounds, p, q))
+}
+
+/// Whether p and q lie on the same side of the rectangle, so the edge pq is on the boundary.
+/// Exact: a midpoint of two points on a side has that side's coordinate bit for bit.
+fn on_one_side(result: &MeshResult, [x0, x1, y0, y1]: [f64; 4], p: u32, q: u32) -> bool {
+    let (p, q) = (result.vertices[p as usize], result.vertices[q as usize]);
+    (p.x == q.x && (p.x == x0 || p.x == x1)) || (p.y == q.y && (p.y == y0 || p.y == y1))
+}
+
+/// The stats line in pieces that a wrapped line keeps whole.
+pub(crate) fn stats_segments(result: &MeshResult) -> Vec<String> {
+    let s = &result.stats;
+    let mut segments = vec![
+        format!("{} vertices", s.vertices),
+        format!("{} triangles", s.triangles),
+        format!("V_n {}", short(s.variation)),
+    ];
+    if let Some(e) = s.max_triangle_error {
+        segments.push(format!("max e(T) {}", short(e)));
+    }
+    let stop = serde_json::to_value(s.stop).ok().and_then(|v| v.as_str().map(str::to_owned));
+    segments.push(format!("stop {}", stop.unwrap_or_default()));
+    segments
+}
+
+/// Joins `segments` with " · " into lines of at most `per_line` characters where it can (a
+/// segment longer than a line gets a line of its own).
+fn wrap(segments: &[String], per_line: usize) -> Vec<String> {
+    const SEPARATOR: &str = " · ";
+    let mut lines: Vec<String> = Vec::new();
+    for segment in segments {
+        match lines.last_mut() {
+            Some(line) if line.chars().count() + 3 + segment.chars().count() <= per_line => {
+                line.push_str(SEPARATOR);
+                line.push_str(segment);
+            }
+            _ => lines.push(segment.clone()),
+        }
+    }
+    lines
+}
+
+/// `v` with three significant digits, in plain notation from 0.001 to 99999, else as `2.47e-5`.
+pub(crate) fn short(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{}", if v == 0.0 { 0.0 } else { v });
+    }
+    let a = v.abs();
+    if (1e-3..1e5).contains(&a) {
+        let decimals = (2 - a.log10().floor() as i32).max(0) as usize;
+        let text = format!("{v:.decimals$}");
+        match text.contains('.') {
+            true => text.trim_end_matches('0').trim_end_matches('.').to_owned(),
+            false => text,
+        }
+    } else {
+        let text = format!("{v:.2e}");
+        let (mantissa, exponent) = text.split_once('e').expect("LowerExp writes an exponent");
+        format!("{}e{exponent}", mantissa.trim_end_matches('0').trim_end_matches('.'))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::refine::Criterion;
+    use crate::result::testing::sample;
+
+    const TEXT: TextMetrics = TextMetrics { char_width: 10.0, char_height: 20.0, line_height: 24.0 };
+
+    #[test]
+    fn numbers_keep_three_significant_digits() {
+        let cases = [
+            (0.0625, "0.0625"),
+            (2.4731e-5, "2.47e-5"),
+            (1.0, "1"),
+            (-0.25, "-0.25"),
+            (123.456, "123"),
+            (0.999_999, "1"),
+            (2.5e7, "2.5e7"),
+            (0.0, "0"),
+            (-0.0, "0"),
+        ];
+        for (v, text) in cases {
+            assert_eq!(short(v), text, "{v}");
+        }
+    }
+
+    #[test]
+    fn the_plot_keeps_the_domains_aspect_ratio_and_north_is_up() {
+        let result = sample(50, Criterion::Variation);
+        let layout = Layout::new(&result, 1024.0, TEXT);
+        let [x0, x1, y0, y1] = result.bounds();
+        let aspect = layout.plot.width / layout.plot.height;
+        assert!((aspect - (x1 - x0) / (y1 - y0)).abs() < 1e-9, "{aspect}");
+        assert_eq!(layout.to_picture(x0, y1), (layout.plot.left, layout.plot.top));
+        let (right, bottom) = layout.to_picture(x1, y0);
+        assert!((right - layout.plot.right()).abs() < 1e-9 && (bottom - layout.plot.bottom()).abs() < 1e-9);
+        assert!(layout.bar.left > layout.plot.right() && layout.labels[0].1 + 40.0 < layout.width);
+        assert!(layout.text_top > layout.plot.bottom() && layout.text_top + 24.0 < layout.height);
+    }
+
+    #[test]
+    fn a_tall_domain_fits_a_square_box() {
+        let mut result = sample(4, Criterion::Variation);
+        result.vertices.iter_mut().for_each(|v| v.y *= 100.0);
+        let layout = Layout::new(&result, 1024.0, TEXT);
+        assert!(layout.plot.height <= 1024.0 && layout.height < 1200.0, "{layout:?}");
+    }
+
+    #[test]
+    fn a_long_stats_line_wraps_between_segments() {
+        let segments: Vec<String> =
+            ["10000 vertices", "19681 triangles", "V_n 0.0625"].map(String::from).into();
+        assert_eq!(wrap(&segments, 80), ["10000 vertices · 19681 triangles · V_n 0.0625"]);
+        assert_eq!(wrap(&segments, 34), ["10000 vertices · 19681 triangles", "V_n 0.0625"]);
+        assert_eq!(wrap(&segments, 5), ["10000 vertices", "19681 triangles", "V_n 0.0625"]);
+    }
+
+    #[test]
+    fn edges_fade_out_as_triangles_shrink_to_a_few_pixels() {
+        let result = sample(50, Criterion::Variation);
+        let layout = Layout::new(&result, 1024.0, TEXT);
+        assert_eq!(layout.edge_opacity(100), EDGE_OPACITY);
+        assert_eq!(layout.edge_opacity(1_000_000), 0.0);
+        let between = layout.edge_opacity(20_000);
+        assert!(0.0 < between && between < EDGE_OPACITY, "{between}");
+    }
+
+    #[test]
+    fn every_edge_of_the_mesh_is_owned_by_exactly_one_triangle() {
+        let result = sample(300, Criterion::Error);
+        let bounds = result.bounds();
+        let mut owned: Vec<(u32, u32)> = (0..result.triangles.len())
+            .flat_map(|t| owned_edges(&result, bounds, t))
+            .map(|(p, q)| (p.min(q), p.max(q)))
+            .collect();
+        let mut all: Vec<(u32, u32)> = result
+            .triangles
+            .iter()
+            .flat_map(|&[a, b, c]| [(a, b), (b, c), (c, a)])
+            .map(|(p, q)| (p.min(q), p.max(q)))
+            .collect();
+        owned.sort_unstable();
+        all.sort_unstable();
+        all.dedup();
+        assert_eq!(owned, all);
+    }
+}
