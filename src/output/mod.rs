@@ -8,6 +8,7 @@
 
 pub mod colour;
 pub mod json;
+mod obj;
 
 use crate::result::MeshResult;
 use std::io::{self, Write};
@@ -18,16 +19,19 @@ use std::sync::Arc;
 pub enum Format {
     /// The mesh document (JSON).
     Json,
+    /// Wavefront OBJ: text positions and 1-based faces, for any modeller.
+    Obj,
 }
 
 impl Format {
     /// Every format, in the order they are listed to clients.
-    pub const ALL: &[Format] = &[Format::Json];
+    pub const ALL: &[Format] = &[Format::Json, Format::Obj];
 
     /// The name used by `?format=`, `--format` and as the file extension.
     pub fn name(self) -> &'static str {
         match self {
             Format::Json => "json",
+            Format::Obj => "obj",
         }
     }
 
@@ -35,6 +39,7 @@ impl Format {
     pub fn media_type(self) -> &'static str {
         match self {
             Format::Json => "application/json",
+            Format::Obj => "model/obj",
         }
     }
 
@@ -181,7 +186,14 @@ impl Iterator for Chunks {
 pub fn encode(result: &Arc<MeshResult>, format: Format, options: &Options) -> Encoding {
     match format {
         Format::Json => json::encode(result, options),
+        Format::Obj => obj::encode(result, options),
     }
+}
+
+/// Appends `x` as the shortest text that reads back as the same f64 (`0.1`, `1e-7`, `-0.0`).
+fn push_f64(out: &mut Vec<u8>, x: f64) {
+    // ryu rather than `{}`: `{}` writes 1e-300 as 300 digits, and ryu is faster.
+    out.extend_from_slice(ryu::Buffer::new().format(x).as_bytes());
 }
 
 #[cfg(test)]
@@ -207,6 +219,46 @@ mod tests {
         // Every chunk but the last is full (a row may pass the mark by its own length).
         for c in &chunks[..chunks.len() - 1] {
             assert!(c.len() >= CHUNK_BYTES && c.len() < 4 * CHUNK_BYTES, "{}", c.len());
+        }
+    }
+
+    /// The bytes of `encoding` made without [`Chunks`]: every row on its own, last to first,
+    /// then joined in order. A row that leaned on state left by the row before would differ.
+    fn rows_one_by_one_backwards(encoding: Encoding) -> Vec<u8> {
+        let mut out = Vec::new();
+        for part in encoding.parts {
+            match part {
+                Part::Bytes(bytes) => out.extend(bytes),
+                Part::Rows { count, write } => {
+                    let mut rows: Vec<Vec<u8>> = (0..count)
+                        .rev()
+                        .map(|i| {
+                            let mut row = Vec::new();
+                            write(i, &mut row);
+                            row
+                        })
+                        .collect();
+                    rows.reverse();
+                    out.extend(rows.concat());
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn every_format_streams_the_bytes_it_would_write_whole() {
+        use crate::refine::Criterion;
+        use crate::result::testing::sample;
+        let result = Arc::new(sample(20_000, Criterion::Error));
+        let options = Options { id: Some("abc".into()), z_scale: 2.5, ..Options::default() };
+        for &format in Format::ALL {
+            let chunks: Vec<Vec<u8>> = encode(&result, format, &options).into_chunks().collect();
+            assert!(chunks.len() > 2, "{format}: {} chunks", chunks.len());
+            assert!(chunks.iter().all(|c| c.len() < 2 * CHUNK_BYTES), "{format}");
+            let streamed = chunks.concat();
+            assert!(streamed == encode(&result, format, &options).to_vec(), "{format}");
+            assert!(streamed == rows_one_by_one_backwards(encode(&result, format, &options)), "{format}");
         }
     }
 
