@@ -9,6 +9,7 @@
 pub mod colour;
 pub mod json;
 mod obj;
+mod ply;
 
 use crate::result::MeshResult;
 use std::io::{self, Write};
@@ -21,17 +22,20 @@ pub enum Format {
     Json,
     /// Wavefront OBJ: text positions and 1-based faces, for any modeller.
     Obj,
+    /// Binary little-endian PLY with f64 positions and, when known, each triangle's error.
+    Ply,
 }
 
 impl Format {
     /// Every format, in the order they are listed to clients.
-    pub const ALL: &[Format] = &[Format::Json, Format::Obj];
+    pub const ALL: &[Format] = &[Format::Json, Format::Obj, Format::Ply];
 
     /// The name used by `?format=`, `--format` and as the file extension.
     pub fn name(self) -> &'static str {
         match self {
             Format::Json => "json",
             Format::Obj => "obj",
+            Format::Ply => "ply",
         }
     }
 
@@ -40,6 +44,7 @@ impl Format {
         match self {
             Format::Json => "application/json",
             Format::Obj => "model/obj",
+            Format::Ply => "application/x-ply",
         }
     }
 
@@ -187,6 +192,7 @@ pub fn encode(result: &Arc<MeshResult>, format: Format, options: &Options) -> En
     match format {
         Format::Json => json::encode(result, options),
         Format::Obj => obj::encode(result, options),
+        Format::Ply => ply::encode(result, options),
     }
 }
 
