@@ -10,6 +10,7 @@ pub mod colour;
 pub mod json;
 mod obj;
 mod ply;
+mod stl;
 
 use crate::result::MeshResult;
 use std::io::{self, Write};
@@ -24,11 +25,13 @@ pub enum Format {
     Obj,
     /// Binary little-endian PLY with f64 positions and, when known, each triangle's error.
     Ply,
+    /// Binary STL: f32 facets with normals, for slicers and CAD.
+    Stl,
 }
 
 impl Format {
     /// Every format, in the order they are listed to clients.
-    pub const ALL: &[Format] = &[Format::Json, Format::Obj, Format::Ply];
+    pub const ALL: &[Format] = &[Format::Json, Format::Obj, Format::Ply, Format::Stl];
 
     /// The name used by `?format=`, `--format` and as the file extension.
     pub fn name(self) -> &'static str {
@@ -36,6 +39,7 @@ impl Format {
             Format::Json => "json",
             Format::Obj => "obj",
             Format::Ply => "ply",
+            Format::Stl => "stl",
         }
     }
 
@@ -45,6 +49,7 @@ impl Format {
             Format::Json => "application/json",
             Format::Obj => "model/obj",
             Format::Ply => "application/x-ply",
+            Format::Stl => "model/stl",
         }
     }
 
@@ -193,6 +198,7 @@ pub fn encode(result: &Arc<MeshResult>, format: Format, options: &Options) -> En
         Format::Json => json::encode(result, options),
         Format::Obj => obj::encode(result, options),
         Format::Ply => ply::encode(result, options),
+        Format::Stl => stl::encode(result, options),
     }
 }
 
