@@ -8,6 +8,7 @@
 
 pub mod colour;
 pub mod json;
+mod msh;
 mod obj;
 mod ply;
 mod stl;
@@ -27,11 +28,13 @@ pub enum Format {
     Ply,
     /// Binary STL: f32 facets with normals, for slicers and CAD.
     Stl,
+    /// Gmsh 4.1 ASCII with z and the triangle errors as views, for Gmsh and FEM tools.
+    Msh,
 }
 
 impl Format {
     /// Every format, in the order they are listed to clients.
-    pub const ALL: &[Format] = &[Format::Json, Format::Obj, Format::Ply, Format::Stl];
+    pub const ALL: &[Format] = &[Format::Json, Format::Obj, Format::Ply, Format::Stl, Format::Msh];
 
     /// The name used by `?format=`, `--format` and as the file extension.
     pub fn name(self) -> &'static str {
@@ -40,6 +43,7 @@ impl Format {
             Format::Obj => "obj",
             Format::Ply => "ply",
             Format::Stl => "stl",
+            Format::Msh => "msh",
         }
     }
 
@@ -50,6 +54,7 @@ impl Format {
             Format::Obj => "model/obj",
             Format::Ply => "application/x-ply",
             Format::Stl => "model/stl",
+            Format::Msh => "text/x-gmsh",
         }
     }
 
@@ -199,6 +204,7 @@ pub fn encode(result: &Arc<MeshResult>, format: Format, options: &Options) -> En
         Format::Obj => obj::encode(result, options),
         Format::Ply => ply::encode(result, options),
         Format::Stl => stl::encode(result, options),
+        Format::Msh => msh::encode(result, options),
     }
 }
 
