@@ -12,6 +12,7 @@ mod msh;
 mod obj;
 mod ply;
 mod stl;
+mod vtu;
 
 use crate::result::MeshResult;
 use std::io::{self, Write};
@@ -28,13 +29,16 @@ pub enum Format {
     Ply,
     /// Binary STL: f32 facets with normals, for slicers and CAD.
     Stl,
+    /// VTK XML unstructured grid with z and the triangle errors as data, for ParaView.
+    Vtu,
     /// Gmsh 4.1 ASCII with z and the triangle errors as views, for Gmsh and FEM tools.
     Msh,
 }
 
 impl Format {
     /// Every format, in the order they are listed to clients.
-    pub const ALL: &[Format] = &[Format::Json, Format::Obj, Format::Ply, Format::Stl, Format::Msh];
+    pub const ALL: &[Format] =
+        &[Format::Json, Format::Obj, Format::Ply, Format::Stl, Format::Msh, Format::Vtu];
 
     /// The name used by `?format=`, `--format` and as the file extension.
     pub fn name(self) -> &'static str {
@@ -43,6 +47,7 @@ impl Format {
             Format::Obj => "obj",
             Format::Ply => "ply",
             Format::Stl => "stl",
+            Format::Vtu => "vtu",
             Format::Msh => "msh",
         }
     }
@@ -54,6 +59,7 @@ impl Format {
             Format::Obj => "model/obj",
             Format::Ply => "application/x-ply",
             Format::Stl => "model/stl",
+            Format::Vtu => "application/vnd.vtk.vtu+xml",
             Format::Msh => "text/x-gmsh",
         }
     }
@@ -204,6 +210,7 @@ pub fn encode(result: &Arc<MeshResult>, format: Format, options: &Options) -> En
         Format::Obj => obj::encode(result, options),
         Format::Ply => ply::encode(result, options),
         Format::Stl => stl::encode(result, options),
+        Format::Vtu => vtu::encode(result, options),
         Format::Msh => msh::encode(result, options),
     }
 }
