@@ -7,6 +7,7 @@
 //! memory beyond the shared result, however slowly it reads.
 
 pub mod colour;
+mod glb;
 pub mod json;
 mod msh;
 mod obj;
@@ -33,12 +34,14 @@ pub enum Format {
     Vtu,
     /// Gmsh 4.1 ASCII with z and the triangle errors as views, for Gmsh and FEM tools.
     Msh,
+    /// Binary glTF 2.0, coloured by z, for web viewers (`z_scale` applies).
+    Glb,
 }
 
 impl Format {
     /// Every format, in the order they are listed to clients.
     pub const ALL: &[Format] =
-        &[Format::Json, Format::Obj, Format::Ply, Format::Stl, Format::Msh, Format::Vtu];
+        &[Format::Json, Format::Obj, Format::Ply, Format::Stl, Format::Vtu, Format::Msh, Format::Glb];
 
     /// The name used by `?format=`, `--format` and as the file extension.
     pub fn name(self) -> &'static str {
@@ -49,6 +52,7 @@ impl Format {
             Format::Stl => "stl",
             Format::Vtu => "vtu",
             Format::Msh => "msh",
+            Format::Glb => "glb",
         }
     }
 
@@ -61,6 +65,7 @@ impl Format {
             Format::Stl => "model/stl",
             Format::Vtu => "application/vnd.vtk.vtu+xml",
             Format::Msh => "text/x-gmsh",
+            Format::Glb => "model/gltf-binary",
         }
     }
 
@@ -212,6 +217,7 @@ pub fn encode(result: &Arc<MeshResult>, format: Format, options: &Options) -> En
         Format::Stl => stl::encode(result, options),
         Format::Vtu => vtu::encode(result, options),
         Format::Msh => msh::encode(result, options),
+        Format::Glb => glb::encode(result, options),
     }
 }
 
