@@ -7,10 +7,16 @@
 //! memory beyond the shared result, however slowly it reads.
 
 pub mod colour;
+mod glb;
 pub mod json;
+mod msh;
+mod obj;
 mod picture;
+mod ply;
 pub mod png;
+mod stl;
 pub mod svg;
+mod vtu;
 
 use crate::result::MeshResult;
 use std::io::{self, Write};
@@ -21,6 +27,18 @@ use std::sync::Arc;
 pub enum Format {
     /// The mesh document (JSON).
     Json,
+    /// Wavefront OBJ: text positions and 1-based faces, for any modeller.
+    Obj,
+    /// Binary little-endian PLY with f64 positions and, when known, each triangle's error.
+    Ply,
+    /// Binary STL: f32 facets with normals, for slicers and CAD.
+    Stl,
+    /// VTK XML unstructured grid with z and the triangle errors as data, for ParaView.
+    Vtu,
+    /// Gmsh 4.1 ASCII with z and the triangle errors as views, for Gmsh and FEM tools.
+    Msh,
+    /// Binary glTF 2.0, coloured by z, for web viewers (`z_scale` applies).
+    Glb,
     /// The mesh seen from above, coloured by z, as SVG.
     Svg,
     /// The mesh seen from above, coloured by z, as PNG.
@@ -29,12 +47,28 @@ pub enum Format {
 
 impl Format {
     /// Every format, in the order they are listed to clients.
-    pub const ALL: &[Format] = &[Format::Json, Format::Svg, Format::Png];
+    pub const ALL: &[Format] = &[
+        Format::Json,
+        Format::Obj,
+        Format::Ply,
+        Format::Stl,
+        Format::Vtu,
+        Format::Msh,
+        Format::Glb,
+        Format::Svg,
+        Format::Png,
+    ];
 
     /// The name used by `?format=`, `--format` and as the file extension.
     pub fn name(self) -> &'static str {
         match self {
             Format::Json => "json",
+            Format::Obj => "obj",
+            Format::Ply => "ply",
+            Format::Stl => "stl",
+            Format::Vtu => "vtu",
+            Format::Msh => "msh",
+            Format::Glb => "glb",
             Format::Svg => "svg",
             Format::Png => "png",
         }
@@ -44,6 +78,12 @@ impl Format {
     pub fn media_type(self) -> &'static str {
         match self {
             Format::Json => "application/json",
+            Format::Obj => "model/obj",
+            Format::Ply => "application/x-ply",
+            Format::Stl => "model/stl",
+            Format::Vtu => "application/vnd.vtk.vtu+xml",
+            Format::Msh => "text/x-gmsh",
+            Format::Glb => "model/gltf-binary",
             Format::Svg => "image/svg+xml",
             Format::Png => "image/png",
         }
@@ -192,9 +232,21 @@ impl Iterator for Chunks {
 pub fn encode(result: &Arc<MeshResult>, format: Format, options: &Options) -> Encoding {
     match format {
         Format::Json => json::encode(result, options),
+        Format::Obj => obj::encode(result, options),
+        Format::Ply => ply::encode(result, options),
+        Format::Stl => stl::encode(result, options),
+        Format::Vtu => vtu::encode(result, options),
+        Format::Msh => msh::encode(result, options),
+        Format::Glb => glb::encode(result, options),
         Format::Svg => svg::encode(result, options),
         Format::Png => png::encode(result, options),
     }
+}
+
+/// Appends `x` as the shortest text that reads back as the same f64 (`0.1`, `1e-7`, `-0.0`).
+fn push_f64(out: &mut Vec<u8>, x: f64) {
+    // ryu rather than `{}`: `{}` writes 1e-300 as 300 digits, and ryu is faster.
+    out.extend_from_slice(ryu::Buffer::new().format(x).as_bytes());
 }
 
 #[cfg(test)]
@@ -220,6 +272,49 @@ mod tests {
         // Every chunk but the last is full (a row may pass the mark by its own length).
         for c in &chunks[..chunks.len() - 1] {
             assert!(c.len() >= CHUNK_BYTES && c.len() < 4 * CHUNK_BYTES, "{}", c.len());
+        }
+    }
+
+    /// The bytes of `encoding` made without [`Chunks`]: every row on its own, last to first,
+    /// then joined in order. A row that leaned on state left by the row before would differ.
+    fn rows_one_by_one_backwards(encoding: Encoding) -> Vec<u8> {
+        let mut out = Vec::new();
+        for part in encoding.parts {
+            match part {
+                Part::Bytes(bytes) => out.extend(bytes),
+                Part::Rows { count, write } => {
+                    let mut rows: Vec<Vec<u8>> = (0..count)
+                        .rev()
+                        .map(|i| {
+                            let mut row = Vec::new();
+                            write(i, &mut row);
+                            row
+                        })
+                        .collect();
+                    rows.reverse();
+                    out.extend(rows.concat());
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn every_format_streams_the_bytes_it_would_write_whole() {
+        use crate::refine::Criterion;
+        use crate::result::testing::sample;
+        let result = Arc::new(sample(20_000, Criterion::Error));
+        let options = Options { id: Some("abc".into()), z_scale: 2.5, ..Options::default() };
+        for &format in Format::ALL {
+            let chunks: Vec<Vec<u8>> = encode(&result, format, &options).into_chunks().collect();
+            // A png is drawn whole: one part, handed on as it is.
+            if format != Format::Png {
+                assert!(chunks.len() > 2, "{format}: {} chunks", chunks.len());
+                assert!(chunks.iter().all(|c| c.len() < 2 * CHUNK_BYTES), "{format}");
+            }
+            let streamed = chunks.concat();
+            assert!(streamed == encode(&result, format, &options).to_vec(), "{format}");
+            assert!(streamed == rows_one_by_one_backwards(encode(&result, format, &options)), "{format}");
         }
     }
 
