@@ -47,42 +47,23 @@ fn wants_event_stream(headers: &HeaderMap) -> bool {
 
 /// Where a job is now.
 fn status_of(found: &Found) -> Status {
-    match found {
-        Found::Job(job) => job.snapshot().status,
-        Found::Done(r) => r.status,
-        Found::Cached(_) => Status::Succeeded,
-    }
+    found.record().status
 }
 
-/// The status document of a job as it is now.
+/// The status document of a job as it is now: the one mapping of [`Record`] to the wire.
 fn status_body(id: &str, found: &Found) -> JobStatus {
-    let (status, progress, stats, problem, elapsed) = match found {
-        Found::Job(job) => {
-            let s = job.snapshot();
-            let (stats, problem) = match &s.outcome {
-                Some(Outcome::Succeeded(f)) => (Some(f.stats.clone()), None),
-                Some(Outcome::Failed(e)) => (None, Some(ApiError::from(e.clone()).to_json())),
-                Some(Outcome::Cancelled) => (None, Some(ApiError::Cancelled.to_json())),
-                None => (None, None),
-            };
-            (s.status, s.progress, stats, problem, s.elapsed)
-        }
-        Found::Done(r) => {
-            let problem = match (&r.error, r.status) {
-                (Some(e), _) => Some(ApiError::from(e.clone()).to_json()),
-                (None, Status::Cancelled) => Some(ApiError::Cancelled.to_json()),
-                _ => None,
-            };
-            (r.status, r.progress, r.stats.clone(), problem, r.elapsed)
-        }
-        Found::Cached(f) => (Status::Succeeded, None, Some(f.stats.clone()), None, None),
+    let r = found.record();
+    let problem = match (&r.error, r.status) {
+        (Some(e), _) => Some(ApiError::from(e.clone()).to_json()),
+        (None, Status::Cancelled) => Some(ApiError::Cancelled.to_json()),
+        _ => None,
     };
     JobStatus {
         id: id.to_owned(),
-        status: status.as_str(),
-        progress,
-        stats,
-        elapsed_ms: elapsed.map(|d| d.as_secs_f64() * 1e3),
+        status: r.status.as_str(),
+        progress: r.progress,
+        stats: r.stats,
+        elapsed_ms: r.elapsed.map(|d| d.as_secs_f64() * 1e3),
         problem,
         links: Links::of(id),
     }

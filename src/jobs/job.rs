@@ -1,0 +1,194 @@
+//! The job record: a job's status, progress and outcome, and the one view of them clients get.
+
+use crate::api::ProgressEvent;
+use crate::refine::{RefineError, Stats};
+use crate::result::MeshResult;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::time::Duration;
+use tokio::sync::{Notify, watch};
+
+/// Where a job is in its life.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Status {
+    /// Waiting for a worker.
+    Queued,
+    /// Refining.
+    Running,
+    /// Finished with a mesh.
+    Succeeded,
+    /// Finished with an error.
+    Failed,
+    /// Stopped before finishing.
+    Cancelled,
+}
+
+impl Status {
+    /// The name used in the API.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Status::Queued => "queued",
+            Status::Running => "running",
+            Status::Succeeded => "succeeded",
+            Status::Failed => "failed",
+            Status::Cancelled => "cancelled",
+        }
+    }
+}
+
+/// Why a job failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum JobError {
+    /// The engine refused the input (F not finite at a point).
+    #[error(transparent)]
+    Refine(RefineError),
+    /// Something went wrong inside the server; the detail is logged, not sent.
+    #[error("internal error: {0}")]
+    Internal(String),
+    /// The job succeeded, but its mesh has since left the cache.
+    #[error("the mesh is no longer cached")]
+    Evicted,
+}
+
+/// How a job ended.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Outcome {
+    /// With a mesh.
+    Succeeded(Arc<MeshResult>),
+    /// With an error.
+    Failed(JobError),
+    /// Cancelled by a client, by every waiting client leaving, or by shutdown.
+    Cancelled,
+}
+
+/// A job's state as watchers see it. `seq` grows with every change, so server-sent events
+/// can carry it as their id and a reconnecting client can skip what it has seen.
+#[derive(Debug, Clone)]
+pub struct Snapshot {
+    /// Increases with every progress report and with the outcome.
+    pub seq: u64,
+    /// Where the job is.
+    pub status: Status,
+    /// The latest progress report.
+    pub progress: Option<ProgressEvent>,
+    /// Set once finished.
+    pub outcome: Option<Outcome>,
+    /// How long the engine ran, once finished.
+    pub elapsed: Option<Duration>,
+}
+
+/// One refinement, shared by everyone waiting on it.
+pub struct Job {
+    pub(super) id: String,
+    /// The id of the requests whose runs are prefixes of this one's (see [`super::JobKeys`]).
+    pub(super) family: String,
+    /// The latest state wins: a slow watcher skips snapshots and the worker never waits on it
+    /// (a watch channel, not a queue).
+    pub(super) state: watch::Sender<Snapshot>,
+    pub(super) cancel: AtomicBool,
+    pub(super) cancel_notify: Notify,
+    /// Created through `POST /v1/jobs`: runs on even when no client is waiting. Read and
+    /// written under the table lock, like `waiters`, so a leaving client and a joining one
+    /// cannot both decide.
+    pub(super) detached: AtomicBool,
+    pub(super) waiters: AtomicUsize,
+}
+
+impl Job {
+    /// The job id.
+    pub fn id(&self) -> &str {
+        &self.id
+    }
+
+    /// The current state.
+    pub fn snapshot(&self) -> Snapshot {
+        self.state.borrow().clone()
+    }
+
+    /// A receiver of state changes.
+    pub fn subscribe(&self) -> watch::Receiver<Snapshot> {
+        self.state.subscribe()
+    }
+
+    /// Asks the job to stop: a queued job ends at once, a running one within one insertion.
+    pub fn cancel(&self) {
+        self.cancel.store(true, Ordering::Relaxed);
+        self.cancel_notify.notify_one();
+    }
+
+    /// Waits for the outcome.
+    pub async fn outcome(&self) -> Outcome {
+        let mut rx = self.subscribe();
+        loop {
+            if let Some(outcome) = rx.borrow_and_update().outcome.clone() {
+                return outcome;
+            }
+            // The sender lives as long as the job, which we hold.
+            if rx.changed().await.is_err() {
+                return Outcome::Failed(JobError::Internal("job state dropped".into()));
+            }
+        }
+    }
+
+    pub(super) fn is_finished(&self) -> bool {
+        self.state.borrow().outcome.is_some()
+    }
+
+    /// Whether a new identical request may join this job instead of starting its own.
+    pub(super) fn is_joinable(&self) -> bool {
+        !self.cancel.load(Ordering::Relaxed) && !self.is_finished()
+    }
+
+    pub(super) fn finish(&self, outcome: Outcome, elapsed: Option<Duration>) {
+        self.state.send_modify(|s| {
+            s.seq += 1;
+            s.elapsed = elapsed;
+            s.status = match outcome {
+                Outcome::Succeeded(_) => Status::Succeeded,
+                Outcome::Failed(_) => Status::Failed,
+                Outcome::Cancelled => Status::Cancelled,
+            };
+            s.outcome = Some(outcome);
+        });
+    }
+}
+
+/// The one view of a job's state that clients are given, whatever holds the job: a live job's
+/// snapshot, the table's record of a finished job (never its mesh, which lives only in the
+/// byte-bounded cache), or a cached result.
+#[derive(Debug, Clone)]
+pub struct Record {
+    /// Where the job is.
+    pub status: Status,
+    /// The last progress report.
+    pub progress: Option<ProgressEvent>,
+    /// The stats, when succeeded.
+    pub stats: Option<Stats>,
+    /// The error, when failed.
+    pub error: Option<JobError>,
+    /// How long the engine ran.
+    pub elapsed: Option<Duration>,
+}
+
+impl Record {
+    /// The view of a live job's snapshot.
+    pub fn of(snapshot: &Snapshot) -> Self {
+        let (stats, error) = match &snapshot.outcome {
+            Some(Outcome::Succeeded(f)) => (Some(f.stats.clone()), None),
+            Some(Outcome::Failed(e)) => (None, Some(e.clone())),
+            _ => (None, None),
+        };
+        Self { status: snapshot.status, progress: snapshot.progress, stats, error, elapsed: snapshot.elapsed }
+    }
+
+    /// The view of a result found in the cache with no job record (e.g. after a restart).
+    pub fn cached(result: &MeshResult) -> Self {
+        Self {
+            status: Status::Succeeded,
+            progress: None,
+            stats: Some(result.stats.clone()),
+            error: None,
+            elapsed: None,
+        }
+    }
+}

@@ -1,0 +1,117 @@
+//! The worker: waits for a permit, refines on the blocking pool with progress and a trace, and
+//! files the outcome.
+
+use super::JobSpec;
+use super::job::{Job, JobError, Outcome, Record, Status};
+use super::registry::{Entry, FINISHED_KEPT, Inner};
+use crate::api::ProgressEvent;
+use crate::metrics::StateLabel;
+use crate::refine::trace::Recorder;
+use crate::refine::{Observer, Progress, StopReason, refine};
+use crate::result::MeshResult;
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use std::time::Duration;
+
+/// Waits for a permit, refines on the blocking pool, stores the result and finishes the job.
+pub(super) async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec) {
+    let permit = tokio::select! {
+        permit = inner.permits.clone().acquire_owned() => permit.ok(),
+        () = job.cancel_notify.notified() => None,
+    };
+    inner.waiting.fetch_sub(1, Ordering::SeqCst);
+    inner.metrics.jobs_queued.dec();
+    let outcome = match permit {
+        Some(permit) if !job.cancel.load(Ordering::Relaxed) => {
+            job.state.send_modify(|s| s.status = Status::Running);
+            inner.metrics.jobs_running.inc();
+            inner.metrics.engine_runs.inc();
+            let (worker_job, worker) = (job.clone(), inner.clone());
+            let outcome = tokio::task::spawn_blocking(move || compute(&worker_job, &spec, &worker))
+                .await
+                .unwrap_or_else(|e| {
+                    tracing::error!(job = %job.id, error = %e, "refinement panicked");
+                    (Outcome::Failed(JobError::Internal("the refinement panicked".into())), None)
+                });
+            inner.metrics.jobs_running.dec();
+            drop(permit);
+            outcome
+        }
+        _ => (Outcome::Cancelled, None),
+    };
+    let (outcome, elapsed) = outcome;
+    let state = match &outcome {
+        Outcome::Succeeded(_) => "succeeded",
+        Outcome::Failed(_) => "failed",
+        Outcome::Cancelled => "cancelled",
+    };
+    inner.metrics.jobs_finished.get_or_create(&StateLabel { state }).inc();
+    tracing::info!(job = %job.id, state, "job finished");
+    job.finish(outcome, elapsed);
+    // Waiting clients hold the job (and its mesh) until they have read it; the table keeps
+    // only the record.
+    let record = Arc::new(Record::of(&job.snapshot()));
+    let mut table = inner.table.lock().expect("job table poisoned");
+    if matches!(table.jobs.get(&job.id), Some(Entry::Live(j)) if Arc::ptr_eq(j, &job)) {
+        table.jobs.insert(job.id.clone(), Entry::Done(record));
+        table.finished.push_back(job.id.clone());
+    }
+    while table.finished.len() > FINISHED_KEPT {
+        let oldest = table.finished.pop_front().expect("non-empty");
+        if matches!(table.jobs.get(&oldest), Some(Entry::Done(_))) {
+            table.jobs.remove(&oldest);
+        }
+    }
+}
+
+/// Reports progress into the job's watch channel and reads its cancel flag.
+struct JobObserver<'a> {
+    job: &'a Job,
+}
+
+impl Observer for JobObserver<'_> {
+    fn progress(&mut self, p: &Progress) {
+        let event = ProgressEvent {
+            vertices: p.vertices,
+            triangles: p.triangles,
+            worst: p.worst,
+            elapsed_ms: p.elapsed.as_secs_f64() * 1e3,
+        };
+        self.job.state.send_modify(|s| {
+            s.seq += 1;
+            s.progress = Some(event);
+        });
+    }
+
+    fn is_cancelled(&self) -> bool {
+        self.job.cancel.load(Ordering::Relaxed)
+    }
+}
+
+/// The blocking part: refine, tracing the steps, and keep the result, with how long the
+/// engine ran. A result a time limit stopped goes apart from the cache's answers: another
+/// run would reach another vertex count.
+fn compute(job: &Job, spec: &JobSpec, inner: &Inner) -> (Outcome, Option<Duration>) {
+    let mut observer = JobObserver { job };
+    let mut recorder = Recorder::new(&mut observer, spec.params.method(), spec.params.criterion());
+    let refinement = match refine(&*spec.source, spec.domain, &spec.params, &mut recorder) {
+        Ok(r) => r,
+        Err(e) => return (Outcome::Failed(JobError::Refine(e)), None),
+    };
+    let trace = recorder.finish(refinement.stats.stop);
+    let elapsed = Some(refinement.elapsed);
+    let steps = trace.splits.len();
+    let result = Arc::new(MeshResult { trace: Some(Arc::new(trace)), ..MeshResult::from(refinement) });
+    match result.stats.stop {
+        StopReason::Cancelled => return (Outcome::Cancelled, elapsed),
+        StopReason::TimeLimit => inner.cache.insert_partial(&job.id, result.clone()),
+        _ => {
+            inner.cache.insert(&job.id, result.clone());
+            let further = inner.families.get(&job.family).is_none_or(|(_, known)| steps >= known);
+            if further {
+                inner.families.insert(job.family.clone(), (job.id.clone(), steps));
+            }
+        }
+    }
+    (Outcome::Succeeded(result), elapsed)
+}
