@@ -8,7 +8,9 @@
 //! - [`geom`]: points, the rectangle, the half-edge mesh, edge splits and flips, exact
 //!   predicates (`robust`) and invariant checks. Depends on nothing else in the crate.
 //! - [`source`]: the [`Surface`](source::Surface) trait and its two sources, a `meval`
-//!   expression compiled once and a sampled grid with bilinear interpolation.
+//!   expression compiled once and a sampled grid with bilinear interpolation, and
+//!   [`decode_grid`](source::decode_grid), which reads a grid from .npy, PNG, TIFF/GeoTIFF,
+//!   raw or JSON bytes.
 //! - [`refine`]: the refinement loop, its parameters, the worst-edge queue and the measures
 //!   of a finished mesh (V_n, E_n). Depends on `geom` and `source`.
 //! - [`output`]: the mesh document (JSON) shared by the command line and the API.

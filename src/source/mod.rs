@@ -1,9 +1,12 @@
-//! Where F comes from: a parsed expression or a sampled grid, both behind [`Surface`].
+//! Where F comes from: a parsed expression or a sampled grid, both behind [`Surface`], and the
+//! grid files ([`decode_grid`]) a grid is read from.
 
 mod expr;
+mod file;
 mod grid;
 
 pub use expr::{ExprError, ExprErrorKind, Expression};
+pub use file::{DecodedGrid, GridFileError, GridFileKind, GridHints, RawType, decode_grid};
 pub use grid::{Grid, GridError};
 
 use crate::geom::{Point, Rect};
