@@ -1,6 +1,7 @@
 //! Wire types of the HTTP API (serde only). Field docs here are the ones in openapi.yaml.
 
 use crate::refine::{Criterion, Method, Stats};
+use crate::source::RawType;
 use serde::de::{self, Deserializer, IgnoredAny, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
 use std::cell::Cell;
@@ -71,18 +72,21 @@ fn optional_count<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u64>, D::Err
     Ok(Option::<Count>::deserialize(d)?.map(|c| c.0))
 }
 
-/// A sampled grid: `values[j*nx + i] = F(x_i, y_j)`.
-#[derive(Debug, Clone, Deserialize)]
+/// A sampled grid: `values[j*nx + i] = F(x_i, y_j)`. Sent with a grid file (multipart), it
+/// holds only what the file cannot say: `nx`, `ny` and `dtype` of raw samples.
+#[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GridInput {
     /// Nodes along x (at least 2).
-    #[serde(deserialize_with = "count")]
-    pub nx: u64,
+    #[serde(default, deserialize_with = "optional_count")]
+    pub nx: Option<u64>,
     /// Nodes along y (at least 2).
-    #[serde(deserialize_with = "count")]
-    pub ny: u64,
-    /// nx·ny numbers, row-major with x fastest.
-    pub values: GridValues,
+    #[serde(default, deserialize_with = "optional_count")]
+    pub ny: Option<u64>,
+    /// nx·ny numbers, row-major with x fastest; absent when a file carries them.
+    pub values: Option<GridValues>,
+    /// The sample type of a raw grid file: `f32` or `f64`, little-endian.
+    pub dtype: Option<RawType>,
 }
 
 /// `{"x": [a, b], "y": [c, d]}`.

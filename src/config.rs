@@ -59,7 +59,8 @@ impl Default for Config {
             workers: std::thread::available_parallelism().unwrap_or(NonZeroUsize::MIN),
             queue: 64,
             max_vertices: 2_000_000,
-            max_grid_points: 16_777_216,
+            // 4097 × 4097: the largest grid of the README's benchmarks, and of many DEM tiles.
+            max_grid_points: 4097 * 4097,
             max_body_bytes: 256 << 20,
             max_expression_len: 4096,
             job_time_limit: Duration::from_secs(60),
@@ -170,7 +171,7 @@ mod tests {
     fn no_variables_give_the_documented_defaults() {
         let c = Config::try_from(RawConfig::default()).unwrap();
         assert_eq!(c.addr.to_string(), "0.0.0.0:8080");
-        assert_eq!((c.queue, c.max_vertices, c.max_grid_points), (64, 2_000_000, 16_777_216));
+        assert_eq!((c.queue, c.max_vertices, c.max_grid_points), (64, 2_000_000, 4097 * 4097));
         assert_eq!((c.cache_dir, c.cache_dir_bytes), (None, 10 << 30));
     }
 

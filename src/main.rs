@@ -8,7 +8,7 @@ use meshfit::geom::Rect;
 use meshfit::output::{self, Format, Options, json};
 use meshfit::refine::{Criterion, Method, Params, estimate_error, refine};
 use meshfit::result::MeshResult;
-use meshfit::source::{Expression, Grid, Source};
+use meshfit::source::{Expression, GridHints, RawType, Source, decode_grid};
 use std::io::{BufWriter, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -46,7 +46,7 @@ struct ServeArgs {
     /// MESHFIT_MAX_VERTICES: largest max_vertices per job [default: 2000000].
     #[arg(long, value_name = "N")]
     max_vertices: Option<String>,
-    /// MESHFIT_MAX_GRID_POINTS: largest nx*ny [default: 16777216].
+    /// MESHFIT_MAX_GRID_POINTS: largest nx*ny [default: 16785409, 4097 x 4097].
     #[arg(long, value_name = "N")]
     max_grid_points: Option<String>,
     /// MESHFIT_MAX_BODY_BYTES: largest request body [default: 268435456].
@@ -145,11 +145,22 @@ struct MeshArgs {
     /// F as a meval expression in x and y, e.g. "sin(x)*cos(y)".
     #[arg(long, value_name = "EXPR")]
     function: Option<String>,
-    /// F as a JSON file {"nx": .., "ny": .., "values": [..]}, row-major with x fastest.
-    #[arg(long, value_name = "FILE.json")]
+    /// F sampled on a grid, from a file: .npy, 8- or 16-bit greyscale PNG, TIFF/GeoTIFF, raw
+    /// little-endian samples (give --nx, --ny and --dtype), or JSON {"nx", "ny", "values"}.
+    /// The format is read from the content, not the name.
+    #[arg(long, value_name = "FILE")]
     grid: Option<PathBuf>,
-    /// The rectangle a,b,c,d = [a,b]×[c,d]; default [0,1]² for a function, [0,nx−1]×[0,ny−1]
-    /// for a grid. Write negative bounds as --domain=-3,3,-3,3.
+    /// Samples along x of a raw grid file.
+    #[arg(long, value_name = "N", requires = "grid")]
+    nx: Option<usize>,
+    /// Samples along y of a raw grid file.
+    #[arg(long, value_name = "N", requires = "grid")]
+    ny: Option<usize>,
+    /// Sample type of a raw grid file: f32 or f64.
+    #[arg(long, value_name = "TYPE", requires = "grid", value_parser = parse_dtype)]
+    dtype: Option<RawType>,
+    /// The rectangle a,b,c,d = [a,b]×[c,d]; default [0,1]² for a function, a GeoTIFF's own
+    /// rectangle, else [0,nx−1]×[0,ny−1] for a grid. Write negative bounds as --domain=-3,3,-3,3.
     #[arg(long, value_name = "a,b,c,d", value_parser = parse_domain)]
     domain: Option<Rect>,
     /// The vertex budget n (at least 4).
@@ -216,34 +227,28 @@ fn parse_domain(s: &str) -> Result<Rect, String> {
     Rect::new(a, b, c, d).map_err(|e| e.to_string())
 }
 
-#[derive(serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-struct GridFile {
-    nx: usize,
-    ny: usize,
-    values: Vec<f64>,
+fn parse_dtype(s: &str) -> Result<RawType, String> {
+    RawType::from_name(s).ok_or_else(|| format!("`{s}` is not a sample type; use f32 or f64"))
 }
 
-fn load_source(args: &MeshArgs) -> Result<Source> {
+/// F, and the rectangle its file names (a GeoTIFF's), if any.
+fn load_source(args: &MeshArgs) -> Result<(Source, Option<Rect>)> {
     if let Some(text) = &args.function {
         let expr = Expression::parse(text)
             .map_err(|e| anyhow::anyhow!("--function: {e}\n  {text}\n  {:>1$}", "^", e.column))?;
-        return Ok(Source::Expression(expr));
+        return Ok((Source::Expression(expr), None));
     }
     let Some(path) = &args.grid else { bail!("give --function or --grid") };
-    let file =
-        std::fs::File::open(path).with_context(|| format!("cannot open grid file {}", path.display()))?;
-    let grid: GridFile = serde_json::from_reader(std::io::BufReader::new(file)).with_context(|| {
-        format!("grid file {} is not {{\"nx\": .., \"ny\": .., \"values\": [..]}}", path.display())
-    })?;
-    let grid =
-        Grid::new(grid.nx, grid.ny, grid.values).with_context(|| format!("grid file {}", path.display()))?;
-    Ok(Source::Grid(grid))
+    let bytes = std::fs::read(path).with_context(|| format!("cannot read grid file {}", path.display()))?;
+    let hints = GridHints { nx: args.nx, ny: args.ny, dtype: args.dtype };
+    let decoded =
+        decode_grid(&bytes, &hints, usize::MAX).with_context(|| format!("grid file {}", path.display()))?;
+    Ok((Source::Grid(decoded.grid), decoded.domain))
 }
 
 fn mesh(args: &MeshArgs) -> Result<()> {
-    let source = load_source(args)?;
-    let rect = args.domain.unwrap_or_else(|| source.default_domain());
+    let (source, file_domain) = load_source(args)?;
+    let rect = args.domain.or(file_domain).unwrap_or_else(|| source.default_domain());
     let source = source.with_domain(rect);
     let mut params = Params::new(args.max_vertices)
         .context("--max-vertices")?

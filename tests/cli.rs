@@ -117,7 +117,7 @@ fn a_non_finite_value_of_f_names_the_point() {
 fn bad_grids_and_domains_say_what_to_fix() {
     let short = temp_file("grid_short.json", r#"{"nx": 3, "ny": 2, "values": [0, 1, 4, 1, 2]}"#);
     let err = stderr_of_failure(&["mesh", "--grid", short.to_str().unwrap()]);
-    assert!(err.contains("5 values, but nx * ny = 6"), "{err}");
+    assert!(err.contains("5 values, but nx and ny need 6"), "{err}");
 
     let typo = temp_file("grid_typo.json", r#"{"nx": 2, "ny": 2, "valeus": [0, 1, 2, 3]}"#);
     let err = stderr_of_failure(&["mesh", "--grid", typo.to_str().unwrap()]);
@@ -131,4 +131,52 @@ fn bad_grids_and_domains_say_what_to_fix() {
 
     let err = stderr_of_failure(&["mesh", "--max-vertices", "10"]);
     assert!(err.contains("--function") && err.contains("--grid"), "{err}");
+}
+
+#[test]
+fn output_infers_the_format_from_the_extension_and_format_overrides_it() {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR"));
+    let obj = dir.join("cli_mesh.obj");
+    let out =
+        meshfit(&["mesh", "--function", "x*y", "--max-vertices", "50", "--output", obj.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(out.stdout.is_empty(), "the mesh went to the file");
+    let text = std::fs::read_to_string(&obj).unwrap();
+    assert_eq!(text.lines().filter(|l| l.starts_with("v ")).count(), 50);
+    // --format wins over the extension.
+    let png = dir.join("cli_mesh.dat");
+    let out = meshfit(&[
+        "mesh",
+        "--function",
+        "x*y",
+        "--max-vertices",
+        "50",
+        "--format",
+        "png",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    assert!(out.status.success());
+    assert!(std::fs::read(&png).unwrap().starts_with(b"\x89PNG"));
+    let err =
+        stderr_of_failure(&["mesh", "--function", "x", "--output", dir.join("mesh.xyz").to_str().unwrap()]);
+    assert!(err.contains("cannot tell the format") && err.contains("--format"), "{err}");
+    let err = stderr_of_failure(&["mesh", "--function", "x", "--format", "dxf"]);
+    assert!(err.contains("unknown format `dxf`") && err.contains("glb"), "{err}");
+}
+
+#[test]
+fn a_raw_grid_file_with_its_hints_meshes_like_the_same_json_grid() {
+    let values = [0.0f64, 1.0, 4.0, 1.0, 2.0, 5.0];
+    let json = temp_file("grid_same.json", r#"{"nx": 3, "ny": 2, "values": [0, 1, 4, 1, 2, 5]}"#);
+    // Raw samples list the top row first, as images do.
+    let raw: Vec<u8> = values[3..].iter().chain(&values[..3]).flat_map(|v| v.to_le_bytes()).collect();
+    let raw_path = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("grid_same.f64");
+    std::fs::write(&raw_path, raw).unwrap();
+    let from_json = document(&["mesh", "--grid", json.to_str().unwrap(), "--max-vertices", "30"]);
+    let raw_args = ["mesh", "--grid", raw_path.to_str().unwrap(), "--nx", "3", "--ny", "2", "--dtype", "f64"];
+    let from_raw = document(&[&raw_args[..], &["--max-vertices", "30"]].concat());
+    assert_eq!(from_json, from_raw);
+    let err = stderr_of_failure(&["mesh", "--grid", raw_path.to_str().unwrap()]);
+    assert!(err.contains("nx"), "{err}");
 }

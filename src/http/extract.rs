@@ -4,7 +4,7 @@
 use super::problem::ApiError;
 use axum::body::Bytes;
 use axum::extract::{FromRequest, Request};
-use axum::http::StatusCode;
+use axum::http::{HeaderMap, StatusCode, header};
 use serde::de::DeserializeOwned;
 
 /// The raw body, bounded by the router's `DefaultBodyLimit`.
@@ -42,4 +42,57 @@ pub fn parse_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, ApiError> {
         return Err(ApiError::InvalidRequest("the body must be a JSON object".into()));
     }
     serde_json::from_slice(bytes).map_err(malformed)
+}
+
+/// A job request as sent: a JSON body, or `multipart/form-data` with a `request` part (the
+/// JSON, optional) and a `grid` part (a grid file).
+pub enum JobBody {
+    /// `application/json` (or no content type).
+    Json(Bytes),
+    /// A grid file with the request that goes with it.
+    Upload {
+        /// The `request` part, `{}` when absent.
+        request: Bytes,
+        /// The `grid` part.
+        grid: Bytes,
+    },
+}
+
+impl JobBody {
+    /// Splits `body` by its content type. The whole body is already in memory, bounded by the
+    /// body limit; multer (the parser behind axum's own multipart extractor) finds the parts.
+    ///
+    /// # Errors
+    /// 400 for a multipart body that does not parse; 422 for a missing `grid` part, a part
+    /// sent twice or a part of another name.
+    pub async fn from_parts(headers: &HeaderMap, body: Bytes) -> Result<Self, ApiError> {
+        let content_type = headers.get(header::CONTENT_TYPE).and_then(|v| v.to_str().ok()).unwrap_or("");
+        let Ok(boundary) = multer::parse_boundary(content_type) else {
+            return Ok(JobBody::Json(body));
+        };
+        let malformed = |e: multer::Error| ApiError::MalformedJson(format!("multipart body: {e}"));
+        let stream = futures_util::stream::once(async move { Ok::<_, std::convert::Infallible>(body) });
+        let mut multipart = multer::Multipart::new(stream, boundary);
+        let (mut request, mut grid) = (None, None);
+        while let Some(field) = multipart.next_field().await.map_err(malformed)? {
+            let name = field.name().unwrap_or("").to_owned();
+            let slot = match name.as_str() {
+                "request" => &mut request,
+                "grid" => &mut grid,
+                _ => {
+                    return Err(ApiError::InvalidRequest(format!(
+                        "multipart part `{name}`: the parts are `request` (JSON) and `grid` (a file)"
+                    )));
+                }
+            };
+            if slot.is_some() {
+                return Err(ApiError::InvalidRequest(format!("multipart part `{name}` is sent twice")));
+            }
+            *slot = Some(field.bytes().await.map_err(malformed)?);
+        }
+        let grid = grid.ok_or_else(|| {
+            ApiError::InvalidRequest("a multipart request needs a `grid` part holding the grid file".into())
+        })?;
+        Ok(JobBody::Upload { request: request.unwrap_or_else(|| Bytes::from_static(b"{}")), grid })
+    }
 }

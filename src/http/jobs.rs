@@ -1,7 +1,7 @@
 //! Handlers for meshes and jobs: create (synchronous or streamed), show, stream, fetch, cancel.
 
 use super::AppState;
-use super::extract::{Body, parse_json};
+use super::extract::{Body, JobBody, parse_json};
 use super::negotiate::{self, Wanted};
 use super::problem::ApiError;
 use super::sse;
@@ -24,11 +24,21 @@ use tokio::time::Instant;
 const PROGRESS_EVERY: Duration = Duration::from_millis(100);
 
 /// Parses, validates and hashes a body off the async workers: a large grid takes real CPU.
-async fn prepare(state: &AppState, body: Body) -> Result<(JobKeys, JobSpec), ApiError> {
+async fn prepare(state: &AppState, headers: &HeaderMap, body: Body) -> Result<(JobKeys, JobSpec), ApiError> {
     let limits = state.limits;
+    let body = JobBody::from_parts(headers, body.0).await?;
     let (keys, spec) = tokio::task::spawn_blocking(move || {
-        let request: JobRequest = with_grid_limit(limits.max_grid_points, || parse_json(&body.0))?;
-        let spec = JobSpec::from_request(request, &limits)?;
+        let spec = match body {
+            JobBody::Json(json) => {
+                let request: JobRequest = with_grid_limit(limits.max_grid_points, || parse_json(&json))?;
+                JobSpec::from_request(request, &limits)?
+            }
+            JobBody::Upload { request, grid } => {
+                // Values come from the file: keep none a request part might list.
+                let request: JobRequest = with_grid_limit(0, || parse_json(&request))?;
+                JobSpec::from_upload(request, &grid, &limits)?
+            }
+        };
         Ok::<_, ApiError>((job_keys(&spec), spec))
     })
     .await
@@ -89,7 +99,7 @@ pub async fn meshes_create(
     let stream = wants_event_stream(&headers);
     // A format nobody writes is refused before any work is done.
     let wanted = if stream { None } else { Some(Wanted::from_request(&uri, &headers)?) };
-    let (keys, spec) = prepare(&state, body).await?;
+    let (keys, spec) = prepare(&state, &headers, body).await?;
     let id = keys.id.clone();
     let ticket = state.jobs.submit(keys, spec, false).await?;
     let Some(wanted) = wanted else {
@@ -121,8 +131,12 @@ pub async fn meshes_create(
 }
 
 /// `POST /v1/jobs`: starts (or finds) a job that runs whether or not anyone waits.
-pub async fn jobs_create(State(state): State<AppState>, body: Body) -> Result<Response, ApiError> {
-    let (keys, spec) = prepare(&state, body).await?;
+pub async fn jobs_create(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    body: Body,
+) -> Result<Response, ApiError> {
+    let (keys, spec) = prepare(&state, &headers, body).await?;
     let id = keys.id.clone();
     let (code, status) = match state.jobs.submit(keys, spec, true).await? {
         Ticket::Cached(f) | Ticket::Prefix(f) => (StatusCode::OK, status_body(&id, &Found::Cached(f))),

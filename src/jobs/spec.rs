@@ -3,7 +3,7 @@
 use crate::api::JobRequest;
 use crate::geom::Rect;
 use crate::refine::{Params, ParamsError};
-use crate::source::{ExprError, Expression, Grid, GridError, Source};
+use crate::source::{ExprError, Expression, Grid, GridError, GridFileError, GridHints, Source, decode_grid};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -98,25 +98,76 @@ impl JobSpec {
     /// The first problem found, in field order: source, limits, expression or grid, domain,
     /// parameters.
     pub fn from_request(request: JobRequest, limits: &Limits) -> Result<Self, SpecError> {
-        let source = match (request.function, request.grid) {
-            (None, None) => return Err(SpecError::Source(", none given")),
-            (Some(_), Some(_)) => return Err(SpecError::Source(", not both")),
-            (Some(text), None) => {
+        Self::build(request, None, limits)
+    }
+
+    /// Validates `request` whose grid comes as a file (.npy, PNG, TIFF/GeoTIFF, raw): the
+    /// request's `grid` may name only `nx`, `ny` and `dtype` for raw samples. The domain
+    /// defaults to a GeoTIFF's, else to the grid's index range. The same values give the same
+    /// job whichever format carried them.
+    ///
+    /// # Errors
+    /// As [`JobSpec::from_request`], and when the file does not decode (the error names the
+    /// (i, j) of a bad sample) or declares more points than the limit.
+    pub fn from_upload(request: JobRequest, file: &[u8], limits: &Limits) -> Result<Self, SpecError> {
+        Self::build(request, Some(file), limits)
+    }
+
+    fn build(request: JobRequest, file: Option<&[u8]>, limits: &Limits) -> Result<Self, SpecError> {
+        let mut file_domain = None;
+        let source = match (request.function, request.grid, file) {
+            (Some(_), _, Some(_)) => return Err(SpecError::Source(", not a function and a grid file")),
+            (None, grid, Some(file)) => {
+                let grid = grid.unwrap_or_default();
+                if grid.values.is_some() {
+                    let detail =
+                        "values come from the grid file; the request's grid may give only nx, ny and dtype";
+                    return Err(SpecError::Grid { detail: detail.into(), index: None });
+                }
+                let hints = GridHints {
+                    nx: grid.nx.map(|n| n.try_into().unwrap_or(usize::MAX)),
+                    ny: grid.ny.map(|n| n.try_into().unwrap_or(usize::MAX)),
+                    dtype: grid.dtype,
+                };
+                let decoded = decode_grid(file, &hints, limits.max_grid_points).map_err(|e| match e {
+                    GridFileError::TooManyPoints { requested, allowed, .. } => SpecError::Limit {
+                        name: "grid nx*ny",
+                        setting: "MESHFIT_MAX_GRID_POINTS",
+                        limit: allowed as u64,
+                        value: requested,
+                    },
+                    e => SpecError::Grid { index: e.index(), detail: e.to_string() },
+                })?;
+                file_domain = decoded.domain;
+                Source::Grid(decoded.grid)
+            }
+            (None, None, None) => return Err(SpecError::Source(", none given")),
+            (Some(_), Some(_), None) => return Err(SpecError::Source(", not both")),
+            (Some(text), None, None) => {
                 let len = text.chars().count() as u64;
                 at_most("function length", "MESHFIT_MAX_EXPRESSION_LEN", limits.max_expression_len, len)?;
                 Source::Expression(Expression::parse(&text).map_err(SpecError::Expression)?)
             }
-            (None, Some(grid)) => {
-                let points = grid.nx.saturating_mul(grid.ny);
+            (None, Some(grid), None) => {
+                let (Some(nx), Some(ny), Some(values)) = (grid.nx, grid.ny, grid.values) else {
+                    let detail = "a grid needs nx, ny and values (or send it as a file, multipart)";
+                    return Err(SpecError::Grid { detail: detail.into(), index: None });
+                };
+                if grid.dtype.is_some() {
+                    let detail = "dtype is for raw grid files; JSON values are numbers";
+                    return Err(SpecError::Grid { detail: detail.into(), index: None });
+                }
+                let points = nx.saturating_mul(ny);
                 at_most("grid nx*ny", "MESHFIT_MAX_GRID_POINTS", limits.max_grid_points, points)?;
-                let (nx, ny) = (grid.nx as usize, grid.ny as usize);
-                if grid.values.count != grid.values.values.len() {
+                let (nx, ny) = (nx as usize, ny as usize);
+                if values.count != values.values.len() {
                     // More values than the limit were sent (and not kept): nx·ny cannot match.
-                    let detail = format!("grid has {} values, but nx * ny = {points}", grid.values.count);
+                    let detail = format!("grid has {} values, but nx * ny = {points}", values.count);
                     return Err(SpecError::Grid { detail, index: None });
                 }
-                let mut values = grid.values.values;
-                if let Some((k, kind)) = grid.values.first_bad
+                let first_bad = values.first_bad;
+                let mut values = values.values;
+                if let Some((k, kind)) = first_bad
                     && nx >= 2
                     && values.len() == nx * ny
                 {
@@ -142,7 +193,7 @@ impl JobSpec {
             }
         };
         let domain = match request.domain {
-            None => source.default_domain(),
+            None => file_domain.unwrap_or_else(|| source.default_domain()),
             Some(d) => {
                 let ([a, b], [c, e]) = (pair("x", &d.x)?, pair("y", &d.y)?);
                 Rect::new(a, b, c, e).map_err(|e| SpecError::Domain(e.to_string()))?

@@ -110,8 +110,14 @@ fn cases() -> Vec<Case> {
             "invalid-grid",
         )
         .detail("20001 values, but nx * ny = 4"),
-        case("grid without values", r#"{"grid": {"nx": 2, "ny": 2}}"#, 422, "invalid-request")
-            .detail("values"),
+        case("grid without values", r#"{"grid": {"nx": 2, "ny": 2}}"#, 422, "invalid-grid").detail("values"),
+        case(
+            "grid with a dtype",
+            r#"{"grid": {"nx": 2, "ny": 2, "values": [1, 2, 3, 4], "dtype": "f32"}}"#,
+            422,
+            "invalid-grid",
+        )
+        .detail("raw grid files"),
         case(
             "reversed domain",
             r#"{"function": "x", "domain": {"x": [1, 0], "y": [0, 1]}}"#,

@@ -8,3 +8,4 @@ mod helpers;
 mod jobs;
 mod results;
 mod service;
+mod uploads;
