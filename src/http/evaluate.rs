@@ -67,7 +67,6 @@ pub async fn jobs_evaluate(
                 locator
             }
         };
-        let value = |x: f64, y: f64| locator.value(&result, Point::new(x, y));
         if binary {
             if body.0.len() % 16 != 0 {
                 return Err(ApiError::InvalidRequest(format!(
@@ -75,16 +74,18 @@ pub async fn jobs_evaluate(
                     body.0.len()
                 )));
             }
-            let mut out = Vec::with_capacity(body.0.len() / 2);
-            for pair in body.0.chunks_exact(16) {
-                let x = f64::from_le_bytes(pair[..8].try_into().expect("8 bytes"));
-                let y = f64::from_le_bytes(pair[8..].try_into().expect("8 bytes"));
-                out.extend_from_slice(&value(x, y).unwrap_or(f64::NAN).to_le_bytes());
-            }
+            let f64_at = |c: &[u8]| f64::from_le_bytes(c.try_into().expect("8 bytes"));
+            let points: Vec<Point> = body
+                .0
+                .chunks_exact(16)
+                .map(|pair| Point::new(f64_at(&pair[..8]), f64_at(&pair[8..])))
+                .collect();
+            let out: Vec<u8> = locator.values(&points).iter().flat_map(|v| v.to_le_bytes()).collect();
             Ok(([(header::CONTENT_TYPE, HeaderValue::from_static(OCTET_STREAM))], out).into_response())
         } else {
             let Points { points } = parse_json(&body.0)?;
-            let values = points.iter().map(|&[x, y]| value(x, y)).collect();
+            let points: Vec<Point> = points.iter().map(|&[x, y]| Point::new(x, y)).collect();
+            let values = locator.values(&points).into_iter().map(|v| (!v.is_nan()).then_some(v)).collect();
             Ok(axum::Json(Values { values }).into_response())
         }
     })
