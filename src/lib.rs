@@ -3,7 +3,8 @@
 //!
 //! # Layout
 //! Data flows one way: `source` says what F is, `refine` builds the mesh by asking `source`
-//! for values and `geom` for topology, `output` writes the result.
+//! for values and `geom` for topology, `result` holds the finished mesh as data, and `output`
+//! encodes it in the format a client asks for.
 //!
 //! - [`geom`]: points, the rectangle, the half-edge mesh, edge splits and flips, exact
 //!   predicates (`robust`) and invariant checks. Depends on nothing else in the crate.
@@ -11,18 +12,24 @@
 //!   expression compiled once and a sampled grid with bilinear interpolation, and
 //!   [`decode_grid`](source::decode_grid), which reads a grid from .npy, PNG, TIFF/GeoTIFF,
 //!   raw or JSON bytes.
-//! - [`refine`]: the refinement loop, its parameters, the worst-edge queue and the measures
-//!   of a finished mesh (V_n, E_n). Depends on `geom` and `source`.
-//! - [`output`]: the mesh document (JSON) shared by the command line and the API.
-//! - [`jobs`]: validated, hashed job specs, the bounded worker pool, progress, cancellation
-//!   and the cache of finished meshes. The only bridge between async code and the engine.
+//! - [`refine`]: the refinement loop, its parameters, the worst-edge queue, the measures of a
+//!   finished mesh (V_n, E_n), and a run's trace with the replay of any prefix of it.
+//!   Depends on `geom` and `source`.
+//! - [`result`]: a finished mesh as data (arrays, per-triangle errors, stats, trace), its
+//!   checksummed binary form, and point location for F_n at any point.
+//! - [`output`]: the formats (json, obj, ply, stl, vtu, msh, glb, svg, png), each streamed
+//!   from a result; shared by the command line and the API.
+//! - [`jobs`]: validated, hashed job specs, the job record, the registry with its bounded
+//!   worker pool, the worker, and the cache of results. The only bridge between async code
+//!   and the engine.
 //! - [`http`]: routes, handlers, problem documents, server-sent events.
 //! - [`api`]: the wire types; [`config`], [`metrics`] and [`telemetry`] support the service.
 //!
 //! ```text
 //! http ──▶ jobs ──▶ refine ──▶ geom
 //!   │        │        └──────▶ source ──▶ geom
-//!   └──▶ api ┴──▶ output ──▶ refine
+//!   │        └──▶ result ──▶ refine
+//!   └──▶ api, output ──▶ result
 //! ```
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]

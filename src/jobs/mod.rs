@@ -7,7 +7,7 @@
 //! `spawn_blocking` recommend exactly this: the blocking pool itself is large, so CPU-bound
 //! work needs its own bound.
 //!
-//! - [`job`](self::job): a job's state, its outcome, and [`Record`], the one view clients get;
+//! - `job`: a job's state, its outcome, and [`Record`], the one view clients get;
 //! - `registry`: [`Jobs`], the table of jobs, the queue bound, the cache and the families;
 //! - `worker`: one job's run on the blocking pool;
 //! - `cache`, `key`, `spec`: stored results, ids, and validated requests.

@@ -123,6 +123,15 @@ pub(super) struct Table {
 }
 
 impl Inner {
+    /// Remembers cached run `id` as its family's furthest if it traced more steps than the
+    /// one known.
+    pub(super) fn note_run(&self, family: &str, id: &str, result: &MeshResult) {
+        let Some(steps) = result.trace.as_ref().map(|t| t.splits.len()) else { return };
+        if self.families.get(family).is_none_or(|(_, known)| steps >= known) {
+            self.families.insert(family.to_owned(), (id.to_owned(), steps));
+        }
+    }
+
     /// Jobs waiting beyond the free workers: the queue proper.
     fn queued(&self) -> usize {
         self.waiting.load(Ordering::SeqCst).saturating_sub(self.permits.available_permits())
@@ -192,6 +201,8 @@ impl Jobs {
         let JobKeys { id, family } = keys;
         if let Some(finished) = self.cached(&id).await {
             inner.metrics.cache_hits.inc();
+            // A run read back from disk after a restart answers its family from now on.
+            inner.note_run(&family, &id, &finished);
             return Ok(Ticket::Cached(finished));
         }
         if let Some(result) = self.prefix(&id, &family, &spec).await {

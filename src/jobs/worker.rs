@@ -100,17 +100,13 @@ fn compute(job: &Job, spec: &JobSpec, inner: &Inner) -> (Outcome, Option<Duratio
     };
     let trace = recorder.finish(refinement.stats.stop);
     let elapsed = Some(refinement.elapsed);
-    let steps = trace.splits.len();
     let result = Arc::new(MeshResult { trace: Some(Arc::new(trace)), ..MeshResult::from(refinement) });
     match result.stats.stop {
         StopReason::Cancelled => return (Outcome::Cancelled, elapsed),
         StopReason::TimeLimit => inner.cache.insert_partial(&job.id, result.clone()),
         _ => {
             inner.cache.insert(&job.id, result.clone());
-            let further = inner.families.get(&job.family).is_none_or(|(_, known)| steps >= known);
-            if further {
-                inner.families.insert(job.family.clone(), (job.id.clone(), steps));
-            }
+            inner.note_run(&job.family, &job.id, &result);
         }
     }
     (Outcome::Succeeded(result), elapsed)

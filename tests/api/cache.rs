@@ -26,6 +26,10 @@ async fn a_restart_with_a_cache_dir_serves_the_old_result_without_recomputing() 
     let id = serde_json::from_slice::<Value>(&original).unwrap()["id"].as_str().unwrap().to_owned();
     let status: Value = second.get(&format!("/v1/jobs/{id}")).await.json().await.unwrap();
     assert_eq!(status["status"], "succeeded");
+    // The run's trace came back from disk with it: a smaller budget is replayed, not run.
+    let smaller = second.post("/v1/meshes", &json!({"function": "cos(4*x*y)", "max_vertices": 1200})).await;
+    assert_eq!(smaller.headers()["x-cache"], "prefix");
+    assert_eq!(second.metric("meshfit_engine_runs_total").await, 0.0);
     second.shutdown().await;
 }
 
