@@ -294,8 +294,11 @@ impl Jobs {
         let (run, _) = self.inner.families.get(family)?;
         let source = self.cached(&run).await?;
         let trace = source.trace.clone()?;
-        let (cache, id) = (self.inner.cache.clone(), id.to_owned());
         let (max_vertices, tolerance) = (spec.params.max_vertices(), spec.params.tolerance());
+        if !trace.covers(source.vertices.len(), max_vertices, tolerance) {
+            return None;
+        }
+        let (cache, id) = (self.inner.cache.clone(), id.to_owned());
         tokio::task::spawn_blocking(move || {
             let replayed = replay(&trace, &source.vertices, max_vertices, tolerance)?;
             let result = Arc::new(MeshResult::from(replayed));

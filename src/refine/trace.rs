@@ -50,6 +50,17 @@ impl Trace {
     }
 }
 
+impl Trace {
+    /// Whether a run of `max_vertices` and `tolerance` stops within this trace of a run that
+    /// ended with `vertices` vertices, so that [`replay`] answers it: a cheap test to make
+    /// before a replay, which would otherwise walk the whole trace to find it does not.
+    pub fn covers(&self, vertices: usize, max_vertices: usize, tolerance: Option<f64>) -> bool {
+        max_vertices <= vertices
+            || self.stop == StopReason::Exhausted
+            || tolerance.is_some_and(|t| self.worst.iter().any(|&w| w <= t))
+    }
+}
+
 /// An observer that traces a run and passes every report on to `inner`.
 pub struct Recorder<'o, O> {
     inner: &'o mut O,
@@ -286,6 +297,10 @@ mod tests {
         // Another run's vertices do not fit this trace.
         let (other, _) = traced(&source, rect, &Params::new(300).unwrap().with_method(Method::Recursive));
         assert!(replay(&trace, other.mesh.vertices(), 300, None).is_none());
+        // The cheap test agrees.
+        assert!(!trace.covers(300, 301, None));
+        assert!(!trace.covers(300, 10_000, Some(lowest / 2.0)));
+        assert!(trace.covers(300, 300, None) && trace.covers(300, 10_000, Some(lowest)));
     }
 
     #[test]
