@@ -181,3 +181,37 @@ async fn smaller_budgets_and_passed_tolerances_are_replayed_byte_for_byte_withou
     assert_eq!(app.metric("meshfit_prefix_hits_total").await, 16.0);
     app.shutdown().await;
 }
+
+#[tokio::test]
+async fn every_format_comes_back_from_the_mesh_route_with_its_media_type_and_signature() {
+    let app = spawn_app().await;
+    let doc: Value = app.post("/v1/meshes", &body()).await.json().await.unwrap();
+    let (id, triangles) = (doc["id"].as_str().unwrap(), doc["triangles"].as_array().unwrap().len());
+    let starts: [(&str, &str, &[u8]); 8] = [
+        ("obj", "model/obj", b"# meshfit"),
+        ("ply", "application/x-ply", b"ply\nformat binary_little_endian 1.0"),
+        ("stl", "model/stl", b""),
+        ("vtu", "application/vnd.vtk.vtu+xml", b"<?xml"),
+        ("msh", "text/x-gmsh", b"$MeshFormat\n4.1 0 8"),
+        ("glb", "model/gltf-binary", b"glTF"),
+        ("svg", "image/svg+xml", b"<?xml"),
+        ("png", "image/png", b"\x89PNG\r\n\x1a\n"),
+    ];
+    for (name, media, start) in starts {
+        let response = app.get(&format!("/v1/jobs/{id}/mesh?format={name}")).await;
+        assert_eq!(response.status(), 200, "{name}");
+        assert_eq!(response.headers()["content-type"], media, "{name}");
+        assert_eq!(response.headers()["etag"].to_str().unwrap(), format!("\"{id}.{name}\""));
+        let bytes = response.bytes().await.unwrap();
+        assert!(bytes.starts_with(start), "{name}: {:?}", &bytes[..16.min(bytes.len())]);
+        if name == "stl" {
+            // 80-byte header, the facet count, 50 bytes a facet.
+            assert_eq!(u32::from_le_bytes(bytes[80..84].try_into().unwrap()) as usize, triangles);
+            assert_eq!(bytes.len(), 84 + 50 * triangles);
+        }
+        // The same bytes by media type.
+        let by_accept = app.client.get(app.url(&format!("/v1/jobs/{id}/mesh"))).header("accept", media);
+        assert_eq!(by_accept.send().await.unwrap().bytes().await.unwrap(), bytes, "{name} by Accept");
+    }
+    app.shutdown().await;
+}
