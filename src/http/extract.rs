@@ -63,14 +63,14 @@ impl JobBody {
     /// body limit; multer (the parser behind axum's own multipart extractor) finds the parts.
     ///
     /// # Errors
-    /// 400 for a multipart body that does not parse; 422 for a missing `grid` part, a part
+    /// 400 `malformed-multipart` for a multipart body that does not parse; 422 for a missing `grid` part, a part
     /// sent twice or a part of another name.
     pub async fn from_parts(headers: &HeaderMap, body: Bytes) -> Result<Self, ApiError> {
         let content_type = headers.get(header::CONTENT_TYPE).and_then(|v| v.to_str().ok()).unwrap_or("");
         let Ok(boundary) = multer::parse_boundary(content_type) else {
             return Ok(JobBody::Json(body));
         };
-        let malformed = |e: multer::Error| ApiError::MalformedJson(format!("multipart body: {e}"));
+        let malformed = |e: multer::Error| ApiError::MalformedMultipart(e.to_string());
         let stream = futures_util::stream::once(async move { Ok::<_, std::convert::Infallible>(body) });
         let mut multipart = multer::Multipart::new(stream, boundary);
         let (mut request, mut grid) = (None, None);

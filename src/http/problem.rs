@@ -16,6 +16,8 @@ pub const PROBLEM_JSON: &str = "application/problem+json";
 pub enum ApiError {
     /// 400 `malformed-json`: the body is not JSON.
     MalformedJson(String),
+    /// 400 `malformed-multipart`: a `multipart/form-data` body that does not parse.
+    MalformedMultipart(String),
     /// 422 `invalid-request`: JSON of the wrong shape (a wrong type, an unknown field).
     InvalidRequest(String),
     /// 422 (or the variant's own): the request is well-formed but not a valid job.
@@ -78,6 +80,12 @@ impl ApiError {
             ApiError::MalformedJson(d) => {
                 (StatusCode::BAD_REQUEST, "malformed-json", "Body is not valid JSON", d.clone())
             }
+            ApiError::MalformedMultipart(d) => (
+                StatusCode::BAD_REQUEST,
+                "malformed-multipart",
+                "Body is not valid multipart/form-data",
+                d.clone(),
+            ),
             ApiError::InvalidRequest(d) => {
                 (unprocessable, "invalid-request", "Request does not match the schema", d.clone())
             }

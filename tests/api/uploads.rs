@@ -139,6 +139,16 @@ async fn bad_grid_files_are_problems_that_say_what_and_where() {
     let response = upload(&app, raw_hints, nan).await;
     let problem: Value = response.json().await.unwrap();
     assert_eq!(problem["index"], json!([3, NY - 1]), "{problem}");
+    let broken = app
+        .client
+        .post(app.url("/v1/meshes"))
+        .header("content-type", "multipart/form-data; boundary=xyz")
+        .body("--xyz\r\nContent-Disposition: form-data; name=\"grid\"\r\n\r\nabc")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(broken.status(), 400);
+    assert_eq!(broken.json::<Value>().await.unwrap()["type"], "/problems/malformed-multipart");
     let no_grid = Form::new().text("request", "{}");
     let response = app.client.post(app.url("/v1/meshes")).multipart(no_grid).send().await.unwrap();
     assert_eq!(response.status(), 422);
