@@ -2,20 +2,22 @@
 
 use crate::refine::{Criterion, Method, Stats};
 use crate::source::RawType;
-use serde::de::{self, Deserializer, IgnoredAny, SeqAccess, Visitor};
+use serde::de::{self, Deserializer, Visitor};
 use serde::{Deserialize, Serialize};
-use std::cell::Cell;
+use serde_json::value::RawValue;
 use std::fmt;
 
 /// The body of `POST /v1/meshes` and `POST /v1/jobs`. Unknown fields are rejected, so a typo
-/// never falls back to a default silently.
+/// never falls back to a default silently. A grid's values stay unparsed text borrowed from
+/// the body until the spec decodes them against the server's limits.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct JobRequest {
+pub struct JobRequest<'a> {
     /// F as a meval expression in x and y. Exactly one of `function` and `grid`.
     pub function: Option<String>,
     /// F sampled on a grid. Exactly one of `function` and `grid`.
-    pub grid: Option<GridInput>,
+    #[serde(borrow)]
+    pub grid: Option<GridInput<'a>>,
     /// The rectangle; default \[0,1\]² for a function, \[0,nx−1\]×\[0,ny−1\] for a grid.
     pub domain: Option<DomainInput>,
     /// The vertex budget n (default 10000, at least 4).
@@ -76,15 +78,16 @@ fn optional_count<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u64>, D::Err
 /// holds only what the file cannot say: `nx`, `ny` and `dtype` of raw samples.
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct GridInput {
+pub struct GridInput<'a> {
     /// Nodes along x (at least 2).
     #[serde(default, deserialize_with = "optional_count")]
     pub nx: Option<u64>,
     /// Nodes along y (at least 2).
     #[serde(default, deserialize_with = "optional_count")]
     pub ny: Option<u64>,
-    /// nx·ny numbers, row-major with x fastest; absent when a file carries them.
-    pub values: Option<GridValues>,
+    /// nx·ny numbers, row-major with x fastest, as JSON text; absent when a file carries them.
+    #[serde(borrow)]
+    pub values: Option<&'a RawValue>,
     /// The sample type of a raw grid file: `f32` or `f64`, little-endian.
     pub dtype: Option<RawType>,
 }
@@ -97,110 +100,6 @@ pub struct DomainInput {
     pub x: Vec<f64>,
     /// [c, d] with c < d.
     pub y: Vec<f64>,
-}
-
-/// Grid values as parsed, remembering where the first non-number was, so the error can name
-/// its (i, j) once nx is known (serde alone would only give a line and column of the body).
-#[derive(Debug, Clone, Default)]
-pub struct GridValues {
-    /// The numbers (a non-number is stored as NaN), at most the limit set by
-    /// [`with_grid_limit`].
-    pub values: Vec<f64>,
-    /// How many elements the array had, kept or not.
-    pub count: usize,
-    /// Position and JSON kind of the first element that is not a number.
-    pub first_bad: Option<(usize, &'static str)>,
-}
-
-thread_local! {
-    /// The most grid values a parse on this thread keeps. serde's derive cannot pass context
-    /// down to a field, so the caller sets it around one parse with [`with_grid_limit`]; the
-    /// rest of an oversized array is read and counted, never stored.
-    static GRID_LIMIT: Cell<usize> = const { Cell::new(usize::MAX) };
-}
-
-/// Runs `parse` keeping at most `limit` grid values, so a body full of numbers cannot grow a
-/// vector beyond the grid-point limit.
-pub fn with_grid_limit<T>(limit: usize, parse: impl FnOnce() -> T) -> T {
-    let previous = GRID_LIMIT.replace(limit);
-    let result = parse();
-    GRID_LIMIT.set(previous);
-    result
-}
-
-enum Element {
-    Number(f64),
-    Bad(&'static str),
-}
-
-impl<'de> Deserialize<'de> for Element {
-    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        struct V;
-        impl<'de> Visitor<'de> for V {
-            type Value = Element;
-            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-                f.write_str("a number")
-            }
-            fn visit_f64<E>(self, v: f64) -> Result<Element, E> {
-                Ok(Element::Number(v))
-            }
-            fn visit_i64<E>(self, v: i64) -> Result<Element, E> {
-                Ok(Element::Number(v as f64))
-            }
-            fn visit_u64<E>(self, v: u64) -> Result<Element, E> {
-                Ok(Element::Number(v as f64))
-            }
-            fn visit_unit<E>(self) -> Result<Element, E> {
-                Ok(Element::Bad("null"))
-            }
-            fn visit_bool<E>(self, _: bool) -> Result<Element, E> {
-                Ok(Element::Bad("a boolean"))
-            }
-            fn visit_str<E>(self, _: &str) -> Result<Element, E> {
-                Ok(Element::Bad("a string"))
-            }
-            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Element, A::Error> {
-                while seq.next_element::<IgnoredAny>()?.is_some() {}
-                Ok(Element::Bad("an array"))
-            }
-            fn visit_map<A: de::MapAccess<'de>>(self, mut map: A) -> Result<Element, A::Error> {
-                while map.next_entry::<IgnoredAny, IgnoredAny>()?.is_some() {}
-                Ok(Element::Bad("an object"))
-            }
-        }
-        d.deserialize_any(V)
-    }
-}
-
-impl<'de> Deserialize<'de> for GridValues {
-    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        struct V;
-        impl<'de> Visitor<'de> for V {
-            type Value = GridValues;
-            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-                f.write_str("an array of numbers")
-            }
-            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<GridValues, A::Error> {
-                let limit = GRID_LIMIT.get();
-                let mut out = GridValues::default();
-                while let Some(element) = seq.next_element::<Element>()? {
-                    let value = match element {
-                        Element::Number(v) => v,
-                        Element::Bad(kind) => {
-                            out.first_bad.get_or_insert((out.count, kind));
-                            f64::NAN
-                        }
-                    };
-                    if out.count < limit {
-                        out.values.push(value);
-                    }
-                    out.count += 1;
-                }
-                Ok(out)
-            }
-        }
-        d.deserialize_seq(V)
-    }
 }
 
 /// `GET /v1/jobs/{id}` and the body of `POST /v1/jobs`.

@@ -5,7 +5,7 @@ use super::problem::ApiError;
 use axum::body::Bytes;
 use axum::extract::{FromRequest, Request};
 use axum::http::{HeaderMap, StatusCode, header};
-use serde::de::DeserializeOwned;
+use serde::Deserialize;
 
 /// The raw body, bounded by the router's `DefaultBodyLimit`.
 pub struct Body(pub Bytes);
@@ -28,7 +28,7 @@ impl<S: Send + Sync> FromRequest<S> for Body {
 }
 
 /// Parses JSON, telling syntax errors (400) from shape errors (422), each with its place.
-pub fn parse_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, ApiError> {
+pub fn parse_json<'a, T: Deserialize<'a>>(bytes: &'a [u8]) -> Result<T, ApiError> {
     if bytes.iter().all(u8::is_ascii_whitespace) {
         return Err(ApiError::MalformedJson("the body is empty; send a JSON object".into()));
     }

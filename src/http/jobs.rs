@@ -5,7 +5,7 @@ use super::extract::{Body, JobBody, parse_json};
 use super::negotiate::{self, Wanted};
 use super::problem::ApiError;
 use super::sse;
-use crate::api::{JobRequest, JobStatus, Links, with_grid_limit};
+use crate::api::{JobRequest, JobStatus, Links};
 use crate::jobs::{
     Found, JobError, JobKeys, JobSpec, Outcome, Record, Snapshot, Status, Ticket, Waiter, job_keys,
 };
@@ -29,14 +29,9 @@ async fn prepare(state: &AppState, headers: &HeaderMap, body: Body) -> Result<(J
     let body = JobBody::from_parts(headers, body.0).await?;
     let (keys, spec) = tokio::task::spawn_blocking(move || {
         let spec = match body {
-            JobBody::Json(json) => {
-                let request: JobRequest = with_grid_limit(limits.max_grid_points, || parse_json(&json))?;
-                JobSpec::from_request(request, &limits)?
-            }
+            JobBody::Json(json) => JobSpec::from_request(parse_json::<JobRequest>(&json)?, &limits)?,
             JobBody::Upload { request, grid } => {
-                // Values come from the file: keep none a request part might list.
-                let request: JobRequest = with_grid_limit(0, || parse_json(&request))?;
-                JobSpec::from_upload(request, &grid, &limits)?
+                JobSpec::from_upload(parse_json::<JobRequest>(&request)?, &grid, &limits)?
             }
         };
         Ok::<_, ApiError>((job_keys(&spec), spec))

@@ -372,7 +372,8 @@ mod tests {
             job_time_limit: Duration::from_secs(600),
         };
         let spec =
-            JobSpec::from_request(serde_json::from_value::<JobRequest>(body).unwrap(), &limits).unwrap();
+            JobSpec::from_request(serde_json::from_str::<JobRequest>(&body.to_string()).unwrap(), &limits)
+                .unwrap();
         (job_keys(&spec), spec)
     }
 

@@ -3,7 +3,7 @@
 use crate::api::JobRequest;
 use crate::geom::Rect;
 use crate::refine::{Params, ParamsError};
-use crate::source::{ExprError, Expression, Grid, GridError, GridFileError, GridHints, Source, decode_grid};
+use crate::source::{ExprError, Expression, GridFileError, GridHints, Source, decode_grid, decode_values};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -83,6 +83,19 @@ fn at_most(name: &'static str, setting: &'static str, limit: usize, value: u64) 
     Ok(())
 }
 
+/// A grid that does not decode: over the limit, or malformed (naming the value at fault).
+fn grid_error(e: GridFileError) -> SpecError {
+    match e {
+        GridFileError::TooManyPoints { requested, allowed, .. } => SpecError::Limit {
+            name: "grid nx*ny",
+            setting: "MESHFIT_MAX_GRID_POINTS",
+            limit: allowed as u64,
+            value: requested,
+        },
+        e => SpecError::Grid { index: e.index(), detail: e.to_string() },
+    }
+}
+
 /// The two bounds of one axis, with -0.0 made 0.0 (one value, one cache key).
 fn pair(axis: &str, bounds: &[f64]) -> Result<[f64; 2], SpecError> {
     match bounds {
@@ -97,7 +110,7 @@ impl JobSpec {
     /// # Errors
     /// The first problem found, in field order: source, limits, expression or grid, domain,
     /// parameters.
-    pub fn from_request(request: JobRequest, limits: &Limits) -> Result<Self, SpecError> {
+    pub fn from_request(request: JobRequest<'_>, limits: &Limits) -> Result<Self, SpecError> {
         Self::build(request, None, limits)
     }
 
@@ -109,11 +122,11 @@ impl JobSpec {
     /// # Errors
     /// As [`JobSpec::from_request`], and when the file does not decode (the error names the
     /// (i, j) of a bad sample) or declares more points than the limit.
-    pub fn from_upload(request: JobRequest, file: &[u8], limits: &Limits) -> Result<Self, SpecError> {
+    pub fn from_upload(request: JobRequest<'_>, file: &[u8], limits: &Limits) -> Result<Self, SpecError> {
         Self::build(request, Some(file), limits)
     }
 
-    fn build(request: JobRequest, file: Option<&[u8]>, limits: &Limits) -> Result<Self, SpecError> {
+    fn build(request: JobRequest<'_>, file: Option<&[u8]>, limits: &Limits) -> Result<Self, SpecError> {
         let mut file_domain = None;
         let source = match (request.function, request.grid, file) {
             (Some(_), _, Some(_)) => return Err(SpecError::Source(", not a function and a grid file")),
@@ -129,15 +142,7 @@ impl JobSpec {
                     ny: grid.ny.map(|n| n.try_into().unwrap_or(usize::MAX)),
                     dtype: grid.dtype,
                 };
-                let decoded = decode_grid(file, &hints, limits.max_grid_points).map_err(|e| match e {
-                    GridFileError::TooManyPoints { requested, allowed, .. } => SpecError::Limit {
-                        name: "grid nx*ny",
-                        setting: "MESHFIT_MAX_GRID_POINTS",
-                        limit: allowed as u64,
-                        value: requested,
-                    },
-                    e => SpecError::Grid { index: e.index(), detail: e.to_string() },
-                })?;
+                let decoded = decode_grid(file, &hints, limits.max_grid_points).map_err(grid_error)?;
                 file_domain = decoded.domain;
                 Source::Grid(decoded.grid)
             }
@@ -157,38 +162,9 @@ impl JobSpec {
                     let detail = "dtype is for raw grid files; JSON values are numbers";
                     return Err(SpecError::Grid { detail: detail.into(), index: None });
                 }
-                let points = nx.saturating_mul(ny);
-                at_most("grid nx*ny", "MESHFIT_MAX_GRID_POINTS", limits.max_grid_points, points)?;
-                let (nx, ny) = (nx as usize, ny as usize);
-                if values.count != values.values.len() {
-                    // More values than the limit were sent (and not kept): nx·ny cannot match.
-                    let detail = format!("grid has {} values, but nx * ny = {points}", values.count);
-                    return Err(SpecError::Grid { detail, index: None });
-                }
-                let first_bad = values.first_bad;
-                let mut values = values.values;
-                if let Some((k, kind)) = first_bad
-                    && nx >= 2
-                    && values.len() == nx * ny
-                {
-                    return Err(SpecError::Grid {
-                        detail: format!(
-                            "value at index [{}, {}] (values[{k}]) is {kind}, not a number",
-                            k % nx,
-                            k / nx
-                        ),
-                        index: Some([k % nx, k / nx]),
-                    });
-                }
-                // -0.0 and 0.0 are one value: one canonical form, one cache entry.
-                values.iter_mut().for_each(|v| *v += 0.0);
-                let grid = Grid::new(nx, ny, values).map_err(|e| SpecError::Grid {
-                    index: match e {
-                        GridError::NonFinite { i, j, .. } => Some([i, j]),
-                        _ => None,
-                    },
-                    detail: e.to_string(),
-                })?;
+                // One decoder for every grid, with the limit passed in: nx·ny is checked before
+                // the values are parsed, and a bad element is named by its (i, j).
+                let grid = decode_values(values.get(), nx, ny, limits.max_grid_points).map_err(grid_error)?;
                 Source::Grid(grid)
             }
         };

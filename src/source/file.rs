@@ -50,6 +50,8 @@
 //! f16 is rare in heightmaps, and a 64-bit integer does not always fit an f64 exactly.
 
 mod json;
+
+pub use json::decode_values;
 mod npy;
 mod png;
 mod tiff;
@@ -186,7 +188,7 @@ pub enum GridFileError {
         detail: String,
     },
     /// The data is longer or shorter than the header or the hints say.
-    #[error("{kind} file has {got} {unit}, but {from} need {expected}")]
+    #[error("{kind} grid has {got} {unit}, but {from} need {expected}")]
     SizeMismatch {
         /// The format.
         kind: GridFileKind,
@@ -242,6 +244,18 @@ pub enum GridFileError {
         /// Row as counted in the file, from its first row.
         row: usize,
     },
+    /// An element of a JSON grid's values that is not a number.
+    #[error("value at index [{i}, {j}] (values[{index}]) is {found}, not a number")]
+    NotANumber {
+        /// Column (x index).
+        i: usize,
+        /// Row (y index, upward: JSON lists the bottom row first).
+        j: usize,
+        /// Position in `values`.
+        index: u64,
+        /// What it is: "null", "a string", "a boolean", "an array" or "an object".
+        found: &'static str,
+    },
     /// A NaN or infinite sample.
     #[error("{kind} sample at index [{i}, {j}] (file row {row}, column {i}) is not finite")]
     NonFinite {
@@ -295,6 +309,7 @@ impl GridFileError {
         match *self {
             GridFileError::NoData { i, j, .. }
             | GridFileError::Transparent { i, j, .. }
+            | GridFileError::NotANumber { i, j, .. }
             | GridFileError::NonFinite { i, j, .. } => Some([i, j]),
             _ => None,
         }

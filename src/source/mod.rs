@@ -6,7 +6,7 @@ mod file;
 mod grid;
 
 pub use expr::{ExprError, ExprErrorKind, Expression};
-pub use file::{DecodedGrid, GridFileError, GridFileKind, GridHints, RawType, decode_grid};
+pub use file::{DecodedGrid, GridFileError, GridFileKind, GridHints, RawType, decode_grid, decode_values};
 pub use grid::{Grid, GridError};
 
 use crate::geom::{Point, Rect};

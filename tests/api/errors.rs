@@ -79,7 +79,7 @@ fn cases() -> Vec<Case> {
             422,
             "invalid-grid",
         )
-        .detail("5 values, but nx * ny = 6"),
+        .detail("5 values, but nx and ny need 6"),
         case("grid too narrow", r#"{"grid": {"nx": 1, "ny": 2, "values": [1, 2]}}"#, 422, "invalid-grid"),
         case(
             "grid null value",
@@ -109,7 +109,7 @@ fn cases() -> Vec<Case> {
             422,
             "invalid-grid",
         )
-        .detail("20001 values, but nx * ny = 4"),
+        .detail("20001 values, but nx and ny need 4"),
         case("grid without values", r#"{"grid": {"nx": 2, "ny": 2}}"#, 422, "invalid-grid").detail("values"),
         case(
             "grid with a dtype",

@@ -4,6 +4,7 @@
 //! byte for byte as numpy writes it).
 
 use super::*;
+use crate::source::decode_values;
 use ::png::{BitDepth, ColorType};
 use ::tiff::encoder::colortype::{self, ColorType as TiffColour};
 use ::tiff::encoder::{
@@ -520,7 +521,7 @@ fn expected_values() -> Vec<f64> {
 fn a_truncated_npy_says_how_many_bytes_its_header_needs() {
     let bytes = npy("<f8", false, &[NY, NX], &image_bytes(f64::to_le_bytes));
     let err = decode(&bytes[..bytes.len() - 3]).unwrap_err();
-    assert_eq!(err.to_string(), "NPY file has 93 bytes of data, but the header's shape and dtype need 96");
+    assert_eq!(err.to_string(), "NPY grid has 93 bytes of data, but the header's shape and dtype need 96");
 }
 
 #[test]
@@ -567,8 +568,11 @@ fn a_body_starting_with_a_brace_is_json_unless_the_raw_hints_fit_it() {
 }
 
 #[test]
-fn json_errors_come_from_the_json_parser_with_their_position() {
+fn json_errors_name_the_value_at_fault_or_come_from_the_json_parser_with_their_position() {
     let err = decode(br#"{"nx": 2, "ny": 2, "values": [1, 2, null, 4]}"#).unwrap_err();
+    assert_eq!(err, GridFileError::NotANumber { i: 0, j: 1, index: 2, found: "null" });
+    assert_eq!(err.index(), Some([0, 1]));
+    let err = decode(br#"{"nx": 2, "ny": 2, "values": [1, 2, 3, 4"#).unwrap_err();
     assert!(
         matches!(&err, GridFileError::Corrupt { kind: GridFileKind::Json, detail } if detail.contains("column")),
         "{err}"
@@ -576,7 +580,21 @@ fn json_errors_come_from_the_json_parser_with_their_position() {
     let err = decode(br#"{"nx": 2, "ny": 2, "values": [1, 2, 3, 4], "nz": 1}"#).unwrap_err();
     assert!(err.to_string().contains("unknown field `nz`"), "{err}");
     let err = decode(br#"{"nx": 2, "ny": 2, "values": [1, 2, 3]}"#).unwrap_err();
-    assert_eq!(err.to_string(), "JSON file has 3 values, but nx and ny need 4");
+    assert_eq!(err.to_string(), "JSON grid has 3 values, but nx and ny need 4");
+}
+
+#[test]
+fn the_api_values_decode_like_a_json_grid_file_and_check_the_limit_before_parsing() {
+    let text = "[1, 2.5, -0.0, 4, 5, 6]";
+    let grid = decode_values(text, 3, 2, LIMIT).unwrap();
+    assert_eq!(grid, decode(br#"{"nx": 3, "ny": 2, "values": [1, 2.5, -0.0, 4, 5, 6]}"#).unwrap().grid);
+    assert_eq!(grid.row(0), &[1.0, 2.5, 0.0]);
+    assert!(grid.row(0)[2].is_sign_positive(), "-0.0 becomes 0.0");
+    // Not valid JSON at all, but nx·ny is refused first.
+    let err = decode_values("[oops", 1000, 1000, 10).unwrap_err();
+    assert!(matches!(err, GridFileError::TooManyPoints { requested: 1_000_000, allowed: 10, .. }), "{err}");
+    let err = decode_values(r#"[1, 2, "x", 4]"#, 2, 2, LIMIT).unwrap_err();
+    assert_eq!(err.index(), Some([0, 1]));
 }
 
 #[test]
