@@ -88,11 +88,35 @@ impl Plane {
     /// plane is steep, must not read an extrapolated value.
     #[inline]
     pub fn row(&self, i0: usize, j: usize) -> impl Iterator<Item = f64> + use<> {
+        let row = self.row_at(i0, j);
+        (0..).map(move |k: i32| row.at(k))
+    }
+
+    /// Row j from node i0 on, evaluated at any step k (node i0 + k) with the same bits as
+    /// [`Plane::row`]'s k-th value.
+    #[inline]
+    pub fn row_at(&self, i0: usize, j: usize) -> PlaneRow {
         let start =
             self.z + (j as f64 - self.origin.y) * self.dz_dy + (i0 as f64 - self.origin.x) * self.dz_dx;
-        let (step, (lo, hi)) = (self.dz_dx, self.z_range);
+        PlaneRow { start, step: self.dz_dx, range: self.z_range }
+    }
+}
+
+/// A plane along one row of nodes; see [`Plane::row_at`].
+#[derive(Debug, Clone, Copy)]
+pub struct PlaneRow {
+    start: f64,
+    step: f64,
+    range: (f64, f64),
+}
+
+impl PlaneRow {
+    /// The value k nodes along. Monotone in k (each operation rounds monotonically), so the
+    /// values of a run of nodes lie between those at its ends.
+    #[inline]
+    pub fn at(&self, k: i32) -> f64 {
         // An i32 count converts to f64 in one instruction; usize (u64) takes several.
-        (0..).map(move |k: i32| (start + f64::from(k) * step).max(lo).min(hi))
+        (self.start + f64::from(k) * self.step).max(self.range.0).min(self.range.1)
     }
 }
 

@@ -13,7 +13,7 @@ use super::worst_triangle::{Entry, WorstTriangleQueue};
 use super::{Observer, RefineError, Run, Sampler, StopReason};
 use crate::geom::{Mesh, NONE, Point, raster};
 use crate::refine::Method;
-use crate::source::{Grid, Surface};
+use crate::source::{BLOCK, Grid, Surface};
 
 /// What is known of one triangle slot.
 #[derive(Debug, Clone, Copy)]
@@ -230,28 +230,58 @@ fn triangle_error<S: Surface + ?Sized>(
     }
     let mut error = edges.iter().fold(interior, |m, &e| m.max(e));
     if let Some(grid) = sampler.surface.grid() {
-        error = error.max(grid_nodes_error(grid, corners));
+        error = grid_nodes_error(grid, corners, error);
     }
     Ok((error, edges))
 }
 
-/// max |value − F_n| over the grid nodes in the closed triangle.
-fn grid_nodes_error(grid: &Grid, corners: [crate::geom::Vertex; 3]) -> f64 {
+/// The larger of `floor` and max |value − F_n| over the grid nodes in the closed triangle.
+///
+/// A run of nodes within one of the grid's blocks is passed over when its bound cannot beat
+/// the largest error so far: its values lie in the block's range, and the plane's along the
+/// run between its ends (stepped values are monotone), so |value − F_n| is at most
+/// max(block max − plane min, plane max − block min), and the rounded differences obey the
+/// same bound (rounding is monotone). The result is the same maximum, to the bit, as a scan
+/// of every node; the order of the scan does not change a maximum.
+fn grid_nodes_error(grid: &Grid, corners: [crate::geom::Vertex; 3], floor: f64) -> f64 {
     let in_grid = corners.map(|v| {
         let (u, w) = grid.to_grid(v.point());
         Point::new(u, w)
     });
     let Some(plane) = raster::Plane::new(in_grid, corners.map(|v| v.z)) else {
-        return 0.0;
+        return floor;
     };
-    let mut error = 0.0f64;
+    let mut error = floor;
     raster::for_each_span(in_grid, grid.nx(), grid.ny(), |j, i0, i1| {
-        for (&value, linear) in grid.row(j)[i0..=i1].iter().zip(plane.row(i0, j)) {
-            // Grid values are finite, so a plain comparison is max without NaN handling.
-            let e = (value - linear).abs();
-            if e > error {
-                error = e;
+        let (values, line) = (grid.row(j), plane.row_at(i0, j));
+        if i1 - i0 < 2 * BLOCK {
+            // Too short a span for a bound to pay for itself: scan it.
+            for (k, &value) in (0..).zip(&values[i0..=i1]) {
+                let e = (value - line.at(k)).abs();
+                if e > error {
+                    error = e;
+                }
             }
+            return;
+        }
+        let mut first = i0;
+        while first <= i1 {
+            let block = first / BLOCK;
+            let last = ((block + 1) * BLOCK - 1).min(i1);
+            // Steps from i0 fit an i32: a row has at most a few hundred million nodes.
+            let (k0, k1) = ((first - i0) as i32, (last - i0) as i32);
+            let (a, b) = (line.at(k0), line.at(k1));
+            let (lo, hi) = grid.block_range(j, block);
+            if (hi - a.min(b)).max(a.max(b) - lo) > error {
+                for (k, &value) in (k0..).zip(&values[first..=last]) {
+                    // Grid values are finite, so a plain comparison is max without NaN handling.
+                    let e = (value - line.at(k)).abs();
+                    if e > error {
+                        error = e;
+                    }
+                }
+            }
+            first = last + 1;
         }
     });
     error
@@ -260,7 +290,44 @@ fn grid_nodes_error(grid: &Grid, corners: [crate::geom::Vertex; 3]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geom::Rect;
+    use crate::geom::{Rect, Vertex};
+    use proptest::prelude::*;
+
+    /// The oracle: every node of the triangle compared, none passed over.
+    fn every_node_error(grid: &Grid, corners: [Vertex; 3], floor: f64) -> f64 {
+        let in_grid = corners.map(|v| {
+            let (u, w) = grid.to_grid(v.point());
+            Point::new(u, w)
+        });
+        let Some(plane) = raster::Plane::new(in_grid, corners.map(|v| v.z)) else { return floor };
+        let mut error = floor;
+        raster::for_each_span(in_grid, grid.nx(), grid.ny(), |j, i0, i1| {
+            for (&value, linear) in grid.row(j)[i0..=i1].iter().zip(plane.row(i0, j)) {
+                error = error.max((value - linear).abs());
+            }
+        });
+        error
+    }
+
+    proptest! {
+        #[test]
+        fn passing_over_blocks_finds_the_same_maximum_as_every_node(
+            seed in 0u64..1000,
+            corners in proptest::array::uniform3((0.0f64..300.0, 0.0f64..200.0, -5.0f64..5.0)),
+            floor in prop_oneof![Just(0.0), 0.0f64..3.0],
+        ) {
+            let (nx, ny) = (301, 201);
+            // A smooth surface with a few spikes, so that some blocks hold the maximum.
+            let values = (0..nx * ny).map(|k| {
+                let (i, j) = ((k % nx) as f64, (k / nx) as f64);
+                let spike = if (k as u64).wrapping_mul(2654435761).wrapping_add(seed) % 997 == 0 { 4.0 } else { 0.0 };
+                (i * 0.05).sin() + (j * 0.03).cos() + spike
+            }).collect();
+            let grid = Grid::new(nx, ny, values).unwrap();
+            let corners = corners.map(|(x, y, z)| Vertex { x, y, z });
+            prop_assert_eq!(grid_nodes_error(&grid, corners, floor).to_bits(), every_node_error(&grid, corners, floor).to_bits());
+        }
+    }
 
     /// Triangle 0 of S4 on [0,1]×[0,0.5] is P1 P2 P3: a bottom side of length 1, a right side
     /// of 0.5 and the diagonal P3→P1 of √1.25.

@@ -11,7 +11,14 @@ pub struct Grid {
     ny: usize,
     values: Vec<f64>,
     rect: Rect,
+    /// The smallest and largest value of each run of [`BLOCK`] nodes of each row, so that a
+    /// scan for the largest error can pass over runs that cannot hold it.
+    blocks: Vec<(f64, f64)>,
 }
+
+/// Nodes per run of a row whose value range [`Grid::block_range`] keeps: 16 bytes per 32
+/// nodes (half a byte a node) for a bound that lets error scans skip most of a smooth grid.
+pub const BLOCK: usize = 32;
 
 /// Why a grid was rejected.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -61,7 +68,14 @@ impl Grid {
         if let Some(index) = values.iter().position(|v| !v.is_finite()) {
             return Err(GridError::NonFinite { i: index % nx, j: index / nx, index });
         }
-        let mut grid = Self { nx, ny, values, rect: Rect::unit() };
+        let blocks = values
+            .chunks_exact(nx)
+            .flat_map(|row| row.chunks(BLOCK))
+            .map(|run| {
+                run.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)))
+            })
+            .collect();
+        let mut grid = Self { nx, ny, values, rect: Rect::unit(), blocks };
         grid.rect = grid.default_domain();
         Ok(grid)
     }
@@ -102,6 +116,13 @@ impl Grid {
     #[inline]
     pub fn row(&self, j: usize) -> &[f64] {
         &self.values[j * self.nx..(j + 1) * self.nx]
+    }
+
+    /// The smallest and largest value of nodes `b·BLOCK .. (b+1)·BLOCK` of row j (fewer at
+    /// the row's end).
+    #[inline]
+    pub fn block_range(&self, j: usize, b: usize) -> (f64, f64) {
+        self.blocks[j * self.nx.div_ceil(BLOCK) + b]
     }
 
     /// Position of node (i, j).
@@ -193,6 +214,21 @@ mod tests {
         assert_eq!(grid.eval(Point::new(0.0, 0.0)), -1e308);
         assert_eq!(grid.eval(Point::new(0.5, 0.0)), 0.0);
         assert!(grid.eval(Point::new(0.25, 0.5)).is_finite());
+    }
+
+    #[test]
+    fn block_ranges_hold_the_extremes_of_their_runs() {
+        let (nx, ny) = (2 * BLOCK + 5, 3);
+        let values: Vec<f64> = (0..nx * ny).map(|k| ((k * 7919) % 101) as f64 - 50.0).collect();
+        let grid = Grid::new(nx, ny, values).unwrap();
+        for j in 0..ny {
+            for b in 0..nx.div_ceil(BLOCK) {
+                let run = &grid.row(j)[b * BLOCK..((b + 1) * BLOCK).min(nx)];
+                let lo = run.iter().copied().fold(f64::INFINITY, f64::min);
+                let hi = run.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                assert_eq!(grid.block_range(j, b), (lo, hi), "row {j}, block {b}");
+            }
+        }
     }
 
     #[test]

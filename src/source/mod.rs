@@ -7,7 +7,7 @@ mod grid;
 
 pub use expr::{ExprError, ExprErrorKind, Expression};
 pub use file::{DecodedGrid, GridFileError, GridFileKind, GridHints, RawType, decode_grid, decode_values};
-pub use grid::{Grid, GridError};
+pub use grid::{BLOCK, Grid, GridError};
 
 use crate::geom::{Point, Rect};
 
