@@ -39,7 +39,7 @@ mod quadrature;
 #[cfg(test)]
 mod tests;
 
-pub use problem::{Field, Problem, Region};
+pub use problem::{Problem, Region};
 
 use crate::geom::{Point, Vertex};
 use faer::dyn_stack::{MemBuffer, MemStack};

@@ -4,7 +4,7 @@
 use crate::geom::{Point, Rect};
 
 /// A scalar field on the plane, evaluated at (x, y).
-pub type Field<'a> = Box<dyn Fn(f64, f64) -> f64 + 'a>;
+pub(crate) type Field<'a> = Box<dyn Fn(f64, f64) -> f64 + 'a>;
 
 /// An axis-aligned rectangle (closed) in which k and/or f are constants.
 ///

@@ -189,6 +189,20 @@ fn the_inclusion_energy_is_positive_and_within_one_percent_of_a_finer_mesh() {
 }
 
 #[test]
+fn a_region_along_a_mesh_line_is_never_sampled() {
+    // A strip 1e-9 wide around x = 0.5 holds mesh vertices and edges but no quadrature point,
+    // so the interface does not leak into the triangles on either side.
+    let (points, triangles) = uniform(Rect::unit(), 8);
+    let strip =
+        Region { rect: Rect::new(0.5 - 1e-9, 0.5 + 1e-9, 0.0, 1.0).unwrap(), k: Some(1e6), f: Some(1e6) };
+    let plain = Problem::new(Rect::unit()).with_f(|_, _| 1.0);
+    let with_strip = Problem::new(Rect::unit()).with_f(|_, _| 1.0).with_region(strip);
+    let (a, b) =
+        (solve(&plain, &points, &triangles).unwrap(), solve(&with_strip, &points, &triangles).unwrap());
+    assert_eq!(a, b);
+}
+
+#[test]
 fn a_later_region_overrides_only_the_fields_it_sets() {
     let big = Region { rect: Rect::unit(), k: Some(2.0), f: Some(3.0) };
     let small = Region { rect: Rect::new(0.0, 0.5, 0.0, 0.5).unwrap(), k: None, f: Some(5.0) };
