@@ -155,7 +155,7 @@ pub struct ErrorNorms {
     pub energy: f64,
 }
 
-/// A triangle's corners, twice its signed area and the gradients of its three hat functions.
+/// A triangle's corners, its area and the gradients of its three hat functions.
 struct Element {
     p: [Point; 3],
     area: f64,
