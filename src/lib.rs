@@ -17,6 +17,9 @@
 //!   Depends on `geom` and `source`.
 //! - [`result`]: a finished mesh as data (arrays, per-triangle errors, stats, trace), its
 //!   checksummed binary form, and point location for F_n at any point.
+//! - [`solve`]: P1 finite elements on a mesh's vertices and triangles: −∇·(k ∇u) = f with
+//!   u = g on the rectangle's boundary, a sparse Cholesky solve, and error norms against an
+//!   exact solution. Depends on `geom`.
 //! - [`output`]: the formats (json, obj, ply, stl, vtu, msh, glb, svg, png), each streamed
 //!   from a result; shared by the command line and the API.
 //! - [`jobs`]: validated, hashed job specs, the job record, the registry with its bounded
@@ -30,6 +33,7 @@
 //!   │        │        └──────▶ source ──▶ geom
 //!   │        └──▶ result ──▶ refine
 //!   └──▶ api, output ──▶ result
+//! solve ──▶ geom
 //! ```
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -43,6 +47,7 @@ pub mod metrics;
 pub mod output;
 pub mod refine;
 pub mod result;
+pub mod solve;
 pub mod source;
 pub mod telemetry;
 
