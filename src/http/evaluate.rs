@@ -50,7 +50,7 @@ pub async fn jobs_evaluate(
     headers: HeaderMap,
     body: Body,
 ) -> Result<Response, ApiError> {
-    let result = finished_result(&state, &id).await?;
+    let (result, _) = finished_result(&state, &id).await?;
     let binary = headers
         .get(header::CONTENT_TYPE)
         .and_then(|v| v.to_str().ok())

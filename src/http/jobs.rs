@@ -74,11 +74,12 @@ fn status_body(id: &str, found: &Found) -> JobStatus {
     }
 }
 
-/// Where a finished result is served from: computed now, or a time limit stopped it.
-fn fresh(result: &MeshResult) -> negotiate::Source {
+/// Where `result` is served from: `otherwise`, unless a time limit stopped its run, which
+/// makes it a partial answer whatever found it.
+fn served(result: &MeshResult, otherwise: negotiate::Source) -> negotiate::Source {
     match result.stats.stop {
         StopReason::TimeLimit => negotiate::Source::Partial,
-        _ => negotiate::Source::Miss,
+        _ => otherwise,
     }
 }
 
@@ -117,7 +118,8 @@ pub async fn meshes_create(
         Ticket::Job(waiter) => match waiter.job().outcome().await {
             Outcome::Succeeded(r) => {
                 let elapsed = waiter.job().snapshot().elapsed;
-                negotiate::result_response(&headers, &wanted, &id, r.clone(), fresh(&r), elapsed).await
+                let source = served(&r, negotiate::Source::Miss);
+                negotiate::result_response(&headers, &wanted, &id, r, source, elapsed).await
             }
             Outcome::Failed(e) => Err(e.into()),
             Outcome::Cancelled => Err(ApiError::Cancelled),
@@ -157,54 +159,42 @@ pub async fn jobs_show(State(state): State<AppState>, Path(id): Path<String>) ->
     Ok(axum::Json(status_body(&id, &found)).into_response())
 }
 
-/// The outcome of a finished job, its result fetched back from the cache, with where the
-/// result came from and how long the engine ran.
-async fn finished_outcome(
-    state: &AppState,
-    id: &str,
-    found: Found,
-) -> Option<(Outcome, negotiate::Source, Option<Duration>)> {
-    let source_of = |r: &MeshResult| match fresh(r) {
-        negotiate::Source::Partial => negotiate::Source::Partial,
-        _ => negotiate::Source::Hit,
-    };
+/// The outcome of a finished job, its result fetched back from the cache (or, for a run its
+/// time limit stopped, from the partial results), with how long the engine ran.
+async fn finished_outcome(state: &AppState, id: &str, found: Found) -> Option<(Outcome, Option<Duration>)> {
     match found {
-        Found::Cached(r) => Some((Outcome::Succeeded(r), negotiate::Source::Hit, None)),
+        Found::Cached(r) => Some((Outcome::Succeeded(r), None)),
         Found::Job(job) => {
             let s = job.snapshot();
-            let source = match &s.outcome {
-                Some(Outcome::Succeeded(r)) => source_of(r),
-                _ => negotiate::Source::Hit,
-            };
-            s.outcome.map(|o| (o, source, s.elapsed))
+            s.outcome.map(|o| (o, s.elapsed))
         }
         Found::Done(r) => Some(match (&r.error, r.status) {
-            (Some(e), _) => (Outcome::Failed(e.clone()), negotiate::Source::Hit, r.elapsed),
-            (None, Status::Cancelled) => (Outcome::Cancelled, negotiate::Source::Hit, r.elapsed),
+            (Some(e), _) => (Outcome::Failed(e.clone()), r.elapsed),
+            (None, Status::Cancelled) => (Outcome::Cancelled, r.elapsed),
             _ => {
                 let stopped_by_time = r.stats.as_ref().is_some_and(|s| s.stop == StopReason::TimeLimit);
-                let found = match stopped_by_time {
-                    true => state.jobs.partial(id).map(|m| (m, negotiate::Source::Partial)),
-                    false => state.jobs.cached(id).await.map(|m| (m, negotiate::Source::Hit)),
+                let result = match stopped_by_time {
+                    true => state.jobs.partial(id),
+                    false => state.jobs.cached(id).await,
                 };
-                match found {
-                    Some((m, source)) => (Outcome::Succeeded(m), source, r.elapsed),
-                    None => (Outcome::Failed(JobError::Evicted), negotiate::Source::Hit, r.elapsed),
-                }
+                (result.map_or(Outcome::Failed(JobError::Evicted), Outcome::Succeeded), r.elapsed)
             }
         }),
     }
 }
 
-/// The result of finished job `id`: 404 for an unknown job, 409 for one not finished (or
-/// cancelled), the job's problem for one that failed.
-pub(super) async fn finished_result(state: &AppState, id: &str) -> Result<Arc<MeshResult>, ApiError> {
+/// The result of finished job `id` and how long its engine ran: 404 for an unknown job, 409
+/// for one not finished (or cancelled), the job's problem for one that failed.
+pub(super) async fn finished_result(
+    state: &AppState,
+    id: &str,
+) -> Result<(Arc<MeshResult>, Option<Duration>), ApiError> {
     let found = find(state, id).await?;
     let status = status_of(&found).as_str();
     match finished_outcome(state, id, found).await {
-        Some((Outcome::Succeeded(r), ..)) => Ok(r),
-        Some((Outcome::Failed(e), ..)) => Err(e.into()),
-        Some((Outcome::Cancelled, ..)) => Err(ApiError::Cancelled),
+        Some((Outcome::Succeeded(r), elapsed)) => Ok((r, elapsed)),
+        Some((Outcome::Failed(e), _)) => Err(e.into()),
+        Some((Outcome::Cancelled, _)) => Err(ApiError::Cancelled),
         None => Err(ApiError::NotFinished(status)),
     }
 }
@@ -218,16 +208,9 @@ pub async fn jobs_mesh(
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let wanted = Wanted::from_request(&uri, &headers)?;
-    let found = find(&state, &id).await?;
-    let status = status_of(&found).as_str();
-    match finished_outcome(&state, &id, found).await {
-        Some((Outcome::Succeeded(r), source, elapsed)) => {
-            negotiate::result_response(&headers, &wanted, &id, r, source, elapsed).await
-        }
-        Some((Outcome::Failed(e), ..)) => Err(e.into()),
-        Some((Outcome::Cancelled, ..)) => Err(ApiError::Cancelled),
-        None => Err(ApiError::NotFinished(status)),
-    }
+    let (result, elapsed) = finished_result(&state, &id).await?;
+    let source = served(&result, negotiate::Source::Hit);
+    negotiate::result_response(&headers, &wanted, &id, result, source, elapsed).await
 }
 
 /// The id of the final event: above every progress id, the same for every run of a job, so a
@@ -255,7 +238,7 @@ pub async fn jobs_events(
         return Ok(StatusCode::NO_CONTENT.into_response());
     }
     match finished_outcome(&state, &id, found).await {
-        Some((outcome, ..)) => Ok(final_stream(&id, &outcome)),
+        Some((outcome, _)) => Ok(final_stream(&id, &outcome)),
         // Finished between the two looks: the record is there now.
         None => Err(ApiError::Internal("job vanished between lookups".into())),
     }

@@ -56,14 +56,8 @@ impl Cache {
     /// # Errors
     /// When `dir` cannot be created or listed.
     pub fn new(bytes: u64, dir: Option<PathBuf>, dir_bytes: u64) -> std::io::Result<Self> {
-        let memory = moka::sync::Cache::builder()
-            .max_capacity(bytes)
-            .weigher(|_: &String, r: &Arc<MeshResult>| u32::try_from(r.num_bytes()).unwrap_or(u32::MAX))
-            .build();
-        let partial = moka::sync::Cache::builder()
-            .max_capacity(bytes / 4)
-            .weigher(|_: &String, r: &Arc<MeshResult>| u32::try_from(r.num_bytes()).unwrap_or(u32::MAX))
-            .build();
+        let memory = moka::sync::Cache::builder().max_capacity(bytes).weigher(weight).build();
+        let partial = moka::sync::Cache::builder().max_capacity(bytes / 4).weigher(weight).build();
         let disk = dir.map(|dir| Disk::open(dir, dir_bytes)).transpose()?;
         Ok(Self { memory, partial, disk })
     }
@@ -226,9 +220,18 @@ impl Disk {
     }
 }
 
+/// A result's weight in a memory cache: its bytes.
+fn weight(_: &String, result: &Arc<MeshResult>) -> u32 {
+    u32::try_from(result.num_bytes()).unwrap_or(u32::MAX)
+}
+
 /// Writes `result` to the file for `id` and returns its size, or `None` (and no file) when
 /// it would be larger than `limit`.
 fn write_entry(path: &Path, id: &str, result: &MeshResult, limit: u64) -> std::io::Result<Option<u64>> {
+    // Sized first, so a file over the limit is never written only to be deleted.
+    if compact::size(result, id) > limit {
+        return Ok(None);
+    }
     // Write to a temporary name of our own and rename, so a crash never leaves a half file
     // under the id and two writers (threads or processes sharing the directory) never
     // interleave.
@@ -238,15 +241,12 @@ fn write_entry(path: &Path, id: &str, result: &MeshResult, limit: u64) -> std::i
     let written = (|| {
         let mut file = std::io::BufWriter::new(std::fs::File::create_new(&tmp)?);
         let size = compact::write(result, id, &mut file)?;
-        if size > limit {
-            return Ok(None);
-        }
         file.flush()?;
         file.into_inner().map_err(|e| e.into_error())?.sync_all()?;
         std::fs::rename(&tmp, path)?;
         Ok(Some(size))
     })();
-    if !matches!(written, Ok(Some(_))) {
+    if written.is_err() {
         let _ = std::fs::remove_file(&tmp);
     }
     written

@@ -100,14 +100,22 @@ fn compute(job: &Job, spec: &JobSpec, inner: &Inner) -> (Outcome, Option<Duratio
     };
     let trace = recorder.finish(refinement.stats.stop);
     let elapsed = Some(refinement.elapsed);
-    let result = Arc::new(MeshResult { trace: Some(Arc::new(trace)), ..MeshResult::from(refinement) });
-    match result.stats.stop {
+    let mut result = MeshResult::from(refinement);
+    let result = match result.stats.stop {
         StopReason::Cancelled => return (Outcome::Cancelled, elapsed),
-        StopReason::TimeLimit => inner.cache.insert_partial(&job.id, result.clone()),
+        // Never a family's run to replay from, so no trace to keep.
+        StopReason::TimeLimit => {
+            let result = Arc::new(result);
+            inner.cache.insert_partial(&job.id, result.clone());
+            result
+        }
         _ => {
+            result.trace = Some(Arc::new(trace));
+            let result = Arc::new(result);
             inner.cache.insert(&job.id, result.clone());
             inner.note_run(&job.family, &job.id, &result);
+            result
         }
-    }
+    };
     (Outcome::Succeeded(result), elapsed)
 }

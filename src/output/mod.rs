@@ -278,25 +278,26 @@ mod tests {
     /// The bytes of `encoding` made without [`Chunks`]: every row on its own, last to first,
     /// then joined in order. A row that leaned on state left by the row before would differ.
     fn rows_one_by_one_backwards(encoding: Encoding) -> Vec<u8> {
-        let mut out = Vec::new();
-        for part in encoding.parts {
-            match part {
-                Part::Bytes(bytes) => out.extend(bytes),
-                Part::Rows { count, write } => {
-                    let mut rows: Vec<Vec<u8>> = (0..count)
-                        .rev()
-                        .map(|i| {
-                            let mut row = Vec::new();
-                            write(i, &mut row);
-                            row
-                        })
-                        .collect();
-                    rows.reverse();
-                    out.extend(rows.concat());
-                }
+        encoding.parts.into_iter().flat_map(part_backwards).collect()
+    }
+
+    /// One part's bytes, its rows made last to first and joined in order.
+    pub(super) fn part_backwards(part: Part) -> Vec<u8> {
+        match part {
+            Part::Bytes(bytes) => bytes,
+            Part::Rows { count, write } => {
+                let mut rows: Vec<Vec<u8>> = (0..count)
+                    .rev()
+                    .map(|i| {
+                        let mut row = Vec::new();
+                        write(i, &mut row);
+                        row
+                    })
+                    .collect();
+                rows.reverse();
+                rows.concat()
             }
         }
-        out
     }
 
     #[test]

@@ -62,8 +62,10 @@ pub(crate) struct Layout {
     pub line_height: f64,
     /// Width of an edge.
     pub line_width: f64,
-    /// x0, x1, y0, y1 of the domain.
-    bounds: [f64; 4],
+    /// x0, x1, y0, y1 of the domain (`result.bounds()`, or the unit square for no mesh).
+    pub bounds: [f64; 4],
+    /// The smallest and largest z: the ends of the colour scale.
+    pub z_range: (f64, f64),
     scale: f64,
 }
 
@@ -91,7 +93,8 @@ impl Layout {
             bounds = [0.0, 1.0, 0.0, 1.0];
         }
         let (dx, dy) = (bounds[1] - bounds[0], bounds[3] - bounds[2]);
-        let (lo, hi) = result.z_range();
+        let z_range = result.z_range();
+        let (lo, hi) = z_range;
         let labels = [short(hi), short(lo)];
         let label_chars = labels.iter().map(|l| l.chars().count()).max().unwrap_or(0) as f64;
 
@@ -133,6 +136,7 @@ impl Layout {
             line_height: text.line_height,
             line_width: unit.max(1.0),
             bounds,
+            z_range,
             scale,
         }
     }

@@ -33,10 +33,9 @@ fn render(result: &MeshResult, width: u32) -> Vec<u8> {
     let mut pixmap = Pixmap::new(width, height).expect("the layout has a positive size");
     pixmap.fill(colour(BACKGROUND, 255));
 
-    let z_range = result.z_range();
-    fill_triangles(&mut pixmap, result, &layout, z_range);
+    fill_triangles(&mut pixmap, result, &layout, layout.z_range);
     draw_edges(&mut pixmap, result, &layout);
-    draw_bar(&mut pixmap, &layout, z_range);
+    draw_bar(&mut pixmap, &layout, layout.z_range);
 
     let style = MonoTextStyle::new(font, Rgb888::new(INK[0], INK[1], INK[2]));
     let mut canvas = Canvas { pixmap: &mut pixmap, left: 0, top: 0, scale };
@@ -129,7 +128,7 @@ fn draw_edges(pixmap: &mut Pixmap, result: &MeshResult, layout: &Layout) {
     if opacity <= 0.0 {
         return;
     }
-    let bounds = result.bounds();
+    let bounds = layout.bounds;
     let mut path = PathBuilder::new();
     for t in 0..result.triangles.len() {
         for (p, q) in picture::owned_edges(result, bounds, t) {

@@ -28,7 +28,7 @@ const BAR_STOPS: usize = 16;
 /// The picture of `result`; the options change nothing (its size is the view box's).
 pub fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoding {
     let layout = Arc::new(Layout::new(result, VIEW_WIDTH, TEXT));
-    let z_range = result.z_range();
+    let z_range = layout.z_range;
     let mut head = String::new();
     let (w, h) = (layout.width, layout.height);
     let _ = write!(
@@ -71,7 +71,7 @@ pub fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoding {
             hex(INK),
             layout.line_width
         );
-        let (r, l, bounds) = (result.clone(), layout.clone(), result.bounds());
+        let (r, l, bounds) = (result.clone(), layout.clone(), layout.bounds);
         parts.extend([
             Part::Bytes(head.into_bytes()),
             Part::rows(result.triangles.len(), move |t, out| {

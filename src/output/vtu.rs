@@ -180,20 +180,11 @@ mod tests {
                     move |j: usize, out: &mut Vec<u8>| out.extend((0..size).map(|k| (j * 7 + k) as u8));
                 let mut raw = ((count * size) as u64).to_le_bytes().to_vec();
                 (0..count).for_each(|j| item(j, &mut raw));
-                let Part::Rows { count: rows, write } = binary_array(count, size, item) else {
-                    unreachable!()
-                };
                 // Rows written last to first, so a row that leaned on its predecessor would show.
-                let mut pieces: Vec<Vec<u8>> = (0..rows)
-                    .rev()
-                    .map(|r| {
-                        let mut out = Vec::new();
-                        write(r, &mut out);
-                        out
-                    })
-                    .collect();
-                pieces.reverse();
-                assert_eq!(pieces.concat(), STANDARD.encode(&raw).into_bytes(), "{count} items of {size}");
+                let part = binary_array(count, size, item);
+                assert!(matches!(part, Part::Rows { .. }), "a binary array streams as rows");
+                let pieces = crate::output::tests::part_backwards(part);
+                assert_eq!(pieces, STANDARD.encode(&raw).into_bytes(), "{count} items of {size}");
             }
         }
     }

@@ -71,6 +71,20 @@ impl<W: Write> Write for Hashing<W> {
     }
 }
 
+/// The number of bytes [`write`] writes for `result` under `id`, found without writing them.
+pub fn size(result: &MeshResult, id: &str) -> u64 {
+    let stats = serde_json::to_vec(&result.stats).map_or(0, |s| s.len()) as u64;
+    let (nv, nt) = (result.vertices.len() as u64, result.triangles.len() as u64);
+    let errors = if result.triangle_errors.is_some() { 8 * nt } else { 0 };
+    let trace = result.trace.as_ref().map_or(0, |t| {
+        let (checks, steps, estimates) =
+            (t.worst.len() as u64, t.splits.len() as u64, t.estimates.len() as u64);
+        3 + 4 * 8 + 8 * checks + 12 * steps + 12 * estimates + 4 * (steps + 1)
+    });
+    let header = MAGIC.len() as u64 + 4 + 4 + 8 + 8 + 4 + id.len() as u64 + 4 + stats;
+    header + 24 * nv + 12 * nt + errors + trace + CHECKSUM_LEN as u64
+}
+
 /// Writes `result`, stored under `id`, to `out` and returns the bytes written.
 ///
 /// # Errors
@@ -235,10 +249,6 @@ fn read_trace(r: &mut Reader<'_>) -> Result<Trace, CompactError> {
     })
 }
 
-fn f64s(bytes: &[u8]) -> impl Iterator<Item = f64> + '_ {
-    bytes.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes")))
-}
-
 /// The result in `bytes`, which must be stored under `id`.
 ///
 /// # Errors
@@ -277,12 +287,11 @@ pub fn read(bytes: &[u8], id: &str) -> Result<MeshResult, CompactError> {
         )));
     }
     let (nv, nt) = (nv as usize, nt as usize);
-    let vertices = r.take(24 * nv)?.chunks_exact(24).map(|c| {
-        let mut xyz = f64s(c);
-        let mut next = || xyz.next().expect("24 bytes");
-        Vertex { x: next(), y: next(), z: next() }
-    });
-    let vertices: Vec<Vertex> = vertices.collect();
+    let vertices: Vec<Vertex> = r
+        .take(24 * nv)?
+        .chunks_exact(24)
+        .map(|c| Vertex { x: f64_at(c, 0), y: f64_at(c, 8), z: f64_at(c, 16) })
+        .collect();
     let triangles: Vec<[u32; 3]> = r
         .take(12 * nt)?
         .chunks_exact(12)
@@ -314,6 +323,7 @@ mod tests {
         let mut out = Vec::new();
         let n = write(result, ID, &mut out).unwrap();
         assert_eq!(n, out.len() as u64);
+        assert_eq!(size(result, ID), n, "size() foretells what write() writes");
         out
     }
 

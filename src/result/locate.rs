@@ -77,8 +77,12 @@ impl Locator {
         let corners = |t: usize| mesh.triangles[t].map(|v| mesh.vertices[v as usize]);
         let centre =
             |c: [Vertex; 3]| Point::new((c[0].x + c[1].x + c[2].x) / 3.0, (c[0].y + c[1].y + c[2].y) / 3.0);
-        let mut ids: Vec<u32> = (0..mesh.triangles.len() as u32).collect();
-        ids.sort_by_key(|&t| (locator.bucket_of(centre(corners(t as usize))), t));
+        // Each key computed once: `sort_by_key` would recompute it at every comparison.
+        let mut keyed: Vec<(usize, u32)> = (0..mesh.triangles.len() as u32)
+            .map(|t| (locator.bucket_of(centre(corners(t as usize))), t))
+            .collect();
+        keyed.sort_unstable();
+        let ids: Vec<u32> = keyed.into_iter().map(|(_, t)| t).collect();
         let mut slot = vec![0u32; ids.len()];
         for (new, &old) in ids.iter().enumerate() {
             slot[old as usize] = new as u32;
