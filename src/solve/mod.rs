@@ -41,6 +41,7 @@ mod tests;
 
 pub use problem::{Problem, Region};
 
+use crate::geom::predicates::signed_area_x2;
 use crate::geom::{Point, Vertex};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
@@ -165,7 +166,8 @@ struct Element {
 impl Element {
     fn new<P: Position>(vertices: &[P], tri: [u32; 3], t: usize) -> Result<Self, SolveError> {
         let p = tri.map(|v| vertices[v as usize].position());
-        let det = (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[2].x - p[0].x) * (p[1].y - p[0].y);
+        // robust's orient2d: the sign is exact, so no rounding lets a folded triangle in.
+        let det = signed_area_x2(p[0], p[1], p[2]);
         if det.is_nan() || det <= 0.0 {
             return Err(SolveError::DegenerateTriangle { triangle: t, area: det / 2.0 });
         }
@@ -238,7 +240,7 @@ pub fn solve<P: Position>(
     let mut n = 0usize;
     for (v, vertex) in vertices.iter().enumerate() {
         let p = vertex.position();
-        if p.x == domain.x0() || p.x == domain.x1() || p.y == domain.y0() || p.y == domain.y1() {
+        if domain.is_on_boundary(p) {
             let g = problem.g_at(p);
             if !g.is_finite() {
                 return Err(SolveError::NonFiniteG { x: p.x, y: p.y, value: g, vertex: v });

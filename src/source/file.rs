@@ -508,7 +508,7 @@ fn into_grid(
     if rows == Rows::TopFirst {
         flip_rows(&mut values, shape);
     }
-    // One value, one cache key: the request path makes -0.0 into 0.0 the same way.
+    // One value, one cache key, whichever format carried the grid.
     values.iter_mut().for_each(|v| *v += 0.0);
     Grid::new(shape.nx, shape.ny, values).map_err(|e: GridError| GridFileError::Corrupt {
         // Unreachable: the size and every value were checked above.
