@@ -71,7 +71,7 @@ impl<W: Write> Write for Hashing<W> {
     }
 }
 
-/// The number of bytes [`write`] writes for `result` under `id`, found without writing them.
+/// The number of bytes [`write()`] writes for `result` under `id`, found without writing them.
 pub fn size(result: &MeshResult, id: &str) -> u64 {
     let stats = serde_json::to_vec(&result.stats).map_or(0, |s| s.len()) as u64;
     let (nv, nt) = (result.vertices.len() as u64, result.triangles.len() as u64);
