@@ -124,6 +124,18 @@ impl Mesh {
         self.vertices[v as usize]
     }
 
+    /// Sets every vertex's z, in vertex order: a boundary value problem's new solution on
+    /// the same vertices. Positions and topology are untouched.
+    ///
+    /// # Panics
+    /// When `z` does not have one value per vertex.
+    pub fn set_values(&mut self, z: &[f64]) {
+        assert_eq!(z.len(), self.vertices.len(), "one value per vertex");
+        for (v, &z) in self.vertices.iter_mut().zip(z) {
+            v.z = z;
+        }
+    }
+
     /// Position of vertex `v`.
     #[inline]
     pub fn point(&self, v: u32) -> Point {

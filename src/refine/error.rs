@@ -10,7 +10,7 @@
 
 use super::metrics::{LATTICE, lattice_point};
 use super::worst_triangle::{Entry, WorstTriangleQueue};
-use super::{Observer, RefineError, Run, Sampler, StopReason};
+use super::{Estimator, Observer, RefineError, Run, Sampler, StopReason};
 use crate::geom::{Mesh, NONE, Point, raster};
 use crate::refine::Method;
 use crate::source::{BLOCK, Grid, Surface};
@@ -53,6 +53,11 @@ impl Estimates {
         slot.fresh.then_some(slot.edges[(f % 3) as usize])
     }
 
+    /// [`Estimates::known_edge_error`] for each edge of triangle `t`.
+    fn known_edges(&self, mesh: &Mesh, t: u32) -> [Option<f64>; 3] {
+        [0, 1, 2].map(|k| self.known_edge_error(mesh, 3 * t + k))
+    }
+
     fn set<O: Observer>(&mut self, t: u32, error: f64, edges: [f64; 3], observer: &mut O) {
         observer.estimated(t, error);
         let seq = self.next_seq;
@@ -64,12 +69,12 @@ impl Estimates {
 }
 
 /// Refines `mesh` worst triangle first until a stop rule fires. Returns why it stopped and
-/// e(T) of every triangle at that point, by triangle index.
-pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
+/// the estimate of every triangle at that point, by triangle index.
+pub(super) fn refine<E: Estimator, O: Observer>(
     mesh: &mut Mesh,
-    sampler: &mut Sampler<'_, S>,
+    estimator: &mut E,
     run: &mut Run<'_, O>,
-) -> Result<(StopReason, Vec<f64>), RefineError> {
+) -> Result<(StopReason, Vec<f64>), E::Error> {
     let n = run.params.max_vertices();
     // Sized for the budget (capped for huge ones), so the run does not copy them as they grow.
     let room = n.min(1 << 24);
@@ -82,10 +87,10 @@ pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
         estimates.invalidate(t);
     }
     for t in 0..mesh.num_triangles() as u32 {
-        let (error, edges) = triangle_error(mesh, t, sampler, &estimates)?;
+        let (error, edges) = estimator.estimate(mesh, t, estimates.known_edges(mesh, t))?;
         estimates.set(t, error, edges, run.observer);
     }
-    run.observer.started(sampler.evaluations);
+    run.observer.started(estimator.evaluations());
     let recursive = run.params.method() == Method::Recursive;
     // Triangles a step rewrote, re-estimated after it; reused so steps do not allocate.
     let mut touched: Vec<u32> = Vec::with_capacity(32);
@@ -102,20 +107,20 @@ pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
             break StopReason::Tolerance;
         }
         estimates.queue.pop();
-        let e = if recursive {
+        let e = if recursive || E::LONGEST_EDGE_PATH {
             terminal_edge(mesh, worst.t)
         } else {
             split_edge(mesh, worst.t, &estimates.slots[worst.t as usize])
         };
         run.observer.selected(mesh, mesh.origin(e), mesh.dest(e));
         touched.clear();
-        let split = run.split_midpoint(mesh, sampler, e, |mesh, d| {
+        let split = run.split_midpoint(mesh, estimator, e, |mesh, d| {
             touched.extend([d / 3, mesh.twin(d) / 3]);
         })?;
         let Some(split) = split else {
             // The triangle stays as it is, out of the queue.
             run.observer.retired(mesh.origin(e), mesh.dest(e));
-            run.observer.stepped(None, sampler.evaluations);
+            run.observer.stepped(None, estimator.evaluations());
             continue;
         };
         touched.extend(split.link().iter().map(|&h| h / 3));
@@ -124,8 +129,9 @@ pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
         for &t in &touched {
             estimates.invalidate(t);
         }
+        estimator.rewritten(mesh, &touched)?;
         for &t in &touched {
-            let (error, edges) = triangle_error(mesh, t, sampler, &estimates)?;
+            let (error, edges) = estimator.estimate(mesh, t, estimates.known_edges(mesh, t))?;
             estimates.set(t, error, edges, run.observer);
         }
         if !touched.contains(&worst.t) {
@@ -133,7 +139,7 @@ pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
             estimates.queue.set(worst);
         }
         run.observer.inserted(mesh, split.vertex);
-        run.observer.stepped(Some(e), sampler.evaluations);
+        run.observer.stepped(Some(e), estimator.evaluations());
     };
     let errors = estimates.slots[..mesh.num_triangles()].iter().map(|s| s.error).collect();
     Ok((stop, errors))
@@ -188,18 +194,30 @@ fn terminal_edge(mesh: &Mesh, t: u32) -> u32 {
     }
 }
 
+/// A mesh's estimate: F's sampled error.
+impl<S: Surface + ?Sized> Estimator for Sampler<'_, S> {
+    #[inline]
+    fn estimate(
+        &mut self,
+        mesh: &Mesh,
+        t: u32,
+        known: [Option<f64>; 3],
+    ) -> Result<(f64, [f64; 3]), RefineError> {
+        triangle_error(mesh, t, self, known)
+    }
+}
+
 /// e(T) = max |F(s) − F_n(s)| over the lattice points s of triangle `t`, and for a grid also
 /// over the grid nodes inside it (nodes alone would miss the small triangles that hold none).
 /// Returns e(T) and the error on each edge's points; an edge a fresh neighbour has already
-/// sampled is not sampled again.
+/// sampled (`known`) is not sampled again.
 fn triangle_error<S: Surface + ?Sized>(
     mesh: &Mesh,
     t: u32,
     sampler: &mut Sampler<'_, S>,
-    estimates: &Estimates,
+    known: [Option<f64>; 3],
 ) -> Result<(f64, [f64; 3]), RefineError> {
     let corners = mesh.triangle(t as usize).map(|v| mesh.vertex(v));
-    let known = [0, 1, 2].map(|k| estimates.known_edge_error(mesh, 3 * t + k));
     // Lattice points still to sample, with the interpolant there and where the error goes:
     // 0..3 for an edge (half-edge position), 3 for the interior.
     let mut points = [Point::new(0.0, 0.0); LATTICE.len()];

@@ -210,39 +210,152 @@ where
     let [p1, p2, p3, p4] = rect.corners();
     let z = [sampler.eval(p1)?, sampler.eval(p2)?, sampler.eval(p3)?, sampler.eval(p4)?];
     let mut mesh = Mesh::with_capacity(rect, z, params.max_vertices());
+    let round = resume(&mut mesh, &mut sampler, params, Floors::of_rect(rect), observer)?;
+    let max_triangle_error =
+        round.triangle_errors.as_ref().map(|e: &Vec<f64>| e.iter().copied().fold(0.0, f64::max));
+    let stats = Stats {
+        vertices: mesh.num_vertices(),
+        triangles: mesh.num_triangles(),
+        variation: variation(&mesh),
+        max_triangle_error,
+        flips: round.flips,
+        retired_edges: round.retired,
+        evaluations: sampler.evaluations,
+        stop: round.stop,
+        delaunay: mesh.is_delaunay(),
+    };
+    Ok(Refinement { mesh, triangle_errors: round.triangle_errors, stats, elapsed: start.elapsed() })
+}
+
+/// Where a refinement gets the value of each new vertex: F at the midpoint for a mesh, the
+/// interpolated value between the solves of a boundary value problem.
+pub(crate) trait Field {
+    /// Why a value could not be had.
+    type Error;
+
+    /// z of the midpoint `m` of the edge from `a` to `b`.
+    fn midpoint(&mut self, a: Vertex, b: Vertex, m: Point) -> Result<f64, Self::Error>;
+
+    /// Evaluations of F so far, for the observer.
+    fn evaluations(&self) -> u64 {
+        0
+    }
+}
+
+/// How criterion `error` ranks triangles: F's sampled error for a mesh, a residual indicator
+/// for a boundary value problem.
+pub(crate) trait Estimator: Field {
+    /// Whether `semi-recursive` too bisects the end of the worst triangle's longest-edge path
+    /// (then flips), instead of the worst of its long edges.
+    const LONGEST_EDGE_PATH: bool = false;
+
+    /// The estimate of triangle `t` and its part on each edge (by half-edge position);
+    /// `known` holds an edge's part where a fresh neighbour already measured it.
+    fn estimate(
+        &mut self,
+        mesh: &Mesh,
+        t: u32,
+        known: [Option<f64>; 3],
+    ) -> Result<(f64, [f64; 3]), Self::Error>;
+
+    /// A step rewrote the triangles `touched`; called before any of them is estimated again.
+    fn rewritten(&mut self, _mesh: &Mesh, _touched: &[u32]) -> Result<(), Self::Error> {
+        Ok(())
+    }
+}
+
+/// The smallest edge a refinement splits and the smallest triangle it makes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Floors {
+    /// Fixed fractions of the rectangle ([`LENGTH_FLOOR`], [`AREA_FLOOR`]): a mesh never
+    /// needs finer, and the floors stop value-driven splitting from creeping toward a point.
+    Rect {
+        /// Squared length floor.
+        length_sq: f64,
+        /// Floor on twice a new triangle's area.
+        area_x2: f64,
+    },
+    /// What floating point resolves around the edge: [`RESOLUTION`] of its coordinates'
+    /// magnitude, and never below [`ABSOLUTE_FLOOR`]. A solution's singular point may need
+    /// vertices many orders of magnitude closer to it than the rectangle's size.
+    Resolution,
+}
+
+/// The relative length floor of a solution's mesh: about 10^6 units in the last place of the
+/// edge's coordinates, so a singular point gets vertices as close as floating point resolves.
+pub const RESOLUTION: f64 = 1.0 / (1u64 << 32) as f64;
+
+/// The absolute length floor of a solution's mesh: the exact predicates multiply up to
+/// four coordinate differences, and 1e-60⁴ stays far above the subnormal range.
+pub const ABSOLUTE_FLOOR: f64 = 1e-60;
+
+impl Floors {
+    /// The floors of a mesh of `rect`.
+    pub(crate) fn of_rect(rect: Rect) -> Self {
+        Self::Rect {
+            length_sq: (LENGTH_FLOOR * rect.diagonal()).powi(2),
+            area_x2: 2.0 * AREA_FLOOR * rect.area(),
+        }
+    }
+
+    /// (squared length floor, floor on twice a new triangle's area) for the edge a–b.
+    #[inline]
+    fn at(&self, a: Point, b: Point) -> (f64, f64) {
+        match *self {
+            Self::Rect { length_sq, area_x2 } => (length_sq, area_x2),
+            Self::Resolution => {
+                let scale = a.x.abs().max(a.y.abs()).max(b.x.abs()).max(b.y.abs());
+                let floor = (RESOLUTION * scale).max(ABSOLUTE_FLOOR);
+                (floor * floor, floor * floor)
+            }
+        }
+    }
+}
+
+/// What [`resume`] did.
+#[derive(Debug, Clone)]
+pub(crate) struct Round {
+    /// Why it stopped.
+    pub stop: StopReason,
+    /// For criterion `error`: the estimate of every triangle at the end, by index.
+    pub triangle_errors: Option<Vec<f64>>,
+    /// Edge flips made.
+    pub flips: u64,
+    /// Edges retired instead of split.
+    pub retired: u64,
+}
+
+/// Refines `mesh` as it stands until a stop rule of `params` fires (the time limit counts
+/// from this call): the loop of [`refine`], open to values that change between rounds. New
+/// vertices take their z from `estimator` as a [`Field`]; criterion `error` ranks triangles by
+/// its estimates, `variation` by the vertices' z.
+pub(crate) fn resume<E: Estimator, O: Observer>(
+    mesh: &mut Mesh,
+    estimator: &mut E,
+    params: &Params,
+    floors: Floors,
+    observer: &mut O,
+) -> Result<Round, E::Error> {
+    let start = Instant::now();
     let mut run = Run {
         params,
         observer,
         start,
         last_report: start,
         steps: 0,
-        floor_sq: (LENGTH_FLOOR * rect.diagonal()).powi(2),
-        min_area_x2: 2.0 * AREA_FLOOR * rect.area(),
+        floors,
         stack: Vec::with_capacity(64),
         flips: 0,
         retired: 0,
     };
     let (stop, triangle_errors) = match params.criterion() {
-        Criterion::Variation => (variation::refine(&mut mesh, &mut sampler, &mut run)?, None),
+        Criterion::Variation => (variation::refine(mesh, estimator, &mut run)?, None),
         Criterion::Error => {
-            let (stop, errors) = error::refine(&mut mesh, &mut sampler, &mut run)?;
+            let (stop, errors) = error::refine(mesh, estimator, &mut run)?;
             (stop, Some(errors))
         }
     };
-    let max_triangle_error =
-        triangle_errors.as_ref().map(|e: &Vec<f64>| e.iter().copied().fold(0.0, f64::max));
-    let stats = Stats {
-        vertices: mesh.num_vertices(),
-        triangles: mesh.num_triangles(),
-        variation: variation(&mesh),
-        max_triangle_error,
-        flips: run.flips,
-        retired_edges: run.retired,
-        evaluations: sampler.evaluations,
-        stop,
-        delaunay: mesh.is_delaunay(),
-    };
-    Ok(Refinement { mesh, triangle_errors, stats, elapsed: start.elapsed() })
+    Ok(Round { stop, triangle_errors, flips: run.flips, retired: run.retired })
 }
 
 /// F with a count of evaluations; a non-finite value is an error naming the point.
@@ -271,6 +384,19 @@ impl<S: Surface + ?Sized> Sampler<'_, S> {
     }
 }
 
+impl<S: Surface + ?Sized> Field for Sampler<'_, S> {
+    type Error = RefineError;
+
+    #[inline]
+    fn midpoint(&mut self, _a: Vertex, _b: Vertex, m: Point) -> Result<f64, RefineError> {
+        self.eval(m)
+    }
+
+    fn evaluations(&self) -> u64 {
+        self.evaluations
+    }
+}
+
 /// What both criteria's loops share: the stop rules, progress reports, size floors, the flip
 /// stack and the counters.
 struct Run<'a, O> {
@@ -279,10 +405,7 @@ struct Run<'a, O> {
     start: Instant,
     last_report: Instant,
     steps: u64,
-    /// Edges shorter than this (squared) are never split.
-    floor_sq: f64,
-    /// No split makes a triangle with twice its area below this.
-    min_area_x2: f64,
+    floors: Floors,
     /// Scratch stack for Lawson flips, reused so insertions do not allocate.
     stack: Vec<u32>,
     flips: u64,
@@ -324,24 +447,25 @@ impl<O: Observer> Run<'_, O> {
         self.params.tolerance().is_some_and(|tolerance| worst <= tolerance)
     }
 
-    /// Splits the edge of half-edge `e` at its midpoint with value F there and, in
-    /// semi-recursive mode, restores the Delaunay property, telling `on_flip` the half-edge of
+    /// Splits the edge of half-edge `e` at its midpoint, with z from `field`, and in
+    /// semi-recursive mode restores the Delaunay property, telling `on_flip` the half-edge of
     /// each flip's new diagonal. `None` (and an untouched mesh) when the edge is below the
     /// length floor or its split would make a too-small triangle.
-    fn split_midpoint<S: Surface + ?Sized>(
+    fn split_midpoint<F: Field>(
         &mut self,
         mesh: &mut Mesh,
-        sampler: &mut Sampler<'_, S>,
+        field: &mut F,
         e: u32,
         mut on_flip: impl FnMut(&Mesh, u32),
-    ) -> Result<Option<Split>, RefineError> {
-        let (a, b) = (mesh.point(mesh.origin(e)), mesh.point(mesh.dest(e)));
-        let m = a.midpoint(b);
-        if a.distance_sq(b) < self.floor_sq || !mesh.can_split(e, m, self.min_area_x2) {
+    ) -> Result<Option<Split>, F::Error> {
+        let (a, b) = (mesh.vertex(mesh.origin(e)), mesh.vertex(mesh.dest(e)));
+        let m = a.point().midpoint(b.point());
+        let (floor_sq, min_area_x2) = self.floors.at(a.point(), b.point());
+        if a.point().distance_sq(b.point()) < floor_sq || !mesh.can_split(e, m, min_area_x2) {
             self.retired += 1;
             return Ok(None);
         }
-        let z = sampler.eval(m)?;
+        let z = field.midpoint(a, b, m)?;
         let (split, flips) = insert(
             mesh,
             e,

@@ -1,22 +1,21 @@
 //! The paper's criterion: split the edge with the largest |zᵢ − zⱼ|.
 
 use super::worst_edge::{Candidate, WorstEdgeQueue};
-use super::{Observer, RefineError, Run, Sampler, StopReason};
+use super::{Field, Observer, Run, StopReason};
 use crate::geom::Mesh;
-use crate::source::Surface;
 
 /// Refines `mesh` worst edge first until a stop rule fires.
-pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
+pub(super) fn refine<F: Field, O: Observer>(
     mesh: &mut Mesh,
-    sampler: &mut Sampler<'_, S>,
+    field: &mut F,
     run: &mut Run<'_, O>,
-) -> Result<StopReason, RefineError> {
+) -> Result<StopReason, F::Error> {
     // About three edges per vertex are queued over a run.
     let mut queue = WorstEdgeQueue::with_capacity(3 * run.params.max_vertices().min(1 << 24) + 8);
     for edge in mesh.edges() {
         queue.push(candidate(mesh, edge.a, edge.b), mesh.vertices());
     }
-    run.observer.started(sampler.evaluations);
+    run.observer.started(field.evaluations());
     loop {
         if let Some(stop) = run.stop_before_step(mesh, || queue.peek().map_or(0.0, |c| c.value)) {
             return Ok(stop);
@@ -38,7 +37,7 @@ pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
         // A flip away from the new vertex (only after a midpoint rounded off its edge) makes
         // an edge the walk below does not see: queue it here. One flipped again later in the
         // same pass goes stale and is skipped.
-        let split = run.split_midpoint(mesh, sampler, e, |mesh, d| {
+        let split = run.split_midpoint(mesh, field, e, |mesh, d| {
             let (p, q, new) = (mesh.origin(d), mesh.dest(d), mesh.num_vertices() as u32 - 1);
             if p != new && q != new {
                 queue.push(candidate(mesh, p, q), mesh.vertices());
@@ -46,7 +45,7 @@ pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
         })?;
         let Some(split) = split else {
             run.observer.retired(worst.a, worst.b);
-            run.observer.stepped(None, sampler.evaluations);
+            run.observer.stepped(None, field.evaluations());
             continue;
         };
         // The other edges this step created end at the new vertex: its halves, the edges to
@@ -55,7 +54,7 @@ pub(super) fn refine<S: Surface + ?Sized, O: Observer>(
             queue.push(candidate(mesh, split.vertex, other), mesh.vertices());
         });
         run.observer.inserted(mesh, split.vertex);
-        run.observer.stepped(Some(e), sampler.evaluations);
+        run.observer.stepped(Some(e), field.evaluations());
     }
 }
 

@@ -34,11 +34,14 @@
 //! - Vertices that no triangle uses are unknowns with an empty row, so the factorisation
 //!   fails with [`SolveError::NotPositiveDefinite`].
 
+mod adapt;
 mod problem;
 mod quadrature;
+mod residual;
 #[cfg(test)]
 mod tests;
 
+pub use adapt::{Adapted, Exact, INITIAL_VERTICES, Indicator, Settings, SolveStats, Step, adapt};
 pub use problem::{Problem, Region};
 
 use crate::geom::predicates::signed_area_x2;
@@ -52,6 +55,21 @@ use faer::sparse::linalg::cholesky::{
 use faer::sparse::{FaerError, SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 use quadrature::RULE;
+
+/// The magnetic constant μ0 in H/m (CODATA 2018).
+pub const MU_0: f64 = 1.256_637_062_12e-6;
+
+/// What u stands for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Physics {
+    /// −∇·(k ∇u) = f as given.
+    #[default]
+    Poisson,
+    /// u is the vector potential A_z (Wb/m): k = 1/(μ0 μr), f = J_z (A/m²), and the flux
+    /// density is B = (∂A/∂y, −∂A/∂x) in tesla.
+    Magnetostatic,
+}
 
 /// Anything with a position in the plane: [`Point`] and [`Vertex`].
 pub trait Position {
@@ -157,14 +175,18 @@ pub struct ErrorNorms {
 }
 
 /// A triangle's corners, its area and the gradients of its three hat functions.
-struct Element {
+pub struct Element {
     p: [Point; 3],
     area: f64,
     grad: [[f64; 2]; 3],
 }
 
 impl Element {
-    fn new<P: Position>(vertices: &[P], tri: [u32; 3], t: usize) -> Result<Self, SolveError> {
+    /// Triangle `t` with corners `tri`.
+    ///
+    /// # Errors
+    /// [`SolveError::DegenerateTriangle`] unless it is strictly counter-clockwise.
+    pub fn new<P: Position>(vertices: &[P], tri: [u32; 3], t: usize) -> Result<Self, SolveError> {
         let p = tri.map(|v| vertices[v as usize].position());
         // robust's orient2d: the sign is exact, so no rounding lets a folded triangle in.
         let det = signed_area_x2(p[0], p[1], p[2]);
@@ -185,13 +207,49 @@ impl Element {
         )
     }
 
-    fn gradient(&self, values: [f64; 3]) -> [f64; 2] {
+    /// ∇ of the linear function with `values` at the corners.
+    pub fn gradient(&self, values: [f64; 3]) -> [f64; 2] {
         let mut g = [0.0; 2];
         for (v, grad) in values.iter().zip(&self.grad) {
             g[0] += v * grad[0];
             g[1] += v * grad[1];
         }
         g
+    }
+
+    /// The triangle's area.
+    pub(crate) fn area(&self) -> f64 {
+        self.area
+    }
+}
+
+/// What the quadrature rule measures of k and f on one triangle.
+pub(crate) struct Coefficients {
+    /// The rule's mean of k: the triangle's conductivity in the stiffness matrix.
+    pub k: f64,
+    /// The rule's mean of f².
+    pub f_sq: f64,
+    /// ∫ f φᵢ / area for the three hat functions.
+    pub load: [f64; 3],
+}
+
+impl Coefficients {
+    /// Samples k and f at the rule's points of triangle `t`.
+    pub(crate) fn of(problem: &Problem<'_>, e: &Element, t: usize) -> Result<Self, SolveError> {
+        let mut c = Self { k: 0.0, f_sq: 0.0, load: [0.0; 3] };
+        for (l, w) in &RULE {
+            let q = e.point(l);
+            let (k, f) = problem.k_and_f(q);
+            c.k += w * checked_k(q, t, k)?;
+            if !f.is_finite() {
+                return Err(SolveError::NonFiniteF { x: q.x, y: q.y, value: f, triangle: t });
+            }
+            c.f_sq += w * f * f;
+            for (load, l) in c.load.iter_mut().zip(l) {
+                *load += w * f * l;
+            }
+        }
+        Ok(c)
     }
 }
 
@@ -257,18 +315,7 @@ pub fn solve<P: Position>(
     let mut k_mean = Vec::with_capacity(triangles.len());
     for (t, &tri) in triangles.iter().enumerate() {
         let e = Element::new(vertices, tri, t)?;
-        let (mut k_bar, mut load) = (0.0, [0.0; 3]);
-        for (l, w) in &RULE {
-            let q = e.point(l);
-            let (k, f) = problem.k_and_f(q);
-            k_bar += w * checked_k(q, t, k)?;
-            if !f.is_finite() {
-                return Err(SolveError::NonFiniteF { x: q.x, y: q.y, value: f, triangle: t });
-            }
-            for (load, l) in load.iter_mut().zip(l) {
-                *load += w * f * l;
-            }
-        }
+        let Coefficients { k: k_bar, load, .. } = Coefficients::of(problem, &e, t)?;
         k_mean.push(k_bar);
         for i in 0..3 {
             let Some(row) = unknown[tri[i] as usize] else { continue };

@@ -17,7 +17,7 @@ use std::f64::consts::PI;
 ///
 /// Vertex (i, j) is at index j (n + 1) + i, at (x0 + i w / n, y0 + j h / n) with the last row
 /// and column set to x1 and y1 exactly, so the boundary test sees them.
-fn uniform(rect: Rect, n: u32) -> (Vec<Point>, Vec<[u32; 3]>) {
+pub(super) fn uniform(rect: Rect, n: u32) -> (Vec<Point>, Vec<[u32; 3]>) {
     let coord =
         |lo: f64, hi: f64, i: u32| if i == n { hi } else { lo + (hi - lo) * f64::from(i) / f64::from(n) };
     let mut points = Vec::new();

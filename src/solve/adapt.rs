@@ -1,0 +1,310 @@
+//! The adaptive loop of the paper's section 5: solve, rank, divide the worst segments, solve
+//! again.
+//!
+//! Each round solves on the current mesh, writes u_h into the vertices' z, measures the
+//! estimate, and then lets the refinement engine bisect worst first until the vertex count
+//! has grown by `growth` (one solve per vertex would cost O(N²)). The engine is the one that
+//! builds meshes ([`crate::refine`]), with u_h interpolated as the values of new vertices and
+//! [`Floors::Resolution`]: a singular point gets vertices as close as floating point resolves.
+//! The loop always ends on a solve, so the mesh it returns carries the solution.
+
+use super::residual::Residual;
+use super::{ErrorNorms, Problem, SolveError, solve};
+use crate::geom::{Mesh, Point};
+use crate::refine::{Criterion, Floors, Method, Observer, Params, Progress, StopReason, resume, variation};
+use serde::{Deserialize, Serialize};
+use std::time::{Duration, Instant};
+
+/// How the loop ranks where to refine.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Indicator {
+    /// The paper's: the edge with the largest |uᵢ − uⱼ| of the computed solution.
+    Variation,
+    /// The residual estimator η_T² = h_T² ‖f‖²_T + ½ Σ_E h_E ‖[k ∂u/∂n]‖²_E: the edge at the end
+    /// of the worst triangle's longest-edge path is bisected (`semi-recursive` then flips).
+    #[default]
+    Residual,
+}
+
+/// What the loop is asked to do.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Settings {
+    /// Stop once the mesh has this many vertices (after solving on it).
+    pub max_vertices: usize,
+    /// Stop once the estimate is at most this: √Σ η_T² for `residual`, max |uᵢ − uⱼ| for
+    /// `variation`.
+    pub tolerance: Option<f64>,
+    /// Whether the mesh stays Delaunay (`semi-recursive`) or nested (`recursive`).
+    pub method: Method,
+    /// The ranking.
+    pub indicator: Indicator,
+    /// The factor by which each round grows the vertex count (> 1).
+    pub growth: f64,
+    /// Stop refining once this has passed (the last mesh is still solved).
+    pub time_limit: Option<Duration>,
+}
+
+/// The vertex count the loop starts from: S₄ bisected uniformly, so that f has interior
+/// vertices to act on before the first solve.
+pub const INITIAL_VERTICES: usize = 25;
+
+impl Settings {
+    /// Residual, semi-recursive, growth 1.5, no tolerance or time limit.
+    pub fn new(max_vertices: usize) -> Self {
+        Self {
+            max_vertices,
+            tolerance: None,
+            method: Method::SemiRecursive,
+            indicator: Indicator::Residual,
+            growth: 1.5,
+            time_limit: None,
+        }
+    }
+}
+
+/// One solve of the loop.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Step {
+    /// Vertices of the mesh solved on.
+    pub vertices: usize,
+    /// The estimate on it.
+    pub estimate: f64,
+    /// ½ ∫ k |∇u_h|².
+    pub energy: f64,
+    /// max over vertices of |u − u_h|, with an exact solution.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub max_nodal_error: Option<f64>,
+    /// ‖u − u_h‖_L2, with an exact solution.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub l2_error: Option<f64>,
+    /// ‖k^½ ∇(u − u_h)‖_L2, with an exact solution.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub energy_error: Option<f64>,
+}
+
+/// The outcome of the loop; the same request gives the same stats, bit for bit.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SolveStats {
+    /// Vertices of the final mesh.
+    pub vertices: usize,
+    /// Its triangles.
+    pub triangles: usize,
+    /// Unknowns of the final solve (vertices not on the boundary).
+    pub unknowns: usize,
+    /// Solves made.
+    pub solves: usize,
+    /// The estimate on the final mesh.
+    pub estimate: f64,
+    /// ½ ∫ k |∇u_h|² on the final mesh (J/m for magnetostatics).
+    pub energy: f64,
+    /// Edge flips made.
+    pub flips: u64,
+    /// Edges retired instead of split.
+    pub retired_edges: u64,
+    /// Why the loop stopped.
+    pub stop: StopReason,
+    /// Whether the final mesh passes the exact in-circle test on every interior edge.
+    pub delaunay: bool,
+    /// One entry per solve, in order.
+    pub history: Vec<Step>,
+}
+
+/// A finished loop.
+#[derive(Debug, Clone)]
+pub struct Adapted {
+    /// The final mesh, z = u_h. After a cancellation, the last solution interpolated onto
+    /// the vertices the interrupted round added.
+    pub mesh: Mesh,
+    /// η_T of each triangle of the final mesh (`residual` only).
+    pub indicators: Option<Vec<f64>>,
+    /// What happened.
+    pub stats: SolveStats,
+    /// Time from the start to the end of each solve, in step order: the one thing that
+    /// differs between identical runs, so kept out of the stats.
+    pub times: Vec<Duration>,
+}
+
+/// An exact solution to measure u_h against.
+pub type Exact<'e> = &'e (dyn Fn(f64, f64) -> f64 + Sync);
+
+/// Runs the adaptive loop. `observer` hears one [`Progress`] per solve (`worst` is the
+/// estimate), may cancel between steps, and sees every insertion.
+///
+/// # Errors
+/// The first [`SolveError`] of a solve or of the indicator's sampling of k and f.
+pub fn adapt<O: Observer>(
+    problem: &Problem<'_>,
+    exact: Option<Exact<'_>>,
+    settings: &Settings,
+    observer: &mut O,
+) -> Result<Adapted, SolveError> {
+    let start = Instant::now();
+    let mut mesh = Mesh::with_capacity(problem.domain(), [0.0; 4], settings.max_vertices);
+    let mut residual = Residual::new(problem);
+    let mut forward = Forward(observer);
+    // Every z is 0, so every edge ties and the engine splits longest first: a uniform start.
+    let initial =
+        round_params(INITIAL_VERTICES.min(settings.max_vertices), Criterion::Variation, settings, None);
+    resume(&mut mesh, &mut residual, &initial, Floors::Resolution, &mut forward)?;
+    if settings.indicator == Indicator::Residual {
+        residual.measure_all(&mesh)?;
+    }
+    let mut run = Finish { flips: 0, retired: 0, unknowns: 0, history: Vec::new(), times: Vec::new() };
+    let mut pending = None;
+    loop {
+        let triangles: Vec<[u32; 3]> = mesh.triangles().collect();
+        let solution = solve(problem, mesh.vertices(), &triangles)?;
+        mesh.set_values(&solution.u);
+        let estimate = match settings.indicator {
+            Indicator::Variation => variation(&mesh),
+            Indicator::Residual => total(&residual, &mesh)?,
+        };
+        let norms = match exact {
+            Some(u) => {
+                Some(solution.errors(problem, mesh.vertices(), &triangles, u, |x, y| gradient(u, x, y))?)
+            }
+            None => None,
+        };
+        let n = mesh.num_vertices();
+        run.unknowns = solution.num_unknowns;
+        run.history.push(Step {
+            vertices: n,
+            estimate,
+            energy: solution.energy,
+            max_nodal_error: norms.map(|n: ErrorNorms| n.max_nodal),
+            l2_error: norms.map(|n| n.l2),
+            energy_error: norms.map(|n| n.energy),
+        });
+        let elapsed = start.elapsed();
+        run.times.push(elapsed);
+        forward.0.progress(&Progress {
+            vertices: n,
+            triangles: mesh.num_triangles(),
+            worst: estimate,
+            elapsed,
+        });
+
+        let remaining = settings.time_limit.map(|limit| limit.saturating_sub(elapsed));
+        let stop = pending
+            .or_else(|| settings.tolerance.is_some_and(|t| estimate <= t).then_some(StopReason::Tolerance))
+            .or_else(|| (n >= settings.max_vertices).then_some(StopReason::MaxVertices))
+            .or_else(|| (remaining == Some(Duration::ZERO)).then_some(StopReason::TimeLimit));
+        if let Some(stop) = stop {
+            return run.finish(mesh, &residual, settings.indicator, stop);
+        }
+        let target = ((n as f64 * settings.growth).ceil() as usize).clamp(n + 1, settings.max_vertices);
+        let criterion = match settings.indicator {
+            Indicator::Variation => Criterion::Variation,
+            Indicator::Residual => Criterion::Error,
+        };
+        let params = round_params(target, criterion, settings, remaining);
+        let round = resume(&mut mesh, &mut residual, &params, Floors::Resolution, &mut forward)?;
+        run.flips += round.flips;
+        run.retired += round.retired;
+        match round.stop {
+            StopReason::MaxVertices => {}
+            // Nothing to solve again: the mesh is the one just solved, or the job is over.
+            StopReason::Cancelled => return run.finish(mesh, &residual, settings.indicator, round.stop),
+            StopReason::Exhausted if mesh.num_vertices() == n => {
+                return run.finish(mesh, &residual, settings.indicator, round.stop);
+            }
+            // Solve what the round made, then stop.
+            other => pending = Some(other),
+        }
+    }
+}
+
+/// √Σ η_T² over the mesh.
+fn total(residual: &Residual<'_, '_>, mesh: &Mesh) -> Result<f64, SolveError> {
+    let mut sum = 0.0;
+    for t in 0..mesh.num_triangles() as u32 {
+        sum += residual.indicator_sq(mesh, t)?;
+    }
+    Ok(sum.sqrt())
+}
+
+/// What the loop has gathered so far.
+struct Finish {
+    flips: u64,
+    retired: u64,
+    unknowns: usize,
+    history: Vec<Step>,
+    times: Vec<Duration>,
+}
+
+impl Finish {
+    fn finish(
+        self,
+        mesh: Mesh,
+        residual: &Residual<'_, '_>,
+        indicator: Indicator,
+        stop: StopReason,
+    ) -> Result<Adapted, SolveError> {
+        let last = *self.history.last().expect("the loop solves before it stops");
+        let indicators = match indicator {
+            Indicator::Variation => None,
+            Indicator::Residual => Some(
+                (0..mesh.num_triangles() as u32)
+                    .map(|t| residual.indicator_sq(&mesh, t).map(f64::sqrt))
+                    .collect::<Result<_, _>>()?,
+            ),
+        };
+        let stats = SolveStats {
+            vertices: mesh.num_vertices(),
+            triangles: mesh.num_triangles(),
+            unknowns: self.unknowns,
+            solves: self.history.len(),
+            estimate: last.estimate,
+            energy: last.energy,
+            flips: self.flips,
+            retired_edges: self.retired,
+            stop,
+            delaunay: mesh.is_delaunay(),
+            history: self.history,
+        };
+        Ok(Adapted { mesh, indicators, stats, times: self.times })
+    }
+}
+
+/// The engine's parameters for one round.
+fn round_params(
+    target: usize,
+    criterion: Criterion,
+    settings: &Settings,
+    time_limit: Option<Duration>,
+) -> Params {
+    let params = Params::new(target.max(4)).expect("a round's target is a valid budget");
+    let params = params.with_criterion(criterion).with_method(settings.method);
+    match time_limit {
+        Some(t) => params.with_time_limit(t),
+        None => params,
+    }
+}
+
+/// Passes cancellation and insertions through to the loop's observer, but not the engine's
+/// progress reports: the loop reports once per solve.
+struct Forward<'o, O>(&'o mut O);
+
+impl<O: Observer> Observer for Forward<'_, O> {
+    fn is_cancelled(&self) -> bool {
+        self.0.is_cancelled()
+    }
+
+    fn inserted(&mut self, mesh: &Mesh, vertex: u32) {
+        self.0.inserted(mesh, vertex);
+    }
+}
+
+/// ∇u at (x, y) by central differences, with a step that scales with the point's magnitude
+/// (about ε^⅓ of it, the step that balances truncation against rounding), so that the
+/// gradient is resolved near a singular point at the origin as well as far from it.
+fn gradient(u: Exact<'_>, x: f64, y: f64) -> [f64; 2] {
+    let h = 6e-6 * x.abs().max(y.abs()).max(1e-200);
+    let p = |x: f64, y: f64| Point::new(x, y);
+    let (px, mx, py, my) = (p(x + h, y), p(x - h, y), p(x, y + h), p(x, y - h));
+    [(u(px.x, px.y) - u(mx.x, mx.y)) / (px.x - mx.x), (u(py.x, py.y) - u(my.x, my.y)) / (py.y - my.y)]
+}
+
+#[cfg(test)]
+mod tests;
