@@ -1,6 +1,8 @@
 //! Wire types of the HTTP API (serde only). Field docs here are the ones in openapi.yaml.
 
-use crate::refine::{Criterion, Method, Stats};
+use crate::refine::{Criterion, Method};
+use crate::result::Summary;
+use crate::solve::{Indicator, Physics};
 use crate::source::RawType;
 use serde::de::{self, Deserializer, Visitor};
 use serde::{Deserialize, Serialize};
@@ -114,7 +116,7 @@ pub struct JobStatus {
     pub progress: Option<ProgressEvent>,
     /// The run's stats, once succeeded.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub stats: Option<Stats>,
+    pub stats: Option<Summary>,
     /// How long the engine ran, in milliseconds, once finished (not part of the mesh: it is
     /// the one thing that differs between two runs of a request).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -160,4 +162,69 @@ pub struct ProgressEvent {
     pub worst: f64,
     /// Milliseconds since the job started running.
     pub elapsed_ms: f64,
+}
+
+/// The body of `POST /v1/solutions` (and of `POST /v1/jobs` when it names `physics`): the
+/// boundary value problem −∇·(k ∇u) = f in the rectangle, u = g on its boundary.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SolveRequest {
+    /// The rectangle; default \[0,1\]².
+    pub domain: Option<DomainInput>,
+    /// `poisson` (default) or `magnetostatic` (u is A_z; regions give `mu_r` and
+    /// `current_density`).
+    pub physics: Option<Physics>,
+    /// The coefficient k > 0: a number or an expression in x and y (default 1; poisson only).
+    pub k: Option<Coefficient>,
+    /// The load f (default 0; poisson only).
+    pub f: Option<Coefficient>,
+    /// The boundary values g (default 0); A on the boundary for magnetostatics.
+    pub g: Option<Coefficient>,
+    /// Rectangles inside the domain, later entries winning, that override k and f.
+    #[serde(default)]
+    pub regions: Vec<RegionInput>,
+    /// The exact solution, to measure the errors against.
+    pub exact: Option<Coefficient>,
+    /// The vertex budget (default 10000, at least 4).
+    #[serde(default, deserialize_with = "optional_count")]
+    pub max_vertices: Option<u64>,
+    /// Stop once the estimate is at most this.
+    pub tolerance: Option<f64>,
+    /// `semi-recursive` (default) or `recursive`.
+    pub method: Option<Method>,
+    /// `residual` (default) or `variation` (the paper's).
+    pub criterion: Option<Indicator>,
+    /// The factor each round grows the vertex count by (default 1.5, in (1, 4]).
+    pub growth: Option<f64>,
+    /// Stop after this many milliseconds; capped by the server's job time limit.
+    #[serde(default, deserialize_with = "optional_count")]
+    pub time_limit_ms: Option<u64>,
+}
+
+/// A number, or a meval expression in x and y.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(untagged)]
+pub enum Coefficient {
+    /// A constant.
+    Number(f64),
+    /// An expression.
+    Expression(String),
+}
+
+/// A region of a boundary value problem: an axis-aligned rectangle with constant values.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RegionInput {
+    /// [x0, x1].
+    pub x: Vec<f64>,
+    /// [y0, y1].
+    pub y: Vec<f64>,
+    /// k inside (poisson).
+    pub k: Option<f64>,
+    /// f inside (poisson).
+    pub f: Option<f64>,
+    /// Relative permeability inside (magnetostatic; default 1).
+    pub mu_r: Option<f64>,
+    /// Current density J_z inside, in A/m² (magnetostatic; default 0).
+    pub current_density: Option<f64>,
 }

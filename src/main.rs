@@ -1,13 +1,16 @@
 //! The `meshfit` command line: with no arguments (or `serve`) it runs the HTTP service;
-//! `meshfit mesh ...` writes one mesh document to stdout.
+//! `meshfit mesh ...` writes one mesh document to stdout, `meshfit solve FILE` one solution.
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
+use meshfit::api::SolveRequest;
 use meshfit::config::{Config, RawConfig};
 use meshfit::geom::Rect;
+use meshfit::jobs::{Limits, SolveSpec};
 use meshfit::output::{self, Format, Options, json};
-use meshfit::refine::{Criterion, Method, Params, estimate_error, refine};
+use meshfit::refine::{Criterion, MAX_VERTICES, Method, Params, estimate_error, refine};
 use meshfit::result::MeshResult;
+use meshfit::solve::{Exact, adapt};
 use meshfit::source::{Expression, GridHints, RawType, Source, decode_grid};
 use std::io::{BufWriter, Write};
 use std::path::PathBuf;
@@ -29,6 +32,9 @@ enum Command {
     Serve(ServeArgs),
     /// Refine a mesh for F and write it as JSON to stdout.
     Mesh(MeshArgs),
+    /// Solve a boundary value problem on an adaptive mesh: FILE holds the JSON body of
+    /// POST /v1/solutions ("-" reads stdin); the solution document goes to stdout.
+    Solve(SolveArgs),
 }
 
 /// Each flag sets the MESHFIT_* variable named in its help; see the README's table.
@@ -183,6 +189,17 @@ struct MeshArgs {
     /// Print only the stats and the E_n estimate.
     #[arg(long, conflicts_with_all = ["format", "output"])]
     stats: bool,
+    #[command(flatten)]
+    output: OutputArgs,
+}
+
+fn parse_format(s: &str) -> Result<Format, String> {
+    Format::from_name(s).ok_or_else(|| format!("unknown format `{s}`; known formats: {}", Format::names()))
+}
+
+/// Where a result goes and how it is written: the flags `mesh` and `solve` share.
+#[derive(Args)]
+struct OutputArgs {
     /// The output format: json, obj, ply, stl, vtu, msh, glb, svg or png [default: from the
     /// extension of --output, else json].
     #[arg(long, value_name = "FORMAT", value_parser = parse_format)]
@@ -198,11 +215,7 @@ struct MeshArgs {
     size: u32,
 }
 
-fn parse_format(s: &str) -> Result<Format, String> {
-    Format::from_name(s).ok_or_else(|| format!("unknown format `{s}`; known formats: {}", Format::names()))
-}
-
-impl MeshArgs {
+impl OutputArgs {
     /// --format, else the format --output's extension names, else JSON.
     fn format(&self) -> Result<Format> {
         if let Some(f) = self.format {
@@ -214,6 +227,83 @@ impl MeshArgs {
             format!("cannot tell the format of {} from its extension; give --format", path.display())
         })
     }
+
+    /// Checks the flags before any work is done.
+    fn check(&self) -> Result<Format> {
+        if !(self.z_scale.is_finite()) {
+            bail!("--z-scale must be a finite number");
+        }
+        self.format()
+    }
+
+    /// Writes `result` as the flags say.
+    fn write(&self, result: MeshResult, format: Format) -> Result<()> {
+        let options = Options { id: None, z_scale: self.z_scale, size: self.size };
+        let encoding = output::encode(&Arc::new(result), format, &options);
+        match &self.output {
+            Some(path) => {
+                let file = std::fs::File::create(path)
+                    .with_context(|| format!("cannot create {}", path.display()))?;
+                let mut out = BufWriter::new(file);
+                encoding
+                    .write_to(&mut out)
+                    .and_then(|()| out.flush())
+                    .with_context(|| format!("writing {}", path.display()))
+            }
+            None => {
+                let mut out = BufWriter::new(std::io::stdout().lock());
+                encoding.write_to(&mut out)?;
+                if format == Format::Json {
+                    writeln!(out)?;
+                }
+                out.flush().context("writing to stdout")
+            }
+        }
+    }
+}
+
+#[derive(Args)]
+struct SolveArgs {
+    /// The request: a JSON file as POST /v1/solutions takes, or - for stdin.
+    #[arg(value_name = "FILE")]
+    file: PathBuf,
+    /// Print only the stats, with the time at the end of each solve (`solve_times_ms`).
+    #[arg(long, conflicts_with_all = ["format", "output"])]
+    stats: bool,
+    #[command(flatten)]
+    output: OutputArgs,
+}
+
+fn solve(args: &SolveArgs) -> Result<()> {
+    let path = &args.file;
+    let text = if path.as_os_str() == "-" {
+        std::io::read_to_string(std::io::stdin()).context("reading stdin")?
+    } else {
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?
+    };
+    let request: SolveRequest =
+        serde_json::from_str(&text).with_context(|| format!("{} is not a valid request", path.display()))?;
+    let limits = Limits {
+        max_vertices: MAX_VERTICES,
+        max_grid_points: usize::MAX,
+        max_expression_len: usize::MAX,
+        job_time_limit: Duration::MAX,
+    };
+    let (spec, _) = SolveSpec::from_request(request, &limits)?;
+    let format = args.output.check()?;
+    let problem = spec.problem();
+    let exact = spec.exact();
+    let adapted = adapt(&problem, exact.as_ref().map(|u| u as Exact<'_>), &spec.settings, &mut ())?;
+    if args.stats {
+        let times: Vec<f64> = adapted.times.iter().map(|t| t.as_secs_f64() * 1e3).collect();
+        let result = MeshResult::solution(adapted, spec.physics);
+        let mut out = BufWriter::new(std::io::stdout().lock());
+        let doc = serde_json::json!({"stats": result.stats, "solve_times_ms": times});
+        serde_json::to_writer_pretty(&mut out, &doc)?;
+        writeln!(out)?;
+        return out.flush().context("writing to stdout");
+    }
+    args.output.write(MeshResult::solution(adapted, spec.physics), format)
 }
 
 fn parse_domain(s: &str) -> Result<Rect, String> {
@@ -260,10 +350,7 @@ fn mesh(args: &MeshArgs) -> Result<()> {
     if let Some(ms) = args.time_limit_ms {
         params = params.with_time_limit(Duration::from_millis(ms));
     }
-    let format = args.format()?;
-    if !(args.z_scale.is_finite()) {
-        bail!("--z-scale must be a finite number");
-    }
+    let format = args.output.check()?;
     let result = refine(&source, rect, &params, &mut ())?;
     if args.stats {
         let mut out = BufWriter::new(std::io::stdout().lock());
@@ -271,27 +358,7 @@ fn mesh(args: &MeshArgs) -> Result<()> {
         writeln!(out)?;
         return out.flush().context("writing to stdout");
     }
-    let options = Options { id: None, z_scale: args.z_scale, size: args.size };
-    let encoding = output::encode(&Arc::new(MeshResult::from(result)), format, &options);
-    match &args.output {
-        Some(path) => {
-            let file =
-                std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
-            let mut out = BufWriter::new(file);
-            encoding
-                .write_to(&mut out)
-                .and_then(|()| out.flush())
-                .with_context(|| format!("writing {}", path.display()))
-        }
-        None => {
-            let mut out = BufWriter::new(std::io::stdout().lock());
-            encoding.write_to(&mut out)?;
-            if format == Format::Json {
-                writeln!(out)?;
-            }
-            out.flush().context("writing to stdout")
-        }
-    }
+    args.output.write(MeshResult::from(result), format)
 }
 
 fn main() -> ExitCode {
@@ -300,6 +367,7 @@ fn main() -> ExitCode {
         None => serve(&ServeArgs::default()),
         Some(Command::Serve(args)) => serve(args),
         Some(Command::Mesh(args)) => mesh(args),
+        Some(Command::Solve(args)) => solve(args),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,

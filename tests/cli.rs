@@ -180,3 +180,55 @@ fn a_raw_grid_file_with_its_hints_meshes_like_the_same_json_grid() {
     let err = stderr_of_failure(&["mesh", "--grid", raw_path.to_str().unwrap()]);
     assert!(err.contains("nx"), "{err}");
 }
+
+#[test]
+fn solve_prints_the_solution_document_the_api_serves() {
+    let request =
+        r#"{"f": "1", "regions": [{"x": [0.25, 0.5], "y": [0.25, 0.5], "k": 10}], "max_vertices": 800}"#;
+    let path = temp_file("solve_inclusion.json", request);
+    let doc = document(&["solve", path.to_str().unwrap()]);
+    // The document the API encodes for the same request, without its id.
+    let limits = meshfit::jobs::Limits {
+        max_vertices: 1 << 20,
+        max_grid_points: 1 << 20,
+        max_expression_len: 4096,
+        job_time_limit: std::time::Duration::from_secs(600),
+    };
+    let (spec, _) =
+        meshfit::jobs::SolveSpec::from_request(serde_json::from_str(request).unwrap(), &limits).unwrap();
+    let adapted = meshfit::solve::adapt(&spec.problem(), None, &spec.settings, &mut ()).unwrap();
+    let result = std::sync::Arc::new(meshfit::result::MeshResult::solution(adapted, spec.physics));
+    let encoded =
+        meshfit::output::encode(&result, meshfit::output::Format::Json, &Default::default()).to_vec();
+    assert_eq!(doc, serde_json::from_slice::<Value>(&encoded).unwrap());
+    assert_eq!(doc["vertices"].as_array().unwrap().len(), 800);
+    assert!(doc.get("flux_density").is_none(), "poisson has no flux density");
+}
+
+#[test]
+fn solve_reads_stdin_and_stats_give_the_time_of_each_solve() {
+    let request = r#"{"physics": "magnetostatic", "regions": [{"x": [0.4, 0.6], "y": [0.4, 0.6], "current_density": 1e6}], "max_vertices": 500}"#;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_meshfit"))
+        .args(["solve", "-", "--stats"])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    use std::io::Write;
+    child.stdin.take().unwrap().write_all(request.as_bytes()).unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success());
+    let doc: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let solves = doc["stats"]["solves"].as_u64().unwrap() as usize;
+    assert_eq!(doc["stats"]["physics"], "magnetostatic");
+    let times: Vec<f64> = serde_json::from_value(doc["solve_times_ms"].clone()).unwrap();
+    assert_eq!(times.len(), solves);
+    assert!(times.windows(2).all(|w| w[0] <= w[1]), "times are cumulative: {times:?}");
+}
+
+#[test]
+fn solve_names_the_field_and_column_of_a_bad_expression() {
+    let path = temp_file("solve_bad.json", r#"{"g": "x +* y"}"#);
+    let err = stderr_of_failure(&["solve", path.to_str().unwrap()]);
+    assert!(err.contains("g:") && err.contains("column 4"), "{err}");
+}

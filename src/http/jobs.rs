@@ -5,7 +5,7 @@ use super::extract::{Body, JobBody, parse_json};
 use super::negotiate::{self, Wanted};
 use super::problem::ApiError;
 use super::sse;
-use crate::api::{JobRequest, JobStatus, Links};
+use crate::api::{JobRequest, JobStatus, Links, SolveRequest};
 use crate::jobs::{
     Found, JobError, JobKeys, JobSpec, Outcome, Record, Snapshot, Status, Ticket, Waiter, job_keys,
 };
@@ -23,13 +23,46 @@ use tokio::time::Instant;
 /// Progress events go out at most this often, however fast the engine reports.
 const PROGRESS_EVERY: Duration = Duration::from_millis(100);
 
+/// What a route takes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Kind {
+    /// A mesh request.
+    Mesh,
+    /// A boundary value problem.
+    Solution,
+    /// Either: a JSON body that names `physics` is a boundary value problem.
+    Any,
+}
+
+/// Whether a JSON body has a top-level `physics` field (false when it does not parse: the
+/// mesh parser then says what is wrong).
+fn names_physics(json: &[u8]) -> bool {
+    #[derive(serde::Deserialize)]
+    struct Probe {
+        physics: Option<serde::de::IgnoredAny>,
+    }
+    serde_json::from_slice::<Probe>(json).is_ok_and(|p| p.physics.is_some())
+}
+
 /// Parses, validates and hashes a body off the async workers: a large grid takes real CPU.
-async fn prepare(state: &AppState, headers: &HeaderMap, body: Body) -> Result<(JobKeys, JobSpec), ApiError> {
+async fn prepare(
+    state: &AppState,
+    headers: &HeaderMap,
+    body: Body,
+    kind: Kind,
+) -> Result<(JobKeys, JobSpec), ApiError> {
     let limits = state.limits;
     let body = JobBody::from_parts(headers, body.0).await?;
     let (keys, spec) = tokio::task::spawn_blocking(move || {
         let spec = match body {
+            JobBody::Json(json) if kind == Kind::Solution || (kind == Kind::Any && names_physics(&json)) => {
+                JobSpec::from_solve_request(parse_json::<SolveRequest>(&json)?, &limits)?
+            }
             JobBody::Json(json) => JobSpec::from_request(parse_json::<JobRequest>(&json)?, &limits)?,
+            JobBody::Upload { .. } if kind == Kind::Solution => {
+                let detail = "a boundary value problem is a JSON body; grid files are for meshes";
+                return Err(ApiError::InvalidRequest(detail.into()));
+            }
             JobBody::Upload { request, grid } => {
                 JobSpec::from_upload(parse_json::<JobRequest>(&request)?, &grid, &limits)?
             }
@@ -77,7 +110,7 @@ fn status_body(id: &str, found: &Found) -> JobStatus {
 /// Where `result` is served from: `otherwise`, unless a time limit stopped its run, which
 /// makes it a partial answer whatever found it.
 fn served(result: &MeshResult, otherwise: negotiate::Source) -> negotiate::Source {
-    match result.stats.stop {
+    match result.stats.stop() {
         StopReason::TimeLimit => negotiate::Source::Partial,
         _ => otherwise,
     }
@@ -92,10 +125,31 @@ pub async fn meshes_create(
     headers: HeaderMap,
     body: Body,
 ) -> Result<Response, ApiError> {
+    create(state, uri, headers, body, Kind::Mesh).await
+}
+
+/// `POST /v1/solutions`: as `POST /v1/meshes`, for a boundary value problem; the events are
+/// one per solve.
+pub async fn solutions_create(
+    State(state): State<AppState>,
+    uri: Uri,
+    headers: HeaderMap,
+    body: Body,
+) -> Result<Response, ApiError> {
+    create(state, uri, headers, body, Kind::Solution).await
+}
+
+async fn create(
+    state: AppState,
+    uri: Uri,
+    headers: HeaderMap,
+    body: Body,
+    kind: Kind,
+) -> Result<Response, ApiError> {
     let stream = wants_event_stream(&headers);
     // A format nobody writes is refused before any work is done.
     let wanted = if stream { None } else { Some(Wanted::from_request(&uri, &headers)?) };
-    let (keys, spec) = prepare(&state, &headers, body).await?;
+    let (keys, spec) = prepare(&state, &headers, body, kind).await?;
     let id = keys.id.clone();
     let ticket = state.jobs.submit(keys, spec, false).await?;
     let Some(wanted) = wanted else {
@@ -127,13 +181,14 @@ pub async fn meshes_create(
     }
 }
 
-/// `POST /v1/jobs`: starts (or finds) a job that runs whether or not anyone waits.
+/// `POST /v1/jobs`: starts (or finds) a job that runs whether or not anyone waits; a body
+/// that names `physics` is a boundary value problem.
 pub async fn jobs_create(
     State(state): State<AppState>,
     headers: HeaderMap,
     body: Body,
 ) -> Result<Response, ApiError> {
-    let (keys, spec) = prepare(&state, &headers, body).await?;
+    let (keys, spec) = prepare(&state, &headers, body, Kind::Any).await?;
     let id = keys.id.clone();
     let (code, status) = match state.jobs.submit(keys, spec, true).await? {
         Ticket::Cached(f) | Ticket::Prefix(f) => (StatusCode::OK, status_body(&id, &Found::Cached(f))),
@@ -172,7 +227,7 @@ async fn finished_outcome(state: &AppState, id: &str, found: Found) -> Option<(O
             (Some(e), _) => (Outcome::Failed(e.clone()), r.elapsed),
             (None, Status::Cancelled) => (Outcome::Cancelled, r.elapsed),
             _ => {
-                let stopped_by_time = r.stats.as_ref().is_some_and(|s| s.stop == StopReason::TimeLimit);
+                let stopped_by_time = r.stats.as_ref().is_some_and(|s| s.stop() == StopReason::TimeLimit);
                 let result = match stopped_by_time {
                     true => state.jobs.partial(id),
                     false => state.jobs.cached(id).await,

@@ -48,6 +48,7 @@ impl AppState {
 /// The API's routes, as listed in openapi.yaml.
 pub const ROUTES: &[(&str, &str)] = &[
     ("post", "/v1/meshes"),
+    ("post", "/v1/solutions"),
     ("post", "/v1/jobs"),
     ("get", "/v1/jobs/{id}"),
     ("delete", "/v1/jobs/{id}"),
@@ -90,6 +91,7 @@ pub fn router(state: AppState, max_body_bytes: usize) -> Router {
         .layer(DefaultBodyLimit::max(max_body_bytes));
     Router::new()
         .route("/v1/meshes", post(jobs::meshes_create))
+        .route("/v1/solutions", post(jobs::solutions_create))
         .route("/v1/jobs", post(jobs::jobs_create))
         .route("/v1/jobs/{id}", get(jobs::jobs_show).delete(jobs::jobs_cancel))
         .route("/v1/jobs/{id}/events", get(jobs::jobs_events))

@@ -3,6 +3,7 @@
 use crate::jobs::{JobError, SpecError, SubmitError};
 use crate::output::Format;
 use crate::refine::RefineError;
+use crate::solve::SolveError;
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use serde_json::{Map, Value, json};
@@ -26,6 +27,8 @@ pub enum ApiError {
     BodyTooLarge(usize),
     /// 422 `non-finite-value`: F is NaN or infinite at a point the refinement needs.
     NonFinite(RefineError),
+    /// 422 `invalid-problem`: k, f or g is invalid where the solver sampled it.
+    Unsolvable(SolveError),
     /// 404 `not-found`.
     NotFound(String),
     /// 405 `method-not-allowed`.
@@ -63,6 +66,12 @@ impl From<JobError> for ApiError {
     fn from(e: JobError) -> Self {
         match e {
             JobError::Refine(e) => ApiError::NonFinite(e),
+            JobError::Solve(e) => match e {
+                SolveError::InvalidK { .. }
+                | SolveError::NonFiniteF { .. }
+                | SolveError::NonFiniteG { .. } => ApiError::Unsolvable(e),
+                other => ApiError::Internal(other.to_string()),
+            },
             JobError::Internal(detail) => ApiError::Internal(detail),
             JobError::Evicted => ApiError::NotFound(
                 "the job succeeded, but its mesh is no longer cached; submit the request again".into(),
@@ -108,6 +117,15 @@ impl ApiError {
                         ("invalid-grid", "Grid is malformed")
                     }
                     SpecError::Domain(_) => ("invalid-domain", "Domain is not a rectangle"),
+                    SpecError::Coefficient { field, error } => {
+                        ext.insert("field".into(), json!(field));
+                        ext.insert("column".into(), json!(error.column));
+                        ("invalid-expression", "Expression does not parse")
+                    }
+                    SpecError::Problem { field, .. } => {
+                        ext.insert("field".into(), json!(field));
+                        ("invalid-problem", "Boundary value problem is invalid")
+                    }
                     SpecError::Parameter(_) => ("invalid-parameter", "Parameter out of range"),
                     SpecError::Limit { setting, limit, .. } => {
                         ext.insert("limit".into(), json!({"name": setting, "value": limit}));
@@ -120,6 +138,17 @@ impl ApiError {
                 let RefineError::NonFinite { point, .. } = e;
                 ext.insert("point".into(), json!([point.x, point.y]));
                 (unprocessable, "non-finite-value", "F is not finite where the mesh needs it", e.to_string())
+            }
+            ApiError::Unsolvable(e) => {
+                let (field, x, y) = match *e {
+                    SolveError::InvalidK { x, y, .. } => ("k", x, y),
+                    SolveError::NonFiniteF { x, y, .. } => ("f", x, y),
+                    SolveError::NonFiniteG { x, y, .. } => ("g", x, y),
+                    _ => ("", f64::NAN, f64::NAN),
+                };
+                ext.insert("field".into(), json!(field));
+                ext.insert("point".into(), json!([x, y]));
+                (unprocessable, "invalid-problem", "Boundary value problem is invalid", e.to_string())
             }
             ApiError::NotFound(d) => (StatusCode::NOT_FOUND, "not-found", "Not found", d.clone()),
             ApiError::MethodNotAllowed => (

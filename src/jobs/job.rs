@@ -1,8 +1,10 @@
 //! The job record: a job's status, progress and outcome, and the one view of them clients get.
 
 use crate::api::ProgressEvent;
-use crate::refine::{RefineError, Stats};
+use crate::refine::RefineError;
 use crate::result::MeshResult;
+use crate::result::Summary;
+use crate::solve::SolveError;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::Duration;
@@ -42,6 +44,9 @@ pub enum JobError {
     /// The engine refused the input (F not finite at a point).
     #[error(transparent)]
     Refine(RefineError),
+    /// The boundary value problem is invalid where the solver sampled it (k ≤ 0, say).
+    #[error(transparent)]
+    Solve(SolveError),
     /// Something went wrong inside the server; the detail is logged, not sent.
     #[error("internal error: {0}")]
     Internal(String),
@@ -163,7 +168,7 @@ pub struct Record {
     /// The last progress report.
     pub progress: Option<ProgressEvent>,
     /// The stats, when succeeded.
-    pub stats: Option<Stats>,
+    pub stats: Option<Summary>,
     /// The error, when failed.
     pub error: Option<JobError>,
     /// How long the engine ran.

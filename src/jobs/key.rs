@@ -4,7 +4,8 @@
 //! filled in, so key order, `1` versus `1.0` and omitted defaults never make a new entry.
 //! std's `DefaultHasher` is not used: its docs say its output may change between releases.
 
-use super::spec::JobSpec;
+use super::solution::{Coef, SolveSpec};
+use super::spec::{JobSpec, Work};
 use crate::source::Source;
 use sha2::{Digest, Sha256};
 
@@ -41,6 +42,19 @@ pub fn job_keys(spec: &JobSpec) -> JobKeys {
         h.update(bytes);
     }
     field(&mut h, "engine", ENGINE_VERSION.as_bytes());
+    // The limit the client named, not the one in force: server settings never change ids.
+    let ms = spec.requested_time_limit.map_or(Vec::new(), |t| (t.as_millis() as u64).to_le_bytes().to_vec());
+    let spec = match &spec.work {
+        Work::Mesh(mesh) => mesh,
+        Work::Solve(solve) => {
+            field(&mut h, "kind", b"solution");
+            solution_fields(&mut h, solve, field);
+            field(&mut h, "time_limit_ms", &ms);
+            // No family: a smaller solution is not a prefix of a larger one.
+            let id = format!("{:x}", h.finalize());
+            return JobKeys { family: id.clone(), id };
+        }
+    };
     match &*spec.source {
         Source::Expression(e) => field(&mut h, "function", e.text().as_bytes()),
         Source::Grid(g) => {
@@ -68,10 +82,37 @@ pub fn job_keys(spec: &JobSpec) -> JobKeys {
     field(&mut family, "family", &[]);
     field(&mut h, "max_vertices", &(p.max_vertices() as u64).to_le_bytes());
     field(&mut h, "tolerance", &p.tolerance().map_or(Vec::new(), |t| t.to_bits().to_le_bytes().to_vec()));
-    // The limit the client named, not the one in force: server settings never change ids.
-    let ms = spec.requested_time_limit.map_or(Vec::new(), |t| (t.as_millis() as u64).to_le_bytes().to_vec());
     field(&mut h, "time_limit_ms", &ms);
     JobKeys { id: format!("{:x}", h.finalize()), family: format!("{:x}", family.finalize()) }
+}
+
+/// The fields of a boundary value problem, in a fixed order, numbers by their bits.
+fn solution_fields(h: &mut Sha256, spec: &SolveSpec, field: fn(&mut Sha256, &str, &[u8])) {
+    let bits = |v: f64| v.to_bits().to_le_bytes();
+    let optional = |v: Option<f64>| v.map_or(Vec::new(), |v| bits(v).to_vec());
+    let coef = |h: &mut Sha256, name: &str, c: Option<&Coef>| match c {
+        None => field(h, name, &[]),
+        Some(Coef::Constant(v)) => field(h, name, &[&[0u8][..], &bits(*v)].concat()),
+        Some(Coef::Expression(e)) => field(h, name, &[&[1u8][..], e.text().as_bytes()].concat()),
+    };
+    field(h, "physics", format!("{:?}", spec.physics).as_bytes());
+    let d = spec.domain;
+    field(h, "domain", &[d.x0(), d.x1(), d.y0(), d.y1()].map(bits).concat());
+    coef(h, "k", Some(&spec.k));
+    coef(h, "f", Some(&spec.f));
+    coef(h, "g", Some(&spec.g));
+    coef(h, "exact", spec.exact.as_ref());
+    field(h, "regions", &(spec.regions.len() as u64).to_le_bytes());
+    for r in &spec.regions {
+        let rect = [r.rect.x0(), r.rect.x1(), r.rect.y0(), r.rect.y1()].map(bits).concat();
+        field(h, "region", &[rect, optional(r.k), optional(r.f)].concat());
+    }
+    let s = &spec.settings;
+    field(h, "method", s.method.to_string().as_bytes());
+    field(h, "criterion", format!("{:?}", s.indicator).as_bytes());
+    field(h, "growth", &bits(s.growth));
+    field(h, "max_vertices", &(s.max_vertices as u64).to_le_bytes());
+    field(h, "tolerance", &optional(s.tolerance));
 }
 
 #[cfg(test)]
@@ -136,7 +177,8 @@ mod tests {
             &limits(Duration::from_secs(60)),
         );
         let id = job_id(&spec);
-        let refinement = refine(&*spec.source, spec.domain, &spec.params, &mut ()).unwrap();
+        let mesh = spec.mesh().unwrap();
+        let refinement = refine(&*mesh.source, mesh.domain, &mesh.params, &mut ()).unwrap();
         let result = Arc::new(MeshResult::from(refinement));
         let options = Options { id: Some(id.clone()), ..Options::default() };
         let body = output::encode(&result, Format::Json, &options).to_vec();

@@ -291,6 +291,7 @@ impl Jobs {
     /// The result of `spec` replayed from the furthest cached run of its family, stored under
     /// `id`; `None` when there is no such run or the request goes past it.
     async fn prefix(&self, id: &str, family: &str, spec: &JobSpec) -> Option<Arc<MeshResult>> {
+        let spec = spec.mesh()?;
         let (run, _) = self.inner.families.get(family)?;
         let source = self.cached(&run).await?;
         let trace = source.trace.clone()?;
@@ -495,7 +496,7 @@ mod tests {
         let Ticket::Prefix(result) = submit(&jobs, request(small), false).await else {
             panic!("not a prefix")
         };
-        assert_eq!((result.stats.vertices, result.stats.stop), (700, StopReason::MaxVertices));
+        assert_eq!((result.vertices.len(), result.stats.stop()), (700, StopReason::MaxVertices));
         assert_eq!(jobs.metrics().engine_runs.get(), 1);
     }
 }

@@ -1,6 +1,7 @@
 //! JobSpec: a request validated against the server's limits, in canonical form.
 
-use crate::api::JobRequest;
+use super::solution::SolveSpec;
+use crate::api::{DomainInput, JobRequest, SolveRequest};
 use crate::geom::Rect;
 use crate::refine::{Params, ParamsError};
 use crate::source::{ExprError, Expression, GridFileError, GridHints, Source, decode_grid, decode_values};
@@ -23,19 +24,35 @@ pub struct Limits {
 /// The budget a request gets when it names none.
 pub const DEFAULT_MAX_VERTICES: u64 = 10_000;
 
-/// A validated request: what to mesh and how. Built only by [`JobSpec::from_request`].
+/// A validated request: what to compute and how. Built only by the `from_*` constructors.
 #[derive(Debug, Clone)]
 pub struct JobSpec {
+    /// A mesh or a solution.
+    pub work: Work,
+    /// The time limit the request named, if any. The id depends on this, never on the
+    /// server's default: a result a time limit stopped is never cached, so every cached
+    /// result is the same whatever limit was in force.
+    pub requested_time_limit: Option<Duration>,
+}
+
+/// What a job computes.
+#[derive(Debug, Clone)]
+pub enum Work {
+    /// A mesh of F.
+    Mesh(MeshSpec),
+    /// The solution of a boundary value problem on an adaptive mesh.
+    Solve(Arc<SolveSpec>),
+}
+
+/// A mesh job: F, its rectangle and the engine's parameters.
+#[derive(Debug, Clone)]
+pub struct MeshSpec {
     /// F.
     pub source: Arc<Source>,
     /// The rectangle.
     pub domain: Rect,
     /// Method, criterion and stop rules, with the time limit already capped.
     pub params: Params,
-    /// The time limit the request named, if any. The id depends on this, never on the
-    /// server's default: a result a time limit stopped is never cached, so every cached
-    /// result is the same whatever limit was in force.
-    pub requested_time_limit: Option<Duration>,
 }
 
 /// Why a request is not a valid job. Each variant says where the problem is.
@@ -58,6 +75,22 @@ pub enum SpecError {
     /// The domain is empty, reversed or not finite.
     #[error("domain: {0}")]
     Domain(String),
+    /// An expression of a boundary value problem does not parse.
+    #[error("{field}: {error}")]
+    Coefficient {
+        /// The request field: `k`, `f`, `g` or `exact`.
+        field: &'static str,
+        /// What is wrong, and where.
+        error: ExprError,
+    },
+    /// A field of a boundary value problem is out of its range or not allowed.
+    #[error("{field}: {detail}")]
+    Problem {
+        /// The request field, e.g. `regions[1].mu_r`.
+        field: String,
+        /// What is wrong.
+        detail: String,
+    },
     /// A parameter out of its range.
     #[error("{0}")]
     Parameter(ParamsError),
@@ -76,7 +109,12 @@ pub enum SpecError {
 }
 
 /// `Err(SpecError::Limit)` when `value` is above `limit`.
-fn at_most(name: &'static str, setting: &'static str, limit: usize, value: u64) -> Result<(), SpecError> {
+pub(super) fn at_most(
+    name: &'static str,
+    setting: &'static str,
+    limit: usize,
+    value: u64,
+) -> Result<(), SpecError> {
     if value > limit as u64 {
         return Err(SpecError::Limit { name, setting, limit: limit as u64, value });
     }
@@ -104,7 +142,30 @@ fn pair(axis: &str, bounds: &[f64]) -> Result<[f64; 2], SpecError> {
     }
 }
 
+/// The rectangle a request names.
+pub(super) fn domain_of(d: &DomainInput) -> Result<Rect, SpecError> {
+    let ([a, b], [c, e]) = (pair("x", &d.x)?, pair("y", &d.y)?);
+    Rect::new(a, b, c, e).map_err(|e| SpecError::Domain(e.to_string()))
+}
+
 impl JobSpec {
+    /// Validates a boundary value problem; see [`SolveSpec::from_request`].
+    ///
+    /// # Errors
+    /// The first problem found, naming its field.
+    pub fn from_solve_request(request: SolveRequest, limits: &Limits) -> Result<Self, SpecError> {
+        let (spec, requested_time_limit) = SolveSpec::from_request(request, limits)?;
+        Ok(Self { work: Work::Solve(Arc::new(spec)), requested_time_limit })
+    }
+
+    /// The mesh part, for a mesh job.
+    pub fn mesh(&self) -> Option<&MeshSpec> {
+        match &self.work {
+            Work::Mesh(m) => Some(m),
+            Work::Solve(_) => None,
+        }
+    }
+
     /// Validates `request`: fills in defaults, checks limits, parses the expression.
     ///
     /// # Errors
@@ -170,10 +231,7 @@ impl JobSpec {
         };
         let domain = match request.domain {
             None => file_domain.unwrap_or_else(|| source.default_domain()),
-            Some(d) => {
-                let ([a, b], [c, e]) = (pair("x", &d.x)?, pair("y", &d.y)?);
-                Rect::new(a, b, c, e).map_err(|e| SpecError::Domain(e.to_string()))?
-            }
+            Some(d) => domain_of(&d)?,
         };
         let source = source.with_domain(domain);
         let max_vertices = request.max_vertices.unwrap_or(DEFAULT_MAX_VERTICES);
@@ -188,6 +246,7 @@ impl JobSpec {
         if let Some(t) = request.tolerance {
             params = params.with_tolerance(t + 0.0).map_err(SpecError::Parameter)?;
         }
-        Ok(Self { source: Arc::new(source), domain, params, requested_time_limit })
+        let mesh = MeshSpec { source: Arc::new(source), domain, params };
+        Ok(Self { work: Work::Mesh(mesh), requested_time_limit })
     }
 }

@@ -1,14 +1,15 @@
-//! The worker: waits for a permit, refines on the blocking pool with progress and a trace, and
-//! files the outcome.
+//! The worker: waits for a permit, refines (with progress and a trace) or solves on the
+//! blocking pool, and files the outcome.
 
-use super::JobSpec;
 use super::job::{Job, JobError, Outcome, Record, Status};
 use super::registry::{Entry, FINISHED_KEPT, Inner};
+use super::{JobSpec, Work};
 use crate::api::ProgressEvent;
 use crate::metrics::StateLabel;
 use crate::refine::trace::Recorder;
 use crate::refine::{Observer, Progress, StopReason, refine};
 use crate::result::MeshResult;
+use crate::solve::{Exact, adapt};
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::Duration;
@@ -88,20 +89,36 @@ impl Observer for JobObserver<'_> {
     }
 }
 
-/// The blocking part: refine, tracing the steps, and keep the result, with how long the
-/// engine ran. A result a time limit stopped goes apart from the cache's answers: another
-/// run would reach another vertex count.
+/// The blocking part: refine (tracing the steps) or solve, and keep the result, with how
+/// long the engine ran. A result a time limit stopped goes apart from the cache's answers:
+/// another run would reach another vertex count.
 fn compute(job: &Job, spec: &JobSpec, inner: &Inner) -> (Outcome, Option<Duration>) {
     let mut observer = JobObserver { job };
-    let mut recorder = Recorder::new(&mut observer, spec.params.method(), spec.params.criterion());
-    let refinement = match refine(&*spec.source, spec.domain, &spec.params, &mut recorder) {
-        Ok(r) => r,
-        Err(e) => return (Outcome::Failed(JobError::Refine(e)), None),
+    let (mut result, trace, elapsed) = match &spec.work {
+        Work::Mesh(mesh) => {
+            let mut recorder = Recorder::new(&mut observer, mesh.params.method(), mesh.params.criterion());
+            let refinement = match refine(&*mesh.source, mesh.domain, &mesh.params, &mut recorder) {
+                Ok(r) => r,
+                Err(e) => return (Outcome::Failed(JobError::Refine(e)), None),
+            };
+            let trace = recorder.finish(refinement.stats.stop);
+            let elapsed = refinement.elapsed;
+            (MeshResult::from(refinement), Some(trace), elapsed)
+        }
+        Work::Solve(solve) => {
+            let problem = solve.problem();
+            let exact = solve.exact();
+            let exact = exact.as_ref().map(|u| u as Exact<'_>);
+            let adapted = match adapt(&problem, exact, &solve.settings, &mut observer) {
+                Ok(a) => a,
+                Err(e) => return (Outcome::Failed(JobError::Solve(e)), None),
+            };
+            let elapsed = adapted.times.last().copied().unwrap_or_default();
+            (MeshResult::solution(adapted, solve.physics), None, elapsed)
+        }
     };
-    let trace = recorder.finish(refinement.stats.stop);
-    let elapsed = Some(refinement.elapsed);
-    let mut result = MeshResult::from(refinement);
-    let result = match result.stats.stop {
+    let elapsed = Some(elapsed);
+    let result = match result.stats.stop() {
         StopReason::Cancelled => return (Outcome::Cancelled, elapsed),
         // Never a family's run to replay from, so no trace to keep.
         StopReason::TimeLimit => {
@@ -110,10 +127,12 @@ fn compute(job: &Job, spec: &JobSpec, inner: &Inner) -> (Outcome, Option<Duratio
             result
         }
         _ => {
-            result.trace = Some(Arc::new(trace));
+            result.trace = trace.map(Arc::new);
             let result = Arc::new(result);
             inner.cache.insert(&job.id, result.clone());
-            inner.note_run(&job.family, &job.id, &result);
+            if result.trace.is_some() {
+                inner.note_run(&job.family, &job.id, &result);
+            }
             result
         }
     };

@@ -1,5 +1,6 @@
 //! The mesh document: `{"id": ..., "vertices": [[x, y, z], ...], "triangles": [[i, j, k], ...],
-//! "stats": {...}}`.
+//! "stats": {...}}`, with `"flux_density": [[Bx, By], ...]` per triangle before the stats for a
+//! magnetostatic solution.
 //!
 //! Numbers are written by serde_json's shortest round-trip formatting, so a reader gets back
 //! the exact f64 values. Vertices are in insertion order, triangles counter-clockwise. The
@@ -21,11 +22,11 @@ pub fn encode(result: &Arc<MeshResult>, options: &Options) -> Encoding {
         head.push(b',');
     }
     head.extend_from_slice(b"\"vertices\":[");
-    let mut tail = b"],\"stats\":".to_vec();
+    let mut tail = b",\"stats\":".to_vec();
     serde_json::to_writer(&mut tail, &result.stats).expect("stats serialize");
     tail.push(b'}');
     let (r, s) = (result.clone(), result.clone());
-    Encoding::new(vec![
+    let mut parts = vec![
         Part::Bytes(head),
         Part::rows(result.vertices.len(), move |i, out| {
             let v = r.vertices[i];
@@ -41,8 +42,20 @@ pub fn encode(result: &Arc<MeshResult>, options: &Options) -> Encoding {
             }
             serde_json::to_writer(out, &s.triangles[i]).expect("integers serialize");
         }),
-        Part::Bytes(tail),
-    ])
+        Part::Bytes(b"]".to_vec()),
+    ];
+    if let Some(flux) = result.flux_density() {
+        parts.push(Part::Bytes(b",\"flux_density\":[".to_vec()));
+        parts.push(Part::rows(flux.len(), move |i, out| {
+            if i > 0 {
+                out.push(b',');
+            }
+            serde_json::to_writer(out, &flux[i]).expect("finite numbers serialize");
+        }));
+        parts.push(Part::Bytes(b"]".to_vec()));
+    }
+    parts.push(Part::Bytes(tail));
+    Encoding::new(parts)
 }
 
 /// The stats-only document: `{"stats": {...}, "error": {...}}`.
@@ -66,6 +79,7 @@ pub fn write_stats(stats: &Stats, error: ErrorEstimate, out: &mut impl Write) ->
 mod tests {
     use super::*;
     use crate::refine::Criterion;
+    use crate::result::Summary;
     use crate::result::testing::sample;
 
     #[test]
@@ -82,8 +96,9 @@ mod tests {
         }
         let triangles: Vec<[u32; 3]> = serde_json::from_value(doc["triangles"].clone()).unwrap();
         assert_eq!(triangles, result.triangles);
-        let stats: Stats = serde_json::from_value(doc["stats"].clone()).unwrap();
+        let stats: Summary = serde_json::from_value(doc["stats"].clone()).unwrap();
         assert_eq!(stats, result.stats);
+        assert!(doc.get("flux_density").is_none(), "a mesh has no field");
         assert!(doc["stats"].get("elapsed_ms").is_none(), "the body depends on the request alone");
     }
 

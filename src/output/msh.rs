@@ -1,5 +1,6 @@
 //! Gmsh MSH 4.1, ASCII: the triangles as a 2-D mesh of the rectangle (nodes at `x y 0`), with
-//! F as the node view "z" and, when known, the triangle errors as the element view "error".
+//! F as the node view "z" and, when known, the triangle errors as the element view "error" and
+//! a magnetostatic solution's flux density as the element vector view "B" (Bx, By, 0).
 //!
 //! The plane mesh and F apart is how a finite-element tool wants it: the domain is the
 //! geometry, F a field on it. There is one surface entity (tag 1) holding every node and
@@ -61,6 +62,18 @@ pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoding {
             write!(out, "{} ", i + 1).expect("a Vec");
             push_f64(out, errors[i]);
             out.push(b'\n');
+        }));
+        tail.extend_from_slice(b"$EndElementData\n");
+    }
+    if let Some(flux) = result.flux_density() {
+        tail.extend_from_slice(format!("$ElementData\n1\n\"B\"\n1\n0\n3\n0\n3\n{m}\n").as_bytes());
+        parts.push(Part::Bytes(std::mem::take(&mut tail)));
+        parts.push(Part::rows(m, move |i, out| {
+            write!(out, "{} ", i + 1).expect("a Vec");
+            push_f64(out, flux[i][0]);
+            out.push(b' ');
+            push_f64(out, flux[i][1]);
+            out.extend_from_slice(b" 0\n");
         }));
         tail.extend_from_slice(b"$EndElementData\n");
     }

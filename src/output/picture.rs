@@ -13,7 +13,7 @@
 //! Lengths are in picture units: pixels for png, view-box units for svg.
 
 use super::colour;
-use crate::result::MeshResult;
+use crate::result::{MeshResult, Summary};
 
 /// A rectangle on the picture, y downward.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -186,16 +186,26 @@ fn on_one_side(result: &MeshResult, [x0, x1, y0, y1]: [f64; 4], p: u32, q: u32) 
 
 /// The stats line in pieces that a wrapped line keeps whole.
 pub(crate) fn stats_segments(result: &MeshResult) -> Vec<String> {
-    let s = &result.stats;
-    let mut segments = vec![
-        format!("{} vertices", s.vertices),
-        format!("{} triangles", s.triangles),
-        format!("V_n {}", short(s.variation)),
-    ];
-    if let Some(e) = s.max_triangle_error {
-        segments.push(format!("max e(T) {}", short(e)));
-    }
-    let stop = serde_json::to_value(s.stop).ok().and_then(|v| v.as_str().map(str::to_owned));
+    let mut segments = match &result.stats {
+        Summary::Mesh(s) => {
+            let mut segments = vec![
+                format!("{} vertices", s.vertices),
+                format!("{} triangles", s.triangles),
+                format!("V_n {}", short(s.variation)),
+            ];
+            if let Some(e) = s.max_triangle_error {
+                segments.push(format!("max e(T) {}", short(e)));
+            }
+            segments
+        }
+        Summary::Solution(s) => vec![
+            format!("{} vertices", s.run.vertices),
+            format!("{} solves", s.run.solves),
+            format!("estimate {}", short(s.run.estimate)),
+            format!("energy {}", short(s.run.energy)),
+        ],
+    };
+    let stop = serde_json::to_value(result.stats.stop()).ok().and_then(|v| v.as_str().map(str::to_owned));
     segments.push(format!("stop {}", stop.unwrap_or_default()));
     segments
 }

@@ -1,6 +1,6 @@
 //! VTK XML unstructured grid (`.vtu`), as ParaView opens it: f64 points `x y z`, the triangles
 //! as cells of type 5, F as the point array "z" and, when known, the triangle errors as the
-//! cell array "error".
+//! cell array "error" and a magnetostatic solution's flux density as the cell vector "B".
 //!
 //! Arrays are inline `format="binary"`: base64 of a UInt64 byte count followed by the
 //! little-endian values, one base64 stream per array. Raw appended data would be a quarter
@@ -36,15 +36,32 @@ pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoding {
         },
         Part::Bytes(b"</DataArray>\n</PointData>\n".to_vec()),
     ];
+    let flux = result.flux_density().map(Arc::new);
+    let cell_data = result.triangle_errors.is_some() || flux.is_some();
+    if cell_data {
+        parts.push(Part::Bytes(b"<CellData>\n".to_vec()));
+    }
     if result.triangle_errors.is_some() {
         let e = result.clone();
-        parts.push(Part::Bytes(b"<CellData Scalars=\"error\">\n".to_vec()));
         parts.push(Part::Bytes(array("type=\"Float64\" Name=\"error\"")));
         parts.push(binary_array(m, 8, move |i, out| {
             let errors = e.triangle_errors.as_ref().expect("checked above");
             out.extend_from_slice(&errors[i].to_le_bytes());
         }));
-        parts.push(Part::Bytes(b"</DataArray>\n</CellData>\n".to_vec()));
+        parts.push(Part::Bytes(b"</DataArray>\n".to_vec()));
+    }
+    if let Some(flux) = flux {
+        // ParaView draws vectors of three components: (Bx, By, 0).
+        parts.push(Part::Bytes(array("type=\"Float64\" Name=\"B\" NumberOfComponents=\"3\"")));
+        parts.push(binary_array(m, 24, move |i, out| {
+            for c in [flux[i][0], flux[i][1], 0.0] {
+                out.extend_from_slice(&c.to_le_bytes());
+            }
+        }));
+        parts.push(Part::Bytes(b"</DataArray>\n".to_vec()));
+    }
+    if cell_data {
+        parts.push(Part::Bytes(b"</CellData>\n".to_vec()));
     }
     let (r, s) = (result.clone(), result.clone());
     parts.extend([

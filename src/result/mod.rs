@@ -10,7 +10,9 @@ pub mod locate;
 
 use crate::geom::Vertex;
 use crate::refine::trace::Trace;
-use crate::refine::{Refinement, Stats};
+use crate::refine::{Refinement, Stats, StopReason};
+use crate::solve::{Adapted, Element, Physics, SolveStats};
+use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
 /// A refined mesh: vertices in insertion order (any prefix is an earlier step's vertex set),
@@ -21,10 +23,10 @@ pub struct MeshResult {
     pub vertices: Vec<Vertex>,
     /// Vertex ids of each triangle, counter-clockwise.
     pub triangles: Vec<[u32; 3]>,
-    /// e(T) of each triangle (criterion `error` only).
+    /// e(T) of each triangle (criterion `error` only), or a solution's indicator η_T.
     pub triangle_errors: Option<Vec<f64>>,
     /// The run's counters and outcome.
-    pub stats: Stats,
+    pub stats: Summary,
     /// What each step of the run did, so that smaller requests are answered from it (none
     /// for a result that was itself replayed from another).
     pub trace: Option<Arc<Trace>>,
@@ -36,9 +38,74 @@ impl From<Refinement> for MeshResult {
             vertices: r.mesh.vertices().to_vec(),
             triangles: r.mesh.triangles().collect(),
             triangle_errors: r.triangle_errors,
-            stats: r.stats,
+            stats: Summary::Mesh(r.stats),
             trace: None,
         }
+    }
+}
+
+/// What a result's run reports: a mesh's stats or a solution's.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Summary {
+    /// A mesh of F.
+    Mesh(Stats),
+    /// The solution of a boundary value problem.
+    Solution(SolutionStats),
+}
+
+/// A solution's stats with what u stands for.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SolutionStats {
+    /// What u stands for.
+    pub physics: Physics,
+    /// The adaptive loop's counters, estimate, energy and history.
+    #[serde(flatten)]
+    pub run: SolveStats,
+}
+
+impl Summary {
+    /// Why the run stopped.
+    pub fn stop(&self) -> StopReason {
+        match self {
+            Summary::Mesh(s) => s.stop,
+            Summary::Solution(s) => s.run.stop,
+        }
+    }
+
+    /// What u stands for, for a solution.
+    pub fn physics(&self) -> Option<Physics> {
+        match self {
+            Summary::Mesh(_) => None,
+            Summary::Solution(s) => Some(s.physics),
+        }
+    }
+}
+
+impl MeshResult {
+    /// The result of an adaptive solve: z = u at every vertex, η_T per triangle.
+    pub fn solution(adapted: Adapted, physics: Physics) -> Self {
+        Self {
+            vertices: adapted.mesh.vertices().to_vec(),
+            triangles: adapted.mesh.triangles().collect(),
+            triangle_errors: adapted.indicators,
+            stats: Summary::Solution(SolutionStats { physics, run: adapted.stats }),
+            trace: None,
+        }
+    }
+
+    /// For a magnetostatic solution, B = (∂A/∂y, −∂A/∂x) on every triangle, in tesla.
+    pub fn flux_density(&self) -> Option<Vec<[f64; 2]>> {
+        if self.stats.physics() != Some(Physics::Magnetostatic) {
+            return None;
+        }
+        let b = self.triangles.iter().enumerate().map(|(t, &tri)| {
+            let z = tri.map(|v| self.vertices[v as usize].z);
+            // A stored result's triangles are counter-clockwise, so this never fails.
+            let g = Element::new(&self.vertices, tri, t).map_or([0.0; 2], |e| e.gradient(z));
+            [g[1], -g[0]]
+        });
+        Some(b.collect())
     }
 }
 

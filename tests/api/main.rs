@@ -8,4 +8,5 @@ mod helpers;
 mod jobs;
 mod results;
 mod service;
+mod solutions;
 mod uploads;

@@ -1,0 +1,160 @@
+//! Boundary value problems through the API: synchronous, streamed and as background jobs,
+//! with the same ids, caching and problem documents as meshes.
+
+use crate::helpers::{read_events, spawn_app};
+use serde_json::{Value, json};
+
+/// −Δu = 2π² sin(πx) sin(πy) on the unit square, u = 0 on its boundary.
+fn smooth(max_vertices: u64) -> Value {
+    json!({
+        "f": "2*pi^2*sin(pi*x)*sin(pi*y)",
+        "exact": "sin(pi*x)*sin(pi*y)",
+        "max_vertices": max_vertices,
+    })
+}
+
+/// A conductor beside an iron block in a box: the README's example.
+fn magnet() -> Value {
+    json!({
+        "domain": {"x": [0, 0.2], "y": [0, 0.1]},
+        "physics": "magnetostatic",
+        "regions": [
+            {"x": [0.04, 0.07], "y": [0.035, 0.065], "current_density": 2e6},
+            {"x": [0.11, 0.16], "y": [0.02, 0.08], "mu_r": 1000}
+        ],
+        "max_vertices": 3000
+    })
+}
+
+#[tokio::test]
+async fn a_solution_carries_u_at_every_vertex_and_a_history_of_every_solve() {
+    let app = spawn_app().await;
+    let response = app.post("/v1/solutions", &smooth(3000)).await;
+    assert_eq!(response.status(), 200);
+    assert_eq!(response.headers()["x-cache"], "miss");
+    let body = response.bytes().await.unwrap();
+    let doc: Value = serde_json::from_slice(&body).unwrap();
+    let stats = &doc["stats"];
+    assert_eq!((stats["physics"].as_str(), stats["stop"].as_str()), (Some("poisson"), Some("max_vertices")));
+    let vertices = doc["vertices"].as_array().unwrap();
+    assert_eq!(vertices.len(), 3000);
+    assert_eq!(stats["triangles"].as_u64().unwrap() as usize, doc["triangles"].as_array().unwrap().len());
+    // z is u_h: within the reported nodal error of the exact solution at every vertex.
+    let history = stats["history"].as_array().unwrap();
+    assert_eq!(history.len() as u64, stats["solves"].as_u64().unwrap());
+    let last = history.last().unwrap();
+    let nodal = last["max_nodal_error"].as_f64().unwrap();
+    for v in vertices {
+        let [x, y, z] = [0, 1, 2].map(|i| v[i].as_f64().unwrap());
+        let u = (std::f64::consts::PI * x).sin() * (std::f64::consts::PI * y).sin();
+        assert!((u - z).abs() <= nodal, "({x}, {y}): u_h = {z}, u = {u}, bound {nodal}");
+    }
+    let errors: Vec<f64> = history.iter().map(|s| s["energy_error"].as_f64().unwrap()).collect();
+    assert!(errors.windows(2).all(|w| w[1] < w[0]), "the energy error falls solve by solve: {errors:?}");
+    assert_eq!(stats["estimate"], last["estimate"]);
+
+    let again = app.post("/v1/solutions", &smooth(3000)).await;
+    assert_eq!(again.headers()["x-cache"], "hit");
+    assert_eq!(again.bytes().await.unwrap(), body, "a cached solution is the same bytes");
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn the_stream_reports_solves_and_ends_with_the_solution() {
+    let app = spawn_app().await;
+    let response = app
+        .client
+        .post(app.url("/v1/solutions"))
+        .header("accept", "text/event-stream")
+        .json(&json!({"f": "1", "max_vertices": 60_000}))
+        .send()
+        .await
+        .unwrap();
+    let events = read_events(response).await;
+    let (last, progress) = events.split_last().unwrap();
+    assert_eq!(last.event, "result");
+    let doc: Value = serde_json::from_str(&last.data).unwrap();
+    let solved: Vec<u64> =
+        doc["stats"]["history"].as_array().unwrap().iter().map(|s| s["vertices"].as_u64().unwrap()).collect();
+    assert!(!progress.is_empty());
+    // Each progress event is one solve's: its vertex count and estimate are a history entry's.
+    for event in progress {
+        let p: Value = serde_json::from_str(&event.data).unwrap();
+        let n = p["vertices"].as_u64().unwrap();
+        let step = doc["stats"]["history"].as_array().unwrap().iter().find(|s| s["vertices"] == n);
+        let step = step.unwrap_or_else(|| panic!("{n} vertices is not a solve of {solved:?}"));
+        assert_eq!(step["estimate"], p["worst"]);
+    }
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_job_that_names_physics_is_a_solution_with_its_flux_density_in_every_form() {
+    let app = spawn_app().await;
+    let created = app.post("/v1/jobs", &magnet()).await;
+    assert_eq!(created.status(), 202);
+    let id = created.json::<Value>().await.unwrap()["id"].as_str().unwrap().to_owned();
+    let status = app.wait_finished(&id).await;
+    assert_eq!(status["status"], "succeeded", "{status}");
+    assert_eq!(status["stats"]["physics"], "magnetostatic");
+    assert_eq!(status["stats"]["delaunay"], true);
+
+    let doc: Value = app.get(&format!("/v1/jobs/{id}/mesh")).await.json().await.unwrap();
+    let flux = doc["flux_density"].as_array().unwrap();
+    assert_eq!(flux.len(), doc["triangles"].as_array().unwrap().len());
+    // The same request on the synchronous route is the same job, answered from the cache.
+    let sync = app.post("/v1/solutions", &magnet()).await;
+    assert_eq!(sync.headers()["x-cache"], "hit");
+    assert_eq!(sync.json::<Value>().await.unwrap()["id"], id.as_str());
+
+    let vtu = app.get(&format!("/v1/jobs/{id}/mesh?format=vtu")).await.text().await.unwrap();
+    assert!(vtu.contains("Name=\"B\" NumberOfComponents=\"3\""), "VTU carries B");
+    let msh = app.get(&format!("/v1/jobs/{id}/mesh?format=msh")).await.text().await.unwrap();
+    assert!(msh.contains("$ElementData\n1\n\"B\"\n1\n0\n3\n0\n3\n"), "MSH carries B");
+    app.shutdown().await;
+}
+
+/// The problem document of a request that must fail with 422.
+async fn refused(app: &crate::helpers::TestApp, body: Value) -> Value {
+    let response = app.post("/v1/solutions", &body).await;
+    assert_eq!(response.status(), 422, "{body}");
+    response.json().await.unwrap()
+}
+
+#[tokio::test]
+async fn bad_problems_are_422_naming_the_field_and_the_column_or_point() {
+    let app = spawn_app().await;
+    let p = refused(&app, json!({"f": "sin(x) + * y"})).await;
+    assert_eq!(
+        (p["type"].as_str().unwrap().rsplit('/').next(), p["field"].as_str()),
+        (Some("invalid-expression"), Some("f"))
+    );
+    assert_eq!(p["column"], 10);
+
+    let p = refused(&app, json!({"physics": "magnetostatic", "k": 2})).await;
+    assert_eq!(p["field"], "k", "{p}");
+    let p = refused(&app, json!({"regions": [{"x": [0.5, 1.5], "y": [0, 1], "k": 2}]})).await;
+    assert_eq!(p["field"], "regions[0]", "{p}");
+    let p = refused(&app, json!({"regions": [{"x": [0, 1], "y": [0, 1], "mu_r": 2}]})).await;
+    assert_eq!(p["field"], "regions[0]", "{p}");
+    let p = refused(
+        &app,
+        json!({"physics": "magnetostatic", "regions": [{"x": [0, 1], "y": [0, 1], "mu_r": 0}]}),
+    )
+    .await;
+    assert_eq!(p["field"], "regions[0].mu_r", "{p}");
+    let p = refused(&app, json!({"k": -1})).await;
+    assert_eq!(p["field"], "k", "{p}");
+    let p = refused(&app, json!({"growth": 1})).await;
+    assert_eq!(p["field"], "growth", "{p}");
+
+    // k is an expression that turns negative: found where the solver samples it.
+    let p = refused(&app, json!({"k": "x - 0.5", "max_vertices": 100})).await;
+    assert_eq!(
+        (p["field"].as_str(), p["type"].as_str().unwrap().rsplit('/').next()),
+        (Some("k"), Some("invalid-problem"))
+    );
+    let x = p["point"][0].as_f64().unwrap();
+    assert!(x <= 0.5, "k(x, y) = x − 0.5 ≤ 0 at x = {x}");
+    app.shutdown().await;
+}
