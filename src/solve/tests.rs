@@ -189,17 +189,21 @@ fn the_inclusion_energy_is_positive_and_within_one_percent_of_a_finer_mesh() {
 }
 
 #[test]
-fn a_region_along_a_mesh_line_is_never_sampled() {
-    // A strip 1e-9 wide around x = 0.5 holds mesh vertices and edges but no quadrature point,
-    // so the interface does not leak into the triangles on either side.
-    let (points, triangles) = uniform(Rect::unit(), 8);
-    let strip =
-        Region { rect: Rect::new(0.5 - 1e-9, 0.5 + 1e-9, 0.0, 1.0).unwrap(), k: Some(1e6), f: Some(1e6) };
-    let plain = Problem::new(Rect::unit()).with_f(|_, _| 1.0);
-    let with_strip = Problem::new(Rect::unit()).with_f(|_, _| 1.0).with_region(strip);
-    let (a, b) =
-        (solve(&plain, &points, &triangles).unwrap(), solve(&with_strip, &points, &triangles).unwrap());
-    assert_eq!(a, b);
+fn a_region_side_that_cuts_a_triangle_counts_with_its_exact_share_of_the_area() {
+    // The triangle (0,0), (1,0), (0,1) has 0.28125 of its 0.5 on the side x ≥ 0.25.
+    let points = [Point::new(0.0, 0.0), Point::new(1.0, 0.0), Point::new(0.0, 1.0)];
+    let e = Element::new(&points, [0, 1, 2], 0).unwrap();
+    let region = Region { rect: Rect::new(0.25, 2.0, -1.0, 2.0).unwrap(), k: Some(3.0), f: Some(2.0) };
+    let problem = Problem::new(Rect::new(-1.0, 2.0, -1.0, 2.0).unwrap()).with_region(region);
+    let c = Coefficients::of(&problem, &e, 0).unwrap();
+    let share = 0.28125 / 0.5;
+    assert!((c.k - (3.0 * share + (1.0 - share))).abs() < 1e-14, "mean k {}", c.k);
+    assert!((c.f_sq - 4.0 * share).abs() < 1e-14, "mean f² {}", c.f_sq);
+    // ∫ f φᵢ sums to ∫ f = 2 · 0.28125 (the hat functions sum to 1); φ₁ = x, and the part's
+    // centroid is at x = 0.5, so ∫ f φ₁ = 2 · 0.28125 · 0.5.
+    let total: f64 = c.load.iter().sum::<f64>() * e.area();
+    assert!((total - 2.0 * 0.28125).abs() < 1e-14, "∫ f = {total}");
+    assert!((c.load[1] * e.area() - 2.0 * 0.28125 * 0.5).abs() < 1e-14, "∫ f φ₁ = {}", c.load[1] * e.area());
 }
 
 #[test]
