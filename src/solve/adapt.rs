@@ -9,7 +9,7 @@
 //! The loop always ends on a solve, so the mesh it returns carries the solution.
 
 use super::residual::Residual;
-use super::{ErrorNorms, Problem, SolveError, solve};
+use super::{ErrorNorms, Problem, SolveError, solve_with};
 use crate::geom::{Mesh, Point};
 use crate::refine::{Criterion, Floors, Method, Observer, Params, Progress, StopReason, resume, variation};
 use serde::{Deserialize, Serialize};
@@ -154,7 +154,8 @@ pub fn adapt<O: Observer>(
     let mut pending = None;
     loop {
         let triangles: Vec<[u32; 3]> = mesh.triangles().collect();
-        let solution = solve(problem, mesh.vertices(), &triangles)?;
+        let known = (settings.indicator == Indicator::Residual).then(|| residual.coefficients());
+        let solution = solve_with(problem, mesh.vertices(), &triangles, known)?;
         mesh.set_values(&solution.u);
         let estimate = match settings.indicator {
             Indicator::Variation => variation(&mesh),

@@ -237,6 +237,7 @@ impl Element {
 }
 
 /// What the quadrature rule measures of k and f on one triangle.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Coefficients {
     /// The rule's mean of k: the triangle's conductivity in the stiffness matrix.
     pub k: f64,
@@ -317,6 +318,17 @@ pub fn solve<P: Position>(
     vertices: &[P],
     triangles: &[[u32; 3]],
 ) -> Result<Solution, SolveError> {
+    solve_with(problem, vertices, triangles, None)
+}
+
+/// [`solve`] with each triangle's [`Coefficients`] already measured (by triangle index), as
+/// the adaptive loop keeps them from round to round: only new triangles sample k and f.
+pub(crate) fn solve_with<P: Position>(
+    problem: &Problem<'_>,
+    vertices: &[P],
+    triangles: &[[u32; 3]],
+    known: Option<&[Coefficients]>,
+) -> Result<Solution, SolveError> {
     let domain = problem.domain();
     // Unknown index of each vertex, or None on the boundary.
     let mut unknown = vec![None; vertices.len()];
@@ -341,7 +353,10 @@ pub fn solve<P: Position>(
     let mut k_mean = Vec::with_capacity(triangles.len());
     for (t, &tri) in triangles.iter().enumerate() {
         let e = Element::new(vertices, tri, t)?;
-        let Coefficients { k: k_bar, load, .. } = Coefficients::of(problem, &e, t)?;
+        let Coefficients { k: k_bar, load, .. } = match known {
+            Some(known) => known[t],
+            None => Coefficients::of(problem, &e, t)?,
+        };
         k_mean.push(k_bar);
         for i in 0..3 {
             let Some(row) = unknown[tri[i] as usize] else { continue };

@@ -17,8 +17,8 @@ use crate::refine::{Estimator, Field};
 /// k and f measured per triangle slot, kept up to date as the engine rewrites triangles.
 pub(crate) struct Residual<'p, 'a> {
     problem: &'p Problem<'a>,
-    /// The quadrature mean of k, by triangle slot.
-    k: Vec<f64>,
+    /// k and f as the quadrature rule measures them, by triangle slot: the next solve's too.
+    coefficients: Vec<Coefficients>,
     /// h_T² ‖f‖²_T, by triangle slot.
     volume: Vec<f64>,
 }
@@ -26,7 +26,13 @@ pub(crate) struct Residual<'p, 'a> {
 impl<'p, 'a> Residual<'p, 'a> {
     /// An estimator for `problem` that has measured no triangle yet.
     pub(crate) fn new(problem: &'p Problem<'a>) -> Self {
-        Self { problem, k: Vec::new(), volume: Vec::new() }
+        Self { problem, coefficients: Vec::new(), volume: Vec::new() }
+    }
+
+    /// Each triangle's coefficients, by triangle index, once [`Residual::measure_all`] and
+    /// the engine's rewrites have kept them up to date.
+    pub(crate) fn coefficients(&self) -> &[Coefficients] {
+        &self.coefficients
     }
 
     /// Measures every triangle of `mesh`.
@@ -40,14 +46,14 @@ impl<'p, 'a> Residual<'p, 'a> {
     /// Samples k and f on triangle `t`.
     fn measure(&mut self, mesh: &Mesh, t: u32) -> Result<(), SolveError> {
         let t = t as usize;
-        if self.k.len() <= t {
-            self.k.resize(t + 1, 0.0);
+        if self.volume.len() <= t {
+            self.coefficients.resize(t + 1, Coefficients { k: 0.0, f_sq: 0.0, load: [0.0; 3] });
             self.volume.resize(t + 1, 0.0);
         }
         let e = Element::new(mesh.vertices(), mesh.triangle(t), t)?;
         let c = Coefficients::of(self.problem, &e, t)?;
         let h_sq = (3 * t as u32..3 * t as u32 + 3).map(|h| mesh.len_sq(h)).fold(0.0, f64::max);
-        self.k[t] = c.k;
+        self.coefficients[t] = c;
         self.volume[t] = h_sq * e.area() * c.f_sq;
         Ok(())
     }
@@ -57,7 +63,7 @@ impl<'p, 'a> Residual<'p, 'a> {
         let flux = |t: u32| -> Result<[f64; 2], SolveError> {
             let tri = mesh.triangle(t as usize);
             let g = Element::new(mesh.vertices(), tri, t as usize)?.gradient(tri.map(|v| mesh.vertex(v).z));
-            let k = self.k[t as usize];
+            let k = self.coefficients[t as usize].k;
             Ok([k * g[0], k * g[1]])
         };
         let own = flux(t)?;
