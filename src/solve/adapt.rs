@@ -10,7 +10,7 @@
 
 use super::residual::Residual;
 use super::{ErrorNorms, Problem, SolveError, solve_with};
-use crate::geom::{Mesh, Point};
+use crate::geom::Mesh;
 use crate::refine::{Criterion, Floors, Method, Observer, Params, Progress, StopReason, resume, variation};
 use serde::{Deserialize, Serialize};
 use std::time::{Duration, Instant};
@@ -302,9 +302,9 @@ impl<O: Observer> Observer for Forward<'_, O> {
 /// gradient is resolved near a singular point at the origin as well as far from it.
 fn gradient(u: Exact<'_>, x: f64, y: f64) -> [f64; 2] {
     let h = 6e-6 * x.abs().max(y.abs()).max(1e-200);
-    let p = |x: f64, y: f64| Point::new(x, y);
-    let (px, mx, py, my) = (p(x + h, y), p(x - h, y), p(x, y + h), p(x, y - h));
-    [(u(px.x, px.y) - u(mx.x, mx.y)) / (px.x - mx.x), (u(py.x, py.y) - u(my.x, my.y)) / (py.y - my.y)]
+    // Divided by the rounded steps actually taken, not by 2h.
+    let (xp, xm, yp, ym) = (x + h, x - h, y + h, y - h);
+    [(u(xp, y) - u(xm, y)) / (xp - xm), (u(x, yp) - u(x, ym)) / (yp - ym)]
 }
 
 #[cfg(test)]
