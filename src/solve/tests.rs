@@ -45,7 +45,7 @@ fn refined(rect: Rect, n: usize, method: Method, f: fn(f64, f64) -> f64) -> (Vec
 }
 
 /// Least-squares slope of log(err) against log(n).
-fn slope(samples: &[(f64, f64)]) -> f64 {
+pub(super) fn slope(samples: &[(f64, f64)]) -> f64 {
     let pts: Vec<(f64, f64)> = samples.iter().map(|&(n, e)| (n.ln(), e.ln())).collect();
     let m = pts.len() as f64;
     let (mx, my) = (pts.iter().map(|p| p.0).sum::<f64>() / m, pts.iter().map(|p| p.1).sum::<f64>() / m);

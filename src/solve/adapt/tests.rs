@@ -4,18 +4,9 @@
 
 use super::*;
 use crate::geom::Rect;
+use crate::solve::tests::{slope, uniform};
 use crate::solve::{MU_0, Region};
 use std::f64::consts::PI;
-
-/// Least-squares slope of log(error) against log(N).
-fn slope(samples: &[(f64, f64)]) -> f64 {
-    let pts: Vec<(f64, f64)> = samples.iter().map(|&(n, e)| (n.ln(), e.ln())).collect();
-    let m = pts.len() as f64;
-    let (mx, my) = (pts.iter().map(|p| p.0).sum::<f64>() / m, pts.iter().map(|p| p.1).sum::<f64>() / m);
-    let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
-    let sxx: f64 = pts.iter().map(|p| (p.0 - mx) * (p.0 - mx)).sum();
-    sxy / sxx
-}
 
 /// (N, error) samples of a history.
 type Samples = Vec<(f64, f64)>;
@@ -116,7 +107,7 @@ fn at_a_corner_singularity_the_loop_keeps_rate_one_half_where_uniform_meshes_get
     let uniform: Samples = [16, 32, 64, 128]
         .into_iter()
         .map(|n| {
-            let (points, triangles) = crate::solve::tests::uniform(Rect::unit(), n);
+            let (points, triangles) = uniform(Rect::unit(), n);
             let s = crate::solve::solve(&problem, &points, &triangles).unwrap();
             let e = s.errors(&problem, &points, &triangles, u, |x, y| gradient(&u, x, y)).unwrap();
             (points.len() as f64, e.energy)
