@@ -10,7 +10,6 @@ use meshfit::jobs::{Limits, SolveSpec};
 use meshfit::output::{self, Format, Options, json};
 use meshfit::refine::{Criterion, MAX_VERTICES, Method, Params, estimate_error, refine};
 use meshfit::result::MeshResult;
-use meshfit::solve::{Exact, adapt};
 use meshfit::source::{Expression, GridHints, RawType, Source, decode_grid};
 use std::io::{BufWriter, Write};
 use std::path::PathBuf;
@@ -291,9 +290,7 @@ fn solve(args: &SolveArgs) -> Result<()> {
     };
     let (spec, _) = SolveSpec::from_request(request, &limits)?;
     let format = args.output.check()?;
-    let problem = spec.problem();
-    let exact = spec.exact();
-    let adapted = adapt(&problem, exact.as_ref().map(|u| u as Exact<'_>), &spec.settings, &mut ())?;
+    let adapted = spec.solve(&mut ())?;
     if args.stats {
         let times: Vec<f64> = adapted.times.iter().map(|t| t.as_secs_f64() * 1e3).collect();
         let result = MeshResult::solution(adapted, spec.physics);

@@ -36,12 +36,16 @@ enum Kind {
 
 /// Whether a JSON body has a top-level `physics` field (false when it does not parse: the
 /// mesh parser then says what is wrong).
+///
+/// A byte search goes first, so a large grid body without the word is not parsed a second
+/// time just to find out it is a mesh request. A key spelled with escapes (`"\u0070hysics"`) is not found and the body is read as a mesh request.
 fn names_physics(json: &[u8]) -> bool {
     #[derive(serde::Deserialize)]
     struct Probe {
         physics: Option<serde::de::IgnoredAny>,
     }
-    serde_json::from_slice::<Probe>(json).is_ok_and(|p| p.physics.is_some())
+    memchr::memmem::find(json, b"\"physics\"").is_some()
+        && serde_json::from_slice::<Probe>(json).is_ok_and(|p| p.physics.is_some())
 }
 
 /// Parses, validates and hashes a body off the async workers: a large grid takes real CPU.

@@ -3,8 +3,8 @@
 use super::spec::{Limits, SpecError, at_most, domain_of};
 use crate::api::{Coefficient, RegionInput, SolveRequest};
 use crate::geom::Rect;
-use crate::refine::ParamsError;
-use crate::solve::{Indicator, MU_0, Physics, Problem, Region, Settings};
+use crate::refine::{Observer, Params};
+use crate::solve::{Adapted, Exact, MU_0, Physics, Problem, Region, Settings, SolveError, adapt};
 use crate::source::Expression;
 use std::time::Duration;
 
@@ -183,23 +183,19 @@ impl SolveSpec {
             .collect::<Result<Vec<_>, _>>()?;
         let max_vertices = request.max_vertices.unwrap_or(super::DEFAULT_MAX_VERTICES);
         at_most("max_vertices", "MESHFIT_MAX_VERTICES", limits.max_vertices, max_vertices)?;
-        if max_vertices < 4 {
-            return Err(SpecError::Parameter(ParamsError::MaxVertices(max_vertices as usize)));
+        // The engine's own checks of the budget and the tolerance, as for a mesh.
+        let mut params = Params::new(max_vertices as usize).map_err(SpecError::Parameter)?;
+        if let Some(t) = request.tolerance {
+            params = params.with_tolerance(t + 0.0).map_err(SpecError::Parameter)?;
         }
-        let tolerance = match request.tolerance {
-            Some(t) if !(t.is_finite() && t >= 0.0) => {
-                return Err(SpecError::Parameter(ParamsError::Tolerance(t)));
-            }
-            t => t.map(|t| t + 0.0),
-        };
         let growth = request.growth.unwrap_or(DEFAULT_GROWTH);
         if !(growth > 1.0 && growth <= MAX_GROWTH) {
             return Err(invalid("growth", format!("growth must be in (1, {MAX_GROWTH}], got {growth}")));
         }
         let requested_time_limit = request.time_limit_ms.map(Duration::from_millis);
         let settings = Settings {
-            max_vertices: max_vertices as usize,
-            tolerance,
+            max_vertices: params.max_vertices(),
+            tolerance: params.tolerance(),
             method: request.method.unwrap_or_default(),
             indicator: request.criterion.unwrap_or_default(),
             growth,
@@ -223,13 +219,13 @@ impl SolveSpec {
         problem
     }
 
-    /// The exact solution as a function, if given.
-    pub fn exact(&self) -> Option<impl Fn(f64, f64) -> f64 + Sync + '_> {
-        self.exact.as_ref().map(|e| move |x, y| e.eval(x, y))
-    }
-
-    /// Whether the indicator is the residual one.
-    pub fn is_residual(&self) -> bool {
-        self.settings.indicator == Indicator::Residual
+    /// Runs the adaptive loop on this problem, measuring against `exact` when given; what
+    /// the worker and `meshfit solve` both run.
+    ///
+    /// # Errors
+    /// As [`adapt`].
+    pub fn solve<O: Observer>(&self, observer: &mut O) -> Result<Adapted, SolveError> {
+        let exact = self.exact.as_ref().map(|e| move |x: f64, y: f64| e.eval(x, y));
+        adapt(&self.problem(), exact.as_ref().map(|u| u as Exact<'_>), &self.settings, observer)
     }
 }

@@ -9,7 +9,6 @@ use crate::metrics::StateLabel;
 use crate::refine::trace::Recorder;
 use crate::refine::{Observer, Progress, StopReason, refine};
 use crate::result::MeshResult;
-use crate::solve::{Exact, adapt};
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::Duration;
@@ -106,10 +105,7 @@ fn compute(job: &Job, spec: &JobSpec, inner: &Inner) -> (Outcome, Option<Duratio
             (MeshResult::from(refinement), Some(trace), elapsed)
         }
         Work::Solve(solve) => {
-            let problem = solve.problem();
-            let exact = solve.exact();
-            let exact = exact.as_ref().map(|u| u as Exact<'_>);
-            let adapted = match adapt(&problem, exact, &solve.settings, &mut observer) {
+            let adapted = match solve.solve(&mut observer) {
                 Ok(a) => a,
                 Err(e) => return (Outcome::Failed(JobError::Solve(e)), None),
             };

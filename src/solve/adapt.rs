@@ -159,7 +159,10 @@ pub fn adapt<O: Observer>(
         mesh.set_values(&solution.u);
         let estimate = match settings.indicator {
             Indicator::Variation => variation(&mesh),
-            Indicator::Residual => total(&residual, &mesh)?,
+            Indicator::Residual => {
+                residual.solved(&solution.gradients);
+                total(&residual, &mesh)
+            }
         };
         let norms = match exact {
             Some(u) => {
@@ -192,7 +195,7 @@ pub fn adapt<O: Observer>(
             .or_else(|| (n >= settings.max_vertices).then_some(StopReason::MaxVertices))
             .or_else(|| (remaining == Some(Duration::ZERO)).then_some(StopReason::TimeLimit));
         if let Some(stop) = stop {
-            return run.finish(mesh, &residual, settings.indicator, stop);
+            return Ok(run.finish(mesh, &residual, settings.indicator, stop));
         }
         let target = ((n as f64 * settings.growth).ceil() as usize).clamp(n + 1, settings.max_vertices);
         let criterion = match settings.indicator {
@@ -206,9 +209,9 @@ pub fn adapt<O: Observer>(
         match round.stop {
             StopReason::MaxVertices => {}
             // Nothing to solve again: the mesh is the one just solved, or the job is over.
-            StopReason::Cancelled => return run.finish(mesh, &residual, settings.indicator, round.stop),
+            StopReason::Cancelled => return Ok(run.finish(mesh, &residual, settings.indicator, round.stop)),
             StopReason::Exhausted if mesh.num_vertices() == n => {
-                return run.finish(mesh, &residual, settings.indicator, round.stop);
+                return Ok(run.finish(mesh, &residual, settings.indicator, round.stop));
             }
             // Solve what the round made, then stop.
             other => pending = Some(other),
@@ -217,12 +220,12 @@ pub fn adapt<O: Observer>(
 }
 
 /// √Σ η_T² over the mesh.
-fn total(residual: &Residual<'_, '_>, mesh: &Mesh) -> Result<f64, SolveError> {
+fn total(residual: &Residual<'_, '_>, mesh: &Mesh) -> f64 {
     let mut sum = 0.0;
     for t in 0..mesh.num_triangles() as u32 {
-        sum += residual.indicator_sq(mesh, t)?;
+        sum += residual.indicator_sq(mesh, t);
     }
-    Ok(sum.sqrt())
+    sum.sqrt()
 }
 
 /// What the loop has gathered so far.
@@ -241,14 +244,12 @@ impl Finish {
         residual: &Residual<'_, '_>,
         indicator: Indicator,
         stop: StopReason,
-    ) -> Result<Adapted, SolveError> {
+    ) -> Adapted {
         let last = *self.history.last().expect("the loop solves before it stops");
         let indicators = match indicator {
             Indicator::Variation => None,
             Indicator::Residual => Some(
-                (0..mesh.num_triangles() as u32)
-                    .map(|t| residual.indicator_sq(&mesh, t).map(f64::sqrt))
-                    .collect::<Result<_, _>>()?,
+                (0..mesh.num_triangles() as u32).map(|t| residual.indicator_sq(&mesh, t).sqrt()).collect(),
             ),
         };
         let stats = SolveStats {
@@ -264,7 +265,7 @@ impl Finish {
             delaunay: mesh.is_delaunay(),
             history: self.history,
         };
-        Ok(Adapted { mesh, indicators, stats, times: self.times })
+        Adapted { mesh, indicators, stats, times: self.times }
     }
 }
 

@@ -21,12 +21,15 @@ pub(crate) struct Residual<'p, 'a> {
     coefficients: Vec<Coefficients>,
     /// h_T² ‖f‖²_T, by triangle slot.
     volume: Vec<f64>,
+    /// k ∇u_h, by triangle slot: set from each solve's gradients, and measured again on the
+    /// interpolated values where the engine rewrites a triangle.
+    flux: Vec<[f64; 2]>,
 }
 
 impl<'p, 'a> Residual<'p, 'a> {
     /// An estimator for `problem` that has measured no triangle yet.
     pub(crate) fn new(problem: &'p Problem<'a>) -> Self {
-        Self { problem, coefficients: Vec::new(), volume: Vec::new() }
+        Self { problem, coefficients: Vec::new(), volume: Vec::new(), flux: Vec::new() }
     }
 
     /// Each triangle's coefficients, by triangle index, once [`Residual::measure_all`] and
@@ -43,43 +46,48 @@ impl<'p, 'a> Residual<'p, 'a> {
         Ok(())
     }
 
-    /// Samples k and f on triangle `t`.
+    /// Samples k and f on triangle `t`, and its flux for the values it carries.
     fn measure(&mut self, mesh: &Mesh, t: u32) -> Result<(), SolveError> {
         let t = t as usize;
         if self.volume.len() <= t {
             self.coefficients.resize(t + 1, Coefficients { k: 0.0, f_sq: 0.0, load: [0.0; 3] });
             self.volume.resize(t + 1, 0.0);
+            self.flux.resize(t + 1, [0.0; 2]);
         }
-        let e = Element::new(mesh.vertices(), mesh.triangle(t), t)?;
+        let tri = mesh.triangle(t);
+        let e = Element::new(mesh.vertices(), tri, t)?;
         let c = Coefficients::of(self.problem, &e, t)?;
         let h_sq = (3 * t as u32..3 * t as u32 + 3).map(|h| mesh.len_sq(h)).fold(0.0, f64::max);
+        let g = e.gradient(tri.map(|v| mesh.vertex(v).z));
         self.coefficients[t] = c;
         self.volume[t] = h_sq * e.area() * c.f_sq;
+        self.flux[t] = [c.k * g[0], c.k * g[1]];
         Ok(())
     }
 
+    /// Takes a solve's gradients (by triangle index) as the triangles' fluxes.
+    pub(crate) fn solved(&mut self, gradients: &[[f64; 2]]) {
+        for ((flux, c), g) in self.flux.iter_mut().zip(&self.coefficients).zip(gradients) {
+            *flux = [c.k * g[0], c.k * g[1]];
+        }
+    }
+
     /// η_T² of triangle `t` for the values the mesh carries.
-    pub(crate) fn indicator_sq(&self, mesh: &Mesh, t: u32) -> Result<f64, SolveError> {
-        let flux = |t: u32| -> Result<[f64; 2], SolveError> {
-            let tri = mesh.triangle(t as usize);
-            let g = Element::new(mesh.vertices(), tri, t as usize)?.gradient(tri.map(|v| mesh.vertex(v).z));
-            let k = self.coefficients[t as usize].k;
-            Ok([k * g[0], k * g[1]])
-        };
-        let own = flux(t)?;
+    pub(crate) fn indicator_sq(&self, mesh: &Mesh, t: u32) -> f64 {
+        let own = self.flux[t as usize];
         let mut jumps = 0.0;
         for h in 3 * t..3 * t + 3 {
             let twin = mesh.twin(h);
             if twin == NONE {
                 continue;
             }
-            let other = flux(twin / 3)?;
+            let other = self.flux[(twin / 3) as usize];
             let (a, b) = (mesh.point(mesh.origin(h)), mesh.point(mesh.dest(h)));
             // (dy, −dx) is the outward normal times |E|, so this is |E| · jump.
             let jump = (own[0] - other[0]) * (b.y - a.y) - (own[1] - other[1]) * (b.x - a.x);
             jumps += jump * jump;
         }
-        Ok(self.volume[t as usize] + 0.5 * jumps)
+        self.volume[t as usize] + 0.5 * jumps
     }
 }
 
@@ -106,7 +114,7 @@ impl Estimator for Residual<'_, '_> {
         t: u32,
         _known: [Option<f64>; 3],
     ) -> Result<(f64, [f64; 3]), SolveError> {
-        Ok((self.indicator_sq(mesh, t)?.sqrt(), [0.0; 3]))
+        Ok((self.indicator_sq(mesh, t).sqrt(), [0.0; 3]))
     }
 
     fn rewritten(&mut self, mesh: &Mesh, touched: &[u32]) -> Result<(), SolveError> {
