@@ -50,6 +50,19 @@ pub struct Config {
     pub shutdown_grace: Duration,
     /// `MESHFIT_LOG_FORMAT`: `text` (default) or `json`.
     pub log_format: LogFormat,
+    /// Connections served at once (`MESHFIT_MAX_CONNECTIONS`, default: the file limit less
+    /// 256, at most 10,000); past it, a connection gets a 503 and is closed.
+    pub max_connections: usize,
+    /// Time from the end of a response, or a connection's start, to the end of the next
+    /// request's headers (`MESHFIT_HEADER_TIMEOUT_MS`, default 15 s): it closes idle
+    /// keep-alive connections and slow headers.
+    pub header_timeout: Duration,
+    /// Longest wait for the next part of a request body (`MESHFIT_BODY_TIMEOUT_MS`, default
+    /// 15 s); past it, 408.
+    pub body_timeout: Duration,
+    /// Longest a response may wait for the client to read (`MESHFIT_WRITE_TIMEOUT_MS`,
+    /// default 30 s); past it, the connection is closed.
+    pub write_timeout: Duration,
 }
 
 impl Default for Config {
@@ -69,6 +82,10 @@ impl Default for Config {
             cache_dir_bytes: 10 << 30,
             shutdown_grace: Duration::from_secs(10),
             log_format: LogFormat::Text,
+            max_connections: crate::http::conn::default_max_connections(),
+            header_timeout: Duration::from_secs(15),
+            body_timeout: Duration::from_secs(15),
+            write_timeout: Duration::from_secs(30),
         }
     }
 }
@@ -103,6 +120,9 @@ impl TryFrom<RawConfig> for Config {
         for (name, value) in &raw.0 {
             let v = value.trim();
             let number = || v.replace('_', "").parse::<u64>().map_err(|_| "expected a whole number");
+            let millis = || {
+                number().and_then(|n| (n >= 1).then(|| Duration::from_millis(n)).ok_or("must be at least 1"))
+            };
             let outcome: Result<(), &str> = match name.as_str() {
                 "MESHFIT_ADDR" => {
                     v.parse().map(|a| config.addr = a).map_err(|_| "expected host:port, e.g. 0.0.0.0:8080")
@@ -126,11 +146,7 @@ impl TryFrom<RawConfig> for Config {
                 "MESHFIT_MAX_EXPRESSION_LEN" => number().and_then(|n| {
                     (n >= 1).then(|| config.max_expression_len = n as usize).ok_or("must be at least 1")
                 }),
-                "MESHFIT_JOB_TIME_LIMIT_MS" => number().and_then(|n| {
-                    (n >= 1)
-                        .then(|| config.job_time_limit = Duration::from_millis(n))
-                        .ok_or("must be at least 1")
-                }),
+                "MESHFIT_JOB_TIME_LIMIT_MS" => millis().map(|d| config.job_time_limit = d),
                 "MESHFIT_CACHE_BYTES" => number().map(|n| config.cache_bytes = n),
                 "MESHFIT_CACHE_DIR" => {
                     config.cache_dir = (!v.is_empty()).then(|| PathBuf::from(v));
@@ -147,6 +163,12 @@ impl TryFrom<RawConfig> for Config {
                     _ => Err("expected text or json"),
                 }
                 .map(|f| config.log_format = f),
+                "MESHFIT_MAX_CONNECTIONS" => number().and_then(|n| {
+                    (n >= 1).then(|| config.max_connections = n as usize).ok_or("must be at least 1")
+                }),
+                "MESHFIT_HEADER_TIMEOUT_MS" => millis().map(|d| config.header_timeout = d),
+                "MESHFIT_BODY_TIMEOUT_MS" => millis().map(|d| config.body_timeout = d),
+                "MESHFIT_WRITE_TIMEOUT_MS" => millis().map(|d| config.write_timeout = d),
                 // RUST_LOG-style filtering is read by the tracing subscriber itself.
                 "MESHFIT_LOG" => Ok(()),
                 _ => Err("unknown setting"),

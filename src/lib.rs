@@ -88,11 +88,16 @@ pub async fn serve(
     };
     // Indexes are rebuilt in milliseconds; a quarter of the result cache's budget holds plenty.
     let state = http::AppState::new(jobs.clone(), limits, config.cache_bytes / 4);
-    let app = http::router(state, config.max_body_bytes);
+    let app = http::router(state, &config);
     let on_signal = jobs.clone();
     let grace = config.shutdown_grace;
     let (signalled, mut on_signalled) = tokio::sync::watch::channel(false);
-    let server = axum::serve(listener, app).with_graceful_shutdown(async move {
+    let settings = http::conn::Settings {
+        max_connections: config.max_connections,
+        header_timeout: config.header_timeout,
+        write_timeout: config.write_timeout,
+    };
+    let server = http::conn::serve(listener, app, settings, jobs.metrics().clone(), async move {
         shutdown.await;
         tracing::info!(grace_ms = grace.as_millis() as u64, "shutting down: no new jobs");
         on_signal.close();

@@ -79,6 +79,19 @@ struct ServeArgs {
     /// MESHFIT_LOG_FORMAT: text or json [default: text].
     #[arg(long, value_name = "FORMAT")]
     log_format: Option<String>,
+    /// MESHFIT_MAX_CONNECTIONS: connections served at once [default: the file limit less 256].
+    #[arg(long, value_name = "N")]
+    max_connections: Option<String>,
+    /// MESHFIT_HEADER_TIMEOUT_MS: time to send a request's headers, idle time included
+    /// [default: 15000].
+    #[arg(long, value_name = "MS")]
+    header_timeout_ms: Option<String>,
+    /// MESHFIT_BODY_TIMEOUT_MS: longest pause in a request body [default: 15000].
+    #[arg(long, value_name = "MS")]
+    body_timeout_ms: Option<String>,
+    /// MESHFIT_WRITE_TIMEOUT_MS: longest a response waits for its reader [default: 30000].
+    #[arg(long, value_name = "MS")]
+    write_timeout_ms: Option<String>,
 }
 
 impl ServeArgs {
@@ -98,6 +111,10 @@ impl ServeArgs {
             ("MESHFIT_CACHE_DIR_BYTES", &self.cache_dir_bytes),
             ("MESHFIT_SHUTDOWN_GRACE_MS", &self.shutdown_grace_ms),
             ("MESHFIT_LOG_FORMAT", &self.log_format),
+            ("MESHFIT_MAX_CONNECTIONS", &self.max_connections),
+            ("MESHFIT_HEADER_TIMEOUT_MS", &self.header_timeout_ms),
+            ("MESHFIT_BODY_TIMEOUT_MS", &self.body_timeout_ms),
+            ("MESHFIT_WRITE_TIMEOUT_MS", &self.write_timeout_ms),
         ];
         for (name, value) in flags {
             if let Some(v) = value {

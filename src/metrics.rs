@@ -51,6 +51,10 @@ pub struct Metrics {
     pub http_requests: Family<RequestLabels, Counter>,
     /// Request latency until the response head, in seconds.
     pub http_latency: Histogram,
+    /// Connections open now, past the cap included.
+    pub connections_open: Gauge,
+    /// Connections refused for the cap (answered with a 503, or closed at once).
+    pub connections_refused: Counter,
 }
 
 impl Default for Metrics {
@@ -68,6 +72,8 @@ impl Default for Metrics {
             cache_disk_bytes: Gauge::default(),
             http_requests: Family::default(),
             http_latency: Histogram::new(exponential_buckets(0.0005, 4.0, 10)),
+            connections_open: Gauge::default(),
+            connections_refused: Counter::default(),
             registry: Registry::default(),
         };
         registry.register("jobs_queued", "Jobs waiting for a worker", m.jobs_queued.clone());
@@ -92,6 +98,12 @@ impl Default for Metrics {
             "http_request_duration_seconds",
             "Time to the response head",
             m.http_latency.clone(),
+        );
+        registry.register("connections_open", "Connections open now", m.connections_open.clone());
+        registry.register(
+            "connections_refused",
+            "Connections refused because MESHFIT_MAX_CONNECTIONS were open",
+            m.connections_refused.clone(),
         );
         Self { registry, ..m }
     }

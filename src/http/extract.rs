@@ -22,9 +22,15 @@ impl<S: Send + Sync> FromRequest<S> for Body {
         match Bytes::from_request(req, state).await {
             Ok(bytes) => Ok(Body(bytes)),
             Err(e) if e.status() == StatusCode::PAYLOAD_TOO_LARGE => Err(ApiError::BodyTooLarge(limit)),
+            Err(e) if timed_out(&e) => Err(ApiError::BodyTimeout),
             Err(e) => Err(ApiError::MalformedJson(e.body_text())),
         }
     }
+}
+
+/// Whether reading the body failed because it stopped arriving (the router's body timeout).
+fn timed_out(e: &(dyn std::error::Error + 'static)) -> bool {
+    std::iter::successors(Some(e), |e| e.source()).any(|e| e.is::<tower_http::timeout::TimeoutError>())
 }
 
 /// Parses JSON, telling syntax errors (400) from shape errors (422), each with its place.

@@ -1,5 +1,6 @@
 //! The HTTP API: routes, shared state and the layers around them.
 
+pub mod conn;
 mod evaluate;
 mod extract;
 mod health;
@@ -8,6 +9,7 @@ pub mod negotiate;
 pub mod problem;
 mod sse;
 
+use crate::config::Config;
 use crate::jobs::{Jobs, Limits};
 use crate::metrics::RequestLabels;
 use axum::extract::{DefaultBodyLimit, Request, State};
@@ -24,6 +26,7 @@ use tower::ServiceBuilder;
 use tower_http::LatencyUnit;
 use tower_http::catch_panic::CatchPanicLayer;
 use tower_http::request_id::{MakeRequestUuid, PropagateRequestIdLayer, SetRequestIdLayer};
+use tower_http::timeout::RequestBodyTimeoutLayer;
 use tower_http::trace::{DefaultOnResponse, TraceLayer};
 use tracing::Level;
 
@@ -62,7 +65,8 @@ pub const ROUTES: &[(&str, &str)] = &[
 ];
 
 /// The router with all layers; tests drive it through a real listener.
-pub fn router(state: AppState, max_body_bytes: usize) -> Router {
+pub fn router(state: AppState, config: &Config) -> Router {
+    let max_body_bytes = config.max_body_bytes;
     // Layers run outside-in: request id first, so the trace span and every log line carry it.
     let layers = ServiceBuilder::new()
         .layer(SetRequestIdLayer::x_request_id(MakeRequestUuid))
@@ -88,7 +92,9 @@ pub fn router(state: AppState, max_body_bytes: usize) -> Router {
         }))
         .layer(middleware::from_fn_with_state(state.clone(), record_metrics))
         .layer(Extension(BodyLimit(max_body_bytes)))
-        .layer(DefaultBodyLimit::max(max_body_bytes));
+        .layer(DefaultBodyLimit::max(max_body_bytes))
+        // Each part of a body must arrive within the timeout; `extract::Body` answers 408.
+        .layer(RequestBodyTimeoutLayer::new(config.body_timeout));
     Router::new()
         .route("/v1/meshes", post(jobs::meshes_create))
         .route("/v1/solutions", post(jobs::solutions_create))

@@ -25,6 +25,8 @@ pub enum ApiError {
     Spec(SpecError),
     /// 413 `limit-exceeded`: the body is larger than `MESHFIT_MAX_BODY_BYTES`.
     BodyTooLarge(usize),
+    /// 408 `body-timeout`: the body stopped arriving for `MESHFIT_BODY_TIMEOUT_MS`.
+    BodyTimeout,
     /// 422 `non-finite-value`: F is NaN or infinite at a point the refinement needs.
     NonFinite(RefineError),
     /// 422 `invalid-problem`: k, f or g is invalid where the solver sampled it.
@@ -43,6 +45,8 @@ pub enum ApiError {
     QueueFull(usize),
     /// 503 `shutting-down`.
     ShuttingDown,
+    /// 503 `too-many-connections`, with `Retry-After`: `MESHFIT_MAX_CONNECTIONS` are open.
+    TooManyConnections,
     /// 500 `internal`: the detail is logged, never sent.
     Internal(String),
 }
@@ -103,6 +107,12 @@ impl ApiError {
                 let detail = format!("the body is larger than this server's limit of {limit} bytes");
                 (StatusCode::PAYLOAD_TOO_LARGE, "limit-exceeded", "Request exceeds a limit", detail)
             }
+            ApiError::BodyTimeout => (
+                StatusCode::REQUEST_TIMEOUT,
+                "body-timeout",
+                "Request body stopped arriving",
+                "no part of the body arrived within this server's body timeout (MESHFIT_BODY_TIMEOUT_MS)".into(),
+            ),
             ApiError::Spec(e) => {
                 let (slug, title) = match e {
                     SpecError::Source(_) => ("invalid-source", "Give exactly one of function and grid"),
@@ -181,6 +191,12 @@ impl ApiError {
                 "Server is shutting down",
                 "the server takes no new jobs while it shuts down".into(),
             ),
+            ApiError::TooManyConnections => (
+                StatusCode::SERVICE_UNAVAILABLE,
+                "too-many-connections",
+                "Server has too many open connections",
+                "this server has as many open connections as it serves (MESHFIT_MAX_CONNECTIONS); retry shortly".into(),
+            ),
             ApiError::Internal(_) => (
                 StatusCode::INTERNAL_SERVER_ERROR,
                 "internal",
@@ -219,7 +235,7 @@ impl IntoResponse for ApiError {
         let mut response = (status, doc.to_string()).into_response();
         let headers = response.headers_mut();
         headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(PROBLEM_JSON));
-        if matches!(self, ApiError::QueueFull(_) | ApiError::ShuttingDown) {
+        if matches!(self, ApiError::QueueFull(_) | ApiError::ShuttingDown | ApiError::TooManyConnections) {
             headers.insert(header::RETRY_AFTER, HeaderValue::from_static("1"));
         }
         response

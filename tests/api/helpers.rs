@@ -33,6 +33,10 @@ pub fn test_config() -> Config {
         cache_dir_bytes: 64 << 20,
         shutdown_grace: Duration::from_secs(2),
         log_format: meshfit::config::LogFormat::Text,
+        max_connections: 256,
+        header_timeout: Duration::from_secs(30),
+        body_timeout: Duration::from_secs(30),
+        write_timeout: Duration::from_secs(30),
     }
 }
 

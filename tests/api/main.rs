@@ -2,6 +2,7 @@
 //! One binary for every API test: each file under tests/ would otherwise link separately.
 
 mod cache;
+mod connections;
 mod errors;
 mod events;
 mod helpers;

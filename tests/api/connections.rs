@@ -1,0 +1,134 @@
+//! What a silent, slow or greedy client can hold: the timeouts and the connection cap.
+//!
+//! Each test would hang without its limit; the outer `timeout` turns a hang into a failure
+//! (it bounds the test, it measures nothing).
+
+use crate::helpers::{spawn_with, test_config};
+use reqwest::Client;
+use serde_json::{Value, json};
+use std::time::Duration;
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::{TcpSocket, TcpStream};
+use tokio::time::timeout;
+
+const GUARD: Duration = Duration::from_secs(20);
+
+/// Reads until the server closes the connection; what arrived before it did.
+async fn read_to_close(stream: &mut TcpStream) -> Vec<u8> {
+    let mut got = Vec::new();
+    let mut buf = [0u8; 64 << 10];
+    loop {
+        match timeout(GUARD, stream.read(&mut buf)).await.expect("the server never closed the connection") {
+            Ok(0) | Err(_) => return got,
+            Ok(n) => got.extend_from_slice(&buf[..n]),
+        }
+    }
+}
+
+/// A client that opens a new connection for every request, so that it holds none between them.
+fn unpooled() -> Client {
+    Client::builder().pool_max_idle_per_host(0).timeout(GUARD).build().unwrap()
+}
+
+#[tokio::test]
+async fn idle_half_sent_and_kept_alive_connections_close_after_the_header_timeout() {
+    let app =
+        spawn_with(meshfit::config::Config { header_timeout: Duration::from_millis(300), ..test_config() })
+            .await;
+    let mut idle = TcpStream::connect(app.addr).await.unwrap();
+    let mut half = TcpStream::connect(app.addr).await.unwrap();
+    half.write_all(b"GET /healthz HTTP/1.1\r\nHost: x\r\nX-Slow: ").await.unwrap();
+    let mut kept = TcpStream::connect(app.addr).await.unwrap();
+    kept.write_all(b"GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n").await.unwrap();
+
+    assert!(read_to_close(&mut idle).await.is_empty());
+    assert!(!String::from_utf8_lossy(&read_to_close(&mut half).await).contains("200 OK"));
+    // The keep-alive connection answered its request, then closed while idle.
+    let answered = String::from_utf8(read_to_close(&mut kept).await).unwrap();
+    assert!(answered.starts_with("HTTP/1.1 200 OK"), "{answered}");
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_body_that_stops_arriving_gets_a_408_problem() {
+    let app =
+        spawn_with(meshfit::config::Config { body_timeout: Duration::from_millis(300), ..test_config() })
+            .await;
+    let mut stream = TcpStream::connect(app.addr).await.unwrap();
+    let head = "POST /v1/meshes HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\nContent-Length: 1000\r\n\r\n";
+    stream.write_all(head.as_bytes()).await.unwrap();
+    stream.write_all(br#"{"function""#).await.unwrap();
+    let response = String::from_utf8(read_to_close(&mut stream).await).unwrap();
+    assert!(response.starts_with("HTTP/1.1 408"), "{response}");
+    assert!(response.contains("application/problem+json"), "{response}");
+    assert!(response.contains(r#""type":"/problems/body-timeout""#), "{response}");
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_client_that_stops_reading_is_dropped_with_its_response() {
+    let config = meshfit::config::Config { write_timeout: Duration::from_millis(300), ..test_config() };
+    let app = spawn_with(config).await;
+    // A mesh far larger than the socket buffers on both sides.
+    let request = json!({"function": "sin(9*x)*cos(7*y)", "max_vertices": 300_000, "criterion": "variation"});
+    let client = unpooled();
+    let response = client.post(app.url("/v1/meshes")).json(&request).send().await.unwrap();
+    assert_eq!(response.status(), 200);
+    let document = response.bytes().await.unwrap();
+    let id = serde_json::from_slice::<Value>(&document).unwrap()["id"].as_str().unwrap().to_owned();
+    let full = document.len();
+
+    let socket = TcpSocket::new_v4().unwrap();
+    socket.set_recv_buffer_size(4096).unwrap();
+    let mut stalled = socket.connect(app.addr).await.unwrap();
+    let get = format!("GET /v1/jobs/{id}/mesh HTTP/1.1\r\nHost: x\r\n\r\n");
+    stalled.write_all(get.as_bytes()).await.unwrap();
+
+    // The server counts the stalled connection until its write timeout drops it; then only
+    // the connection asking for the metrics is open.
+    let metrics = app.url("/metrics");
+    let open = || async {
+        let text = client.get(&metrics).send().await.unwrap().text().await.unwrap();
+        let line = text.lines().find(|l| l.starts_with("meshfit_connections_open ")).unwrap().to_owned();
+        line.rsplit(' ').next().unwrap().parse::<u64>().unwrap()
+    };
+    assert_eq!(open().await, 2, "the stalled connection is open while it could still read");
+    timeout(GUARD, async {
+        while open().await != 1 {
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+    })
+    .await
+    .expect("the stalled reader was never dropped");
+    let received = read_to_close(&mut stalled).await.len();
+    assert!(received < full, "received {received} of {full} bytes: the response was not cut short");
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn past_the_connection_cap_healthz_answers_and_other_routes_get_503() {
+    let app = spawn_with(meshfit::config::Config { max_connections: 4, ..test_config() }).await;
+    let mut held = Vec::new();
+    for _ in 0..4 {
+        held.push(TcpStream::connect(app.addr).await.unwrap());
+    }
+    let client = unpooled();
+    let health = client.get(app.url("/healthz")).send().await.unwrap();
+    assert_eq!(health.status(), 200);
+    let refused = client.get(app.url("/v1/jobs/0123")).send().await.unwrap();
+    assert_eq!(refused.status(), 503);
+    assert_eq!(refused.headers()["retry-after"], "1");
+    let problem: Value = refused.json().await.unwrap();
+    assert_eq!(problem["type"], "/problems/too-many-connections");
+
+    drop(held);
+    timeout(GUARD, async {
+        while client.get(app.url("/v1/jobs/0123")).send().await.unwrap().status() != 404 {
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    })
+    .await
+    .expect("connections freed by their clients were never counted as closed");
+    assert!(app.metric("meshfit_connections_refused_total").await >= 2.0);
+    app.shutdown().await;
+}
