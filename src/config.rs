@@ -3,6 +3,7 @@
 //! Two stages, as ripgrep's LowArgs/HiArgs: [`RawConfig`] holds the strings as given,
 //! [`Config`] the typed values. Nothing downstream parses a string.
 
+use crate::http::access::{ApiKeys, MIN_KEY_LEN};
 use std::collections::BTreeMap;
 use std::net::SocketAddr;
 use std::num::NonZeroUsize;
@@ -63,6 +64,15 @@ pub struct Config {
     /// Longest a response may wait for the client to read (`MESHFIT_WRITE_TIMEOUT_MS`,
     /// default 30 s); past it, the connection is closed.
     pub write_timeout: Duration,
+    /// API keys (`MESHFIT_API_KEYS`, comma-separated, and `MESHFIT_API_KEYS_FILE`, one per
+    /// line); with any, every `/v1` route needs `Authorization: Bearer <key>`. Default none.
+    pub api_keys: ApiKeys,
+    /// Origins whose web pages may call the API (`MESHFIT_CORS_ORIGINS`, comma-separated
+    /// `scheme://host[:port]`, or `*`). Default none: CORS is off.
+    pub cors_origins: Vec<String>,
+    /// The share of the workers and of the queue one client (key, or address without keys)
+    /// may hold (`MESHFIT_CLIENT_SHARE`, in (0, 1], default 0.5).
+    pub client_share: f64,
 }
 
 impl Default for Config {
@@ -86,6 +96,9 @@ impl Default for Config {
             header_timeout: Duration::from_secs(15),
             body_timeout: Duration::from_secs(15),
             write_timeout: Duration::from_secs(30),
+            api_keys: ApiKeys::default(),
+            cors_origins: Vec::new(),
+            client_share: 0.5,
         }
     }
 }
@@ -169,16 +182,65 @@ impl TryFrom<RawConfig> for Config {
                 "MESHFIT_HEADER_TIMEOUT_MS" => millis().map(|d| config.header_timeout = d),
                 "MESHFIT_BODY_TIMEOUT_MS" => millis().map(|d| config.body_timeout = d),
                 "MESHFIT_WRITE_TIMEOUT_MS" => millis().map(|d| config.write_timeout = d),
+                "MESHFIT_API_KEYS" => add_keys(v.split(','), &mut config.api_keys),
+                "MESHFIT_API_KEYS_FILE" => match std::fs::read_to_string(v) {
+                    Ok(text) => add_keys(
+                        text.lines().filter(|l| !l.trim_start().starts_with('#')),
+                        &mut config.api_keys,
+                    ),
+                    Err(e) => {
+                        problems.push(format!("{name}={value:?}: cannot read the file: {e}"));
+                        Ok(())
+                    }
+                },
+                "MESHFIT_CORS_ORIGINS" => v
+                    .split(',')
+                    .map(str::trim)
+                    .filter(|o| !o.is_empty())
+                    .map(|o| {
+                        is_origin(o)
+                            .then(|| o.to_owned())
+                            .ok_or("expected `*` or scheme://host[:port], comma-separated")
+                    })
+                    .collect::<Result<_, _>>()
+                    .map(|origins| config.cors_origins = origins),
+                "MESHFIT_CLIENT_SHARE" => match v.parse::<f64>() {
+                    Ok(x) if x > 0.0 && x <= 1.0 => {
+                        config.client_share = x;
+                        Ok(())
+                    }
+                    _ => Err("expected a number in (0, 1], e.g. 0.5"),
+                },
                 // RUST_LOG-style filtering is read by the tracing subscriber itself.
                 "MESHFIT_LOG" => Ok(()),
                 _ => Err("unknown setting"),
             };
             if let Err(why) = outcome {
-                problems.push(format!("{name}={value:?}: {why}"));
+                // A key is a secret: name the variable, not its value.
+                let shown =
+                    if name == "MESHFIT_API_KEYS" { "<hidden>".to_owned() } else { format!("{value:?}") };
+                problems.push(format!("{name}={shown}: {why}"));
             }
         }
         if problems.is_empty() { Ok(config) } else { Err(ConfigError(problems)) }
     }
+}
+
+/// Adds each non-blank key; every key must be long enough to be a secret.
+fn add_keys<'a>(keys: impl Iterator<Item = &'a str>, into: &mut ApiKeys) -> Result<(), &'static str> {
+    for key in keys.map(str::trim).filter(|k| !k.is_empty()) {
+        if key.len() < MIN_KEY_LEN || key.contains(char::is_whitespace) {
+            return Err("each key must be at least 16 characters, with no spaces");
+        }
+        into.insert(key);
+    }
+    Ok(())
+}
+
+/// `*`, or `http(s)://host[:port]` with no path, as browsers send in `Origin`.
+fn is_origin(o: &str) -> bool {
+    let rest = o.strip_prefix("https://").or_else(|| o.strip_prefix("http://"));
+    o == "*" || rest.is_some_and(|host| !host.is_empty() && !host.contains(['/', ' ', ',']))
 }
 
 #[cfg(test)]
@@ -226,5 +288,32 @@ mod tests {
         assert_eq!(err.0.len(), 4, "{err}");
         assert!(err.0.iter().any(|p| p.starts_with("MESHFIT_WORKERS=\"0\"")), "{err}");
         assert!(err.0.iter().any(|p| p.contains("MESHFIT_QEUE") && p.contains("unknown")), "{err}");
+    }
+
+    #[test]
+    fn keys_origins_and_shares_are_checked_and_keys_never_printed() {
+        let dir = std::env::temp_dir().join(format!("meshfit-keys-{}", std::process::id()));
+        std::fs::write(&dir, "# operators\nfile-key-0123456789abcdef\n\n").unwrap();
+        let c = Config::try_from(raw(&[
+            ("MESHFIT_API_KEYS", "env-key-0123456789abcdef, other-key-0123456789ab"),
+            ("MESHFIT_API_KEYS_FILE", dir.to_str().unwrap()),
+            ("MESHFIT_CORS_ORIGINS", "https://app.example, http://localhost:3000"),
+            ("MESHFIT_CLIENT_SHARE", "0.25"),
+        ]))
+        .unwrap();
+        std::fs::remove_file(&dir).unwrap();
+        assert_eq!(c.api_keys.len(), 3);
+        assert_eq!(c.cors_origins, ["https://app.example", "http://localhost:3000"]);
+        assert_eq!(c.client_share, 0.25);
+        assert!(!format!("{c:?}").contains("env-key"));
+        let err = Config::try_from(raw(&[
+            ("MESHFIT_API_KEYS", "short"),
+            ("MESHFIT_API_KEYS_FILE", "/no/such/file"),
+            ("MESHFIT_CORS_ORIGINS", "app.example/path"),
+            ("MESHFIT_CLIENT_SHARE", "0"),
+        ]))
+        .unwrap_err();
+        assert_eq!(err.0.len(), 4, "{err}");
+        assert!(!err.to_string().contains("short\""), "a bad key is not echoed: {err}");
     }
 }

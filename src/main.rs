@@ -92,6 +92,18 @@ struct ServeArgs {
     /// MESHFIT_WRITE_TIMEOUT_MS: longest a response waits for its reader [default: 30000].
     #[arg(long, value_name = "MS")]
     write_timeout_ms: Option<String>,
+    /// MESHFIT_API_KEYS_FILE: a file of API keys, one per line; with keys, /v1 needs one
+    /// [default: unset, the API is open]. Keys are not taken as flags: they would show in
+    /// the process list.
+    #[arg(long, value_name = "FILE")]
+    api_keys_file: Option<String>,
+    /// MESHFIT_CORS_ORIGINS: origins whose pages may call the API [default: none].
+    #[arg(long, value_name = "ORIGINS")]
+    cors_origins: Option<String>,
+    /// MESHFIT_CLIENT_SHARE: share of the workers and the queue one client may hold
+    /// [default: 0.5].
+    #[arg(long, value_name = "FRACTION")]
+    client_share: Option<String>,
 }
 
 impl ServeArgs {
@@ -115,6 +127,9 @@ impl ServeArgs {
             ("MESHFIT_HEADER_TIMEOUT_MS", &self.header_timeout_ms),
             ("MESHFIT_BODY_TIMEOUT_MS", &self.body_timeout_ms),
             ("MESHFIT_WRITE_TIMEOUT_MS", &self.write_timeout_ms),
+            ("MESHFIT_API_KEYS_FILE", &self.api_keys_file),
+            ("MESHFIT_CORS_ORIGINS", &self.cors_origins),
+            ("MESHFIT_CLIENT_SHARE", &self.client_share),
         ];
         for (name, value) in flags {
             if let Some(v) = value {

@@ -7,10 +7,11 @@ use super::problem::ApiError;
 use super::sse;
 use crate::api::{JobRequest, JobStatus, Links, SolveRequest};
 use crate::jobs::{
-    Found, JobError, JobKeys, JobSpec, Outcome, Record, Snapshot, Status, Ticket, Waiter, job_keys,
+    Client, Found, JobError, JobKeys, JobSpec, Outcome, Record, Snapshot, Status, Ticket, Waiter, job_keys,
 };
 use crate::refine::StopReason;
 use crate::result::MeshResult;
+use axum::Extension;
 use axum::extract::{Path, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, Uri, header};
 use axum::response::{IntoResponse, Response};
@@ -125,26 +126,29 @@ fn served(result: &MeshResult, otherwise: negotiate::Source) -> negotiate::Sourc
 /// event.
 pub async fn meshes_create(
     State(state): State<AppState>,
+    Extension(client): Extension<Client>,
     uri: Uri,
     headers: HeaderMap,
     body: Body,
 ) -> Result<Response, ApiError> {
-    create(state, uri, headers, body, Kind::Mesh).await
+    create(state, &client, uri, headers, body, Kind::Mesh).await
 }
 
 /// `POST /v1/solutions`: as `POST /v1/meshes`, for a boundary value problem; the events are
 /// one per solve.
 pub async fn solutions_create(
     State(state): State<AppState>,
+    Extension(client): Extension<Client>,
     uri: Uri,
     headers: HeaderMap,
     body: Body,
 ) -> Result<Response, ApiError> {
-    create(state, uri, headers, body, Kind::Solution).await
+    create(state, &client, uri, headers, body, Kind::Solution).await
 }
 
 async fn create(
     state: AppState,
+    client: &Client,
     uri: Uri,
     headers: HeaderMap,
     body: Body,
@@ -155,7 +159,7 @@ async fn create(
     let wanted = if stream { None } else { Some(Wanted::from_request(&uri, &headers)?) };
     let (keys, spec) = prepare(&state, &headers, body, kind).await?;
     let id = keys.id.clone();
-    let ticket = state.jobs.submit(keys, spec, false).await?;
+    let ticket = state.jobs.submit(keys, spec, false, client).await?;
     let Some(wanted) = wanted else {
         return Ok(match ticket {
             Ticket::Cached(r) | Ticket::Prefix(r) => final_stream(&id, &Outcome::Succeeded(r)),
@@ -189,12 +193,13 @@ async fn create(
 /// that names `physics` is a boundary value problem.
 pub async fn jobs_create(
     State(state): State<AppState>,
+    Extension(client): Extension<Client>,
     headers: HeaderMap,
     body: Body,
 ) -> Result<Response, ApiError> {
     let (keys, spec) = prepare(&state, &headers, body, Kind::Any).await?;
     let id = keys.id.clone();
-    let (code, status) = match state.jobs.submit(keys, spec, true).await? {
+    let (code, status) = match state.jobs.submit(keys, spec, true, &client).await? {
         Ticket::Cached(f) | Ticket::Prefix(f) => (StatusCode::OK, status_body(&id, &Found::Cached(f))),
         Ticket::Failed(e) => {
             let record =

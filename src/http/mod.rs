@@ -1,8 +1,10 @@
 //! The HTTP API: routes, shared state and the layers around them.
 
+pub mod access;
 pub mod conn;
 mod evaluate;
 mod extract;
+mod head;
 mod health;
 mod jobs;
 pub mod negotiate;
@@ -13,7 +15,7 @@ use crate::config::Config;
 use crate::jobs::{Jobs, Limits};
 use crate::metrics::RequestLabels;
 use axum::extract::{DefaultBodyLimit, Request, State};
-use axum::http::Method;
+use axum::http::{HeaderName, HeaderValue, Method, header};
 use axum::middleware::{self, Next};
 use axum::response::IntoResponse;
 use axum::response::Response;
@@ -21,10 +23,12 @@ use axum::routing::{get, post};
 use axum::{Extension, Router};
 use extract::BodyLimit;
 use problem::ApiError;
-use std::time::Instant;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
 use tower::ServiceBuilder;
 use tower_http::LatencyUnit;
 use tower_http::catch_panic::CatchPanicLayer;
+use tower_http::cors::{AllowOrigin, CorsLayer};
 use tower_http::request_id::{MakeRequestUuid, PropagateRequestIdLayer, SetRequestIdLayer};
 use tower_http::timeout::RequestBodyTimeoutLayer;
 use tower_http::trace::{DefaultOnResponse, TraceLayer};
@@ -67,19 +71,30 @@ pub const ROUTES: &[(&str, &str)] = &[
 /// The router with all layers; tests drive it through a real listener.
 pub fn router(state: AppState, config: &Config) -> Router {
     let max_body_bytes = config.max_body_bytes;
-    // Layers run outside-in: request id first, so the trace span and every log line carry it.
+    let access = Arc::new(access::Access {
+        keys: config.api_keys.clone(),
+        origins: config.cors_origins.clone().into(),
+    });
+    // Layers run outside-in: an unsafe request id is dropped first, then every request gets
+    // one, so the trace span, every log line and every response carry it.
     let layers = ServiceBuilder::new()
+        .layer(middleware::from_fn(head::sanitize_request_id))
         .layer(SetRequestIdLayer::x_request_id(MakeRequestUuid))
         .layer(
             TraceLayer::new_for_http()
                 .make_span_with(|req: &Request| {
                     let id = req.headers().get("x-request-id").and_then(|v| v.to_str().ok()).unwrap_or("");
-                    tracing::info_span!("request", method = %req.method(), path = %req.uri().path(), request_id = %id, job_id = tracing::field::Empty)
+                    // Values are quoted (Debug), so no client text can forge a log field.
+                    tracing::info_span!("request", method = %req.method(), path = ?req.uri().path(), request_id = ?id, job_id = tracing::field::Empty)
                 })
                 // One line per response with its status and latency, inside the span above.
-                .on_response(DefaultOnResponse::new().level(Level::INFO).latency_unit(LatencyUnit::Micros)),
+                .on_response(DefaultOnResponse::new().level(Level::INFO).latency_unit(LatencyUnit::Micros))
+                // A 5xx is logged where it is made: internal errors at error level, refusals
+                // (queue full, shutting down) only in the response line above.
+                .on_failure(()),
         )
         .layer(PropagateRequestIdLayer::x_request_id())
+        .option_layer(cors(&config.cors_origins))
         // A panicking handler answers a generic 500 problem (logged in the request's span)
         // instead of dropping the connection.
         .layer(CatchPanicLayer::custom(|panic: Box<dyn std::any::Any + Send>| {
@@ -91,6 +106,8 @@ pub fn router(state: AppState, config: &Config) -> Router {
             ApiError::Internal(detail).into_response()
         }))
         .layer(middleware::from_fn_with_state(state.clone(), record_metrics))
+        .layer(middleware::from_fn(head::check_sizes))
+        .layer(middleware::from_fn_with_state(access, access::check))
         .layer(Extension(BodyLimit(max_body_bytes)))
         .layer(DefaultBodyLimit::max(max_body_bytes))
         // Each part of a body must arrive within the timeout; `extract::Body` answers 408.
@@ -111,6 +128,32 @@ pub fn router(state: AppState, config: &Config) -> Router {
         .method_not_allowed_fallback(|| async { ApiError::MethodNotAllowed })
         .layer(layers)
         .with_state(state)
+}
+
+/// CORS headers for the listed origins; none when the list is empty (CORS off).
+fn cors(origins: &[String]) -> Option<CorsLayer> {
+    if origins.is_empty() {
+        return None;
+    }
+    let allow = if origins.iter().any(|o| o == "*") {
+        AllowOrigin::any()
+    } else {
+        AllowOrigin::list(origins.iter().filter_map(|o| HeaderValue::from_str(o).ok()))
+    };
+    let exposed = ["location", "etag", "retry-after", "x-request-id", "x-cache", "server-timing"];
+    Some(
+        CorsLayer::new()
+            .allow_origin(allow)
+            .allow_methods([Method::GET, Method::POST, Method::DELETE])
+            .allow_headers([
+                header::CONTENT_TYPE,
+                header::AUTHORIZATION,
+                header::ACCEPT,
+                HeaderName::from_static("x-request-id"),
+            ])
+            .expose_headers(exposed.map(HeaderName::from_static))
+            .max_age(Duration::from_secs(3600)),
+    )
 }
 
 /// Counts requests by method and status and records latency to the response head.

@@ -25,6 +25,10 @@ pub enum ApiError {
     Spec(SpecError),
     /// 413 `limit-exceeded`: the body is larger than `MESHFIT_MAX_BODY_BYTES`.
     BodyTooLarge(usize),
+    /// 414 `limit-exceeded`: the request target (path and query) is longer than this.
+    TargetTooLong(usize),
+    /// 431 `limit-exceeded`: the request's headers take more bytes than this.
+    HeadersTooLarge(usize),
     /// 408 `body-timeout`: the body stopped arriving for `MESHFIT_BODY_TIMEOUT_MS`.
     BodyTimeout,
     /// 422 `non-finite-value`: F is NaN or infinite at a point the refinement needs.
@@ -41,8 +45,18 @@ pub enum ApiError {
     NotFinished(&'static str),
     /// 409 `job-cancelled`: the job was cancelled before it finished.
     Cancelled,
-    /// 503 `queue-full`, with `Retry-After`.
-    QueueFull(usize),
+    /// 503 `queue-full`, with `Retry-After`: (jobs waiting, seconds).
+    QueueFull(usize, u64),
+    /// 429 `share-used`, with `Retry-After`: the client holds its share of the workers and
+    /// the queue; (jobs held, seconds).
+    ShareUsed(usize, u64),
+    /// 401 `unauthorized`: keys are configured and the request has none, or a wrong one.
+    Unauthorized {
+        /// Whether a bearer token was sent at all.
+        presented: bool,
+    },
+    /// 403 `cross-origin`: a request that changes state from a web page of another origin.
+    CrossOrigin,
     /// 503 `shutting-down`.
     ShuttingDown,
     /// 503 `too-many-connections`, with `Retry-After`: `MESHFIT_MAX_CONNECTIONS` are open.
@@ -60,7 +74,8 @@ impl From<SpecError> for ApiError {
 impl From<SubmitError> for ApiError {
     fn from(e: SubmitError) -> Self {
         match e {
-            SubmitError::QueueFull { waiting } => ApiError::QueueFull(waiting),
+            SubmitError::QueueFull { waiting, retry_after } => ApiError::QueueFull(waiting, retry_after),
+            SubmitError::ShareUsed { held, retry_after } => ApiError::ShareUsed(held, retry_after),
             SubmitError::ShuttingDown => ApiError::ShuttingDown,
         }
     }
@@ -106,6 +121,15 @@ impl ApiError {
                 ext.insert("limit".into(), json!({"name": "MESHFIT_MAX_BODY_BYTES", "value": limit}));
                 let detail = format!("the body is larger than this server's limit of {limit} bytes");
                 (StatusCode::PAYLOAD_TOO_LARGE, "limit-exceeded", "Request exceeds a limit", detail)
+            }
+            ApiError::TargetTooLong(limit) => {
+                let detail = format!("the path and query are longer than this server's limit of {limit} bytes");
+                (StatusCode::URI_TOO_LONG, "limit-exceeded", "Request exceeds a limit", detail)
+            }
+            ApiError::HeadersTooLarge(limit) => {
+                let detail = format!("the headers take more than this server's limit of {limit} bytes");
+                let status = StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE;
+                (status, "limit-exceeded", "Request exceeds a limit", detail)
             }
             ApiError::BodyTimeout => (
                 StatusCode::REQUEST_TIMEOUT,
@@ -181,10 +205,33 @@ impl ApiError {
                 let detail = "the job was cancelled before it finished; submit it again to rerun it".into();
                 (StatusCode::CONFLICT, "job-cancelled", "Job was cancelled", detail)
             }
-            ApiError::QueueFull(waiting) => {
+            ApiError::QueueFull(waiting, _) => {
                 let detail = format!("{waiting} jobs are already waiting for a worker; retry shortly");
                 (StatusCode::SERVICE_UNAVAILABLE, "queue-full", "Server is busy", detail)
             }
+            ApiError::ShareUsed(held, _) => {
+                let detail = format!(
+                    "you have {held} jobs running or queued, your share of this server (MESHFIT_CLIENT_SHARE); \
+                     retry when one has finished"
+                );
+                (StatusCode::TOO_MANY_REQUESTS, "share-used", "Too many jobs from this client", detail)
+            }
+            ApiError::Unauthorized { presented } => {
+                let detail = if *presented {
+                    "the bearer token is not one of this server's API keys"
+                } else {
+                    "this server needs an API key: send `Authorization: Bearer <key>`"
+                };
+                (StatusCode::UNAUTHORIZED, "unauthorized", "API key missing or wrong", detail.into())
+            }
+            ApiError::CrossOrigin => (
+                StatusCode::FORBIDDEN,
+                "cross-origin",
+                "Origin not allowed",
+                "requests that change state are taken from this server's own pages and from the \
+                 origins in MESHFIT_CORS_ORIGINS only"
+                    .into(),
+            ),
             ApiError::ShuttingDown => (
                 StatusCode::SERVICE_UNAVAILABLE,
                 "shutting-down",
@@ -235,8 +282,17 @@ impl IntoResponse for ApiError {
         let mut response = (status, doc.to_string()).into_response();
         let headers = response.headers_mut();
         headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(PROBLEM_JSON));
-        if matches!(self, ApiError::QueueFull(_) | ApiError::ShuttingDown | ApiError::TooManyConnections) {
-            headers.insert(header::RETRY_AFTER, HeaderValue::from_static("1"));
+        match self {
+            ApiError::QueueFull(_, seconds) | ApiError::ShareUsed(_, seconds) => {
+                headers.insert(header::RETRY_AFTER, HeaderValue::from(seconds));
+            }
+            ApiError::ShuttingDown | ApiError::TooManyConnections => {
+                headers.insert(header::RETRY_AFTER, HeaderValue::from_static("1"));
+            }
+            ApiError::Unauthorized { .. } => {
+                headers.insert(header::WWW_AUTHENTICATE, HeaderValue::from_static("Bearer"));
+            }
+            _ => {}
         }
         response
     }

@@ -9,6 +9,7 @@
 //!
 //! - `job`: a job's state, its outcome, and [`Record`], the one view clients get;
 //! - `registry`: [`Jobs`], the table of jobs, the queue bound, the cache and the families;
+//! - `share`: each [`Client`]'s share of the workers and the queue;
 //! - `worker`: one job's run on the blocking pool;
 //! - `cache`, `key`, `spec`, `solution`: stored results, ids, and validated requests of meshes
 //!   and of boundary value problems.
@@ -17,6 +18,7 @@ mod cache;
 mod job;
 mod key;
 mod registry;
+mod share;
 mod solution;
 mod spec;
 mod worker;
@@ -25,5 +27,6 @@ pub use cache::{Cache, Hit};
 pub use job::{Job, JobError, Outcome, Record, Snapshot, Status};
 pub use key::{ENGINE_VERSION, JobKeys, job_id, job_keys};
 pub use registry::{Found, Jobs, SubmitError, Ticket, Waiter};
+pub use share::Client;
 pub use solution::{Coef, SolveSpec};
 pub use spec::{DEFAULT_MAX_VERTICES, JobSpec, Limits, MeshSpec, SpecError, Work};

@@ -1,12 +1,13 @@
 //! The registry: which jobs exist, who waits on them, the queue's bound and the cache in front.
 
 use super::job::{Job, JobError, Record, Snapshot, Status};
+use super::share::{Charge, Client, Shares};
 use super::{Cache, JobKeys, JobSpec, worker};
 use crate::metrics::Metrics;
 use crate::refine::trace::replay;
 use crate::result::MeshResult;
 use std::collections::{HashMap, VecDeque};
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use tokio::sync::{Notify, Semaphore, watch};
 
@@ -56,6 +57,16 @@ pub enum SubmitError {
     QueueFull {
         /// How many wait.
         waiting: usize,
+        /// Seconds until a place is likely free.
+        retry_after: u64,
+    },
+    /// The client already holds its share of the workers and the queue.
+    #[error("this client has {held} jobs running or queued, its share of this server")]
+    ShareUsed {
+        /// How many jobs the client holds.
+        held: usize,
+        /// Seconds until one of them is likely done.
+        retry_after: u64,
     },
     /// The server is shutting down.
     #[error("the server is shutting down")]
@@ -98,6 +109,7 @@ pub struct Jobs {
 
 pub(super) struct Inner {
     pub(super) permits: Arc<Semaphore>,
+    pub(super) workers: usize,
     pub(super) queue: usize,
     /// Jobs created and not yet holding a permit (some of which will get one at once).
     pub(super) waiting: AtomicUsize,
@@ -109,6 +121,10 @@ pub(super) struct Inner {
     pub(super) families: moka::sync::Cache<String, (String, usize)>,
     pub(super) metrics: Arc<Metrics>,
     pub(super) closed: AtomicBool,
+    pub(super) shares: Shares,
+    /// The mean time a job ran, in seconds (f64 bits; a moving average): the basis of every
+    /// `Retry-After`.
+    pub(super) mean_run: AtomicU64,
 }
 
 pub(super) enum Entry {
@@ -143,6 +159,20 @@ impl Inner {
         self.waiting.load(Ordering::SeqCst) < self.queue + self.permits.available_permits()
     }
 
+    /// Seconds until one of `lanes` busy workers is likely free, at the mean time a job has
+    /// taken: the `Retry-After` of a refusal, at least 1 s and at most an hour.
+    fn retry_after(&self, lanes: usize) -> u64 {
+        let mean = f64::from_bits(self.mean_run.load(Ordering::Relaxed));
+        (mean / lanes.max(1) as f64).ceil().clamp(1.0, 3600.0) as u64
+    }
+
+    /// Folds a job's run time into the mean (weight 1/8: a few jobs move it, one does not).
+    pub(super) fn note_run_time(&self, seconds: f64) {
+        let _ = self.mean_run.fetch_update(Ordering::Relaxed, Ordering::Relaxed, |bits| {
+            Some((f64::from_bits(bits) + (seconds - f64::from_bits(bits)) / 8.0).to_bits())
+        });
+    }
+
     fn attach(self: &Arc<Self>, job: &Arc<Job>, detached: bool) -> Waiter {
         // Caller holds the table lock.
         job.waiters.fetch_add(1, Ordering::SeqCst);
@@ -155,11 +185,12 @@ impl Inner {
 
 impl Jobs {
     /// A registry running at most `workers` refinements at once, with at most `queue` jobs
-    /// waiting beyond them.
-    pub fn new(workers: usize, queue: usize, cache: Cache, metrics: Arc<Metrics>) -> Self {
+    /// waiting beyond them, of which one client may hold `share` (in (0, 1]).
+    pub fn new(workers: usize, queue: usize, share: f64, cache: Cache, metrics: Arc<Metrics>) -> Self {
         Self {
             inner: Arc::new(Inner {
                 permits: Arc::new(Semaphore::new(workers)),
+                workers,
                 queue,
                 waiting: AtomicUsize::new(0),
                 table: Mutex::new(Table::default()),
@@ -167,6 +198,8 @@ impl Jobs {
                 families: moka::sync::Cache::new(FAMILIES_KEPT),
                 metrics,
                 closed: AtomicBool::new(false),
+                shares: Shares::new(share, workers, queue),
+                mean_run: AtomicU64::new(1f64.to_bits()),
             }),
         }
     }
@@ -191,12 +224,18 @@ impl Jobs {
         !self.inner.closed.load(Ordering::SeqCst) && self.inner.has_room()
     }
 
-    /// Answers from the cache, joins an identical job, or starts a new one. `detached` jobs
-    /// (from `POST /v1/jobs`) run to the end even when nobody waits.
+    /// Answers from the cache, joins an identical job, or starts a new one charged to
+    /// `client`. `detached` jobs (from `POST /v1/jobs`) run to the end even when nobody waits.
     ///
     /// # Errors
-    /// When the queue is full or the server is shutting down.
-    pub async fn submit(&self, keys: JobKeys, spec: JobSpec, detached: bool) -> Result<Ticket, SubmitError> {
+    /// When the queue is full, the client holds its share, or the server is shutting down.
+    pub async fn submit(
+        &self,
+        keys: JobKeys,
+        spec: JobSpec,
+        detached: bool,
+        client: &Client,
+    ) -> Result<Ticket, SubmitError> {
         let inner = &self.inner;
         let JobKeys { id, family } = keys;
         if let Some(finished) = self.cached(&id).await {
@@ -239,8 +278,13 @@ impl Jobs {
             return Err(SubmitError::ShuttingDown);
         }
         if !inner.has_room() {
-            return Err(SubmitError::QueueFull { waiting: inner.queued() });
+            let waiting = inner.queued();
+            return Err(SubmitError::QueueFull { waiting, retry_after: inner.retry_after(inner.workers) });
         }
+        let charge: Charge = inner.shares.charge(client).map_err(|held| SubmitError::ShareUsed {
+            held,
+            retry_after: inner.retry_after(inner.shares.workers),
+        })?;
         inner.waiting.fetch_add(1, Ordering::SeqCst);
         inner.metrics.jobs_queued.inc();
         let (state, _) = watch::channel(Snapshot {
@@ -262,7 +306,7 @@ impl Jobs {
         let waiter = inner.attach(&job, detached);
         table.jobs.insert(id, Entry::Live(job.clone()));
         drop(table);
-        tokio::spawn(worker::run(self.inner.clone(), job, spec));
+        tokio::spawn(worker::run(self.inner.clone(), job, spec, charge));
         Ok(Ticket::Job(waiter))
     }
 
@@ -362,7 +406,7 @@ mod tests {
     use std::time::Duration;
 
     fn jobs(workers: usize, queue: usize) -> Jobs {
-        Jobs::new(workers, queue, Cache::new(64 << 20, None, 0).unwrap(), Arc::new(Metrics::default()))
+        Jobs::new(workers, queue, 1.0, Cache::new(64 << 20, None, 0).unwrap(), Arc::new(Metrics::default()))
     }
 
     fn request(body: serde_json::Value) -> (JobKeys, JobSpec) {
@@ -378,13 +422,17 @@ mod tests {
         (job_keys(&spec), spec)
     }
 
+    fn client() -> Client {
+        Client::from("addr:test".to_owned())
+    }
+
     /// A job long enough to still be running when the test looks again.
     fn long() -> (JobKeys, JobSpec) {
         request(serde_json::json!({"function": "sin(40*x)*cos(40*y)", "max_vertices": 4_000_000}))
     }
 
     async fn submit(jobs: &Jobs, (keys, spec): (JobKeys, JobSpec), detached: bool) -> Ticket {
-        jobs.submit(keys, spec, detached).await.unwrap_or_else(|e| panic!("refused: {e}"))
+        jobs.submit(keys, spec, detached, &client()).await.unwrap_or_else(|e| panic!("refused: {e}"))
     }
 
     fn waiter(ticket: Ticket) -> Waiter {
@@ -426,9 +474,10 @@ mod tests {
                 request(serde_json::json!({"function": "y"})).0,
                 request(serde_json::json!({"function": "y"})).1,
                 true,
+                &client(),
             )
             .await;
-        assert_eq!(refused.err(), Some(SubmitError::QueueFull { waiting: 1 }));
+        assert!(matches!(refused.err(), Some(SubmitError::QueueFull { waiting: 1, retry_after: 1.. })));
         assert!(!jobs.is_ready());
         first.job().cancel();
         assert!(matches!(queued.job().outcome().await, Outcome::Succeeded(_)), "the queued job runs next");
@@ -483,7 +532,7 @@ mod tests {
         jobs.close();
         assert!(matches!(submit(&jobs, request(body), false).await, Ticket::Cached(_)));
         let (keys, spec) = request(serde_json::json!({"function": "x-y"}));
-        assert_eq!(jobs.submit(keys, spec, false).await.err(), Some(SubmitError::ShuttingDown));
+        assert_eq!(jobs.submit(keys, spec, false, &client()).await.err(), Some(SubmitError::ShuttingDown));
     }
 
     #[tokio::test]

@@ -3,6 +3,7 @@
 
 use super::job::{Job, JobError, Outcome, Record, Status};
 use super::registry::{Entry, FINISHED_KEPT, Inner};
+use super::share::Charge;
 use super::{JobSpec, Work};
 use crate::api::ProgressEvent;
 use crate::metrics::StateLabel;
@@ -14,9 +15,16 @@ use std::sync::atomic::Ordering;
 use std::time::Duration;
 
 /// Waits for a permit, refines on the blocking pool, stores the result and finishes the job.
-pub(super) async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec) {
+pub(super) async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec, charge: Charge) {
+    // One of the client's permits first, so that a client past its share of the workers
+    // waits without holding a place another client could run in.
+    let permits = async {
+        let own = charge.permits().acquire_owned().await.ok()?;
+        let server = inner.permits.clone().acquire_owned().await.ok()?;
+        Some((own, server))
+    };
     let permit = tokio::select! {
-        permit = inner.permits.clone().acquire_owned() => permit.ok(),
+        permits = permits => permits,
         () = job.cancel_notify.notified() => None,
     };
     inner.waiting.fetch_sub(1, Ordering::SeqCst);
@@ -34,6 +42,9 @@ pub(super) async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec) {
                     (Outcome::Failed(JobError::Internal("the refinement panicked".into())), None)
                 });
             inner.metrics.jobs_running.dec();
+            if let Some(elapsed) = outcome.1 {
+                inner.note_run_time(elapsed.as_secs_f64());
+            }
             drop(permit);
             outcome
         }
@@ -48,6 +59,7 @@ pub(super) async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec) {
     inner.metrics.jobs_finished.get_or_create(&StateLabel { state }).inc();
     tracing::info!(job = %job.id, state, "job finished");
     job.finish(outcome, elapsed);
+    drop(charge);
     // Waiting clients hold the job (and its mesh) until they have read it; the table keeps
     // only the record.
     let record = Arc::new(Record::of(&job.snapshot()));

@@ -37,6 +37,10 @@ pub fn test_config() -> Config {
         header_timeout: Duration::from_secs(30),
         body_timeout: Duration::from_secs(30),
         write_timeout: Duration::from_secs(30),
+        api_keys: Default::default(),
+        cors_origins: Vec::new(),
+        // Every test client is 127.0.0.1: a whole share keeps the tests of the queue simple.
+        client_share: 1.0,
     }
 }
 

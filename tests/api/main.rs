@@ -1,6 +1,7 @@
 //! The HTTP API, tested through a real server on a loopback port with reqwest.
 //! One binary for every API test: each file under tests/ would otherwise link separately.
 
+mod access;
 mod cache;
 mod connections;
 mod errors;

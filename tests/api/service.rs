@@ -73,6 +73,30 @@ async fn every_response_carries_a_request_id() {
     }
     let given = app.client.get(app.url("/healthz")).header("x-request-id", "abc-123").send().await.unwrap();
     assert_eq!(given.headers()["x-request-id"], "abc-123");
+    // Ids too long or with characters a log line would need to quote are replaced, not echoed.
+    for unsafe_id in ["a".repeat(10_000), "x level=error msg=forged".into()] {
+        let replaced =
+            app.client.get(app.url("/healthz")).header("x-request-id", &unsafe_id).send().await.unwrap();
+        let id = replaced.headers()["x-request-id"].to_str().unwrap();
+        assert_eq!(id.len(), 36, "a fresh UUID: {id}");
+    }
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn oversized_targets_and_headers_are_problems_with_a_request_id() {
+    let app = spawn_app().await;
+    let long_target = app.get(&format!("/v1/jobs/{}", "a".repeat(9_000))).await;
+    let many_headers = (0..40)
+        .fold(app.client.get(app.url("/healthz")), |r, i| r.header(format!("x-h{i}"), "v".repeat(1_000)));
+    let many_headers = many_headers.send().await.unwrap();
+    for (response, status) in [(long_target, 414), (many_headers, 431)] {
+        assert_eq!(response.status(), status);
+        assert!(response.headers().contains_key("x-request-id"));
+        assert_eq!(response.headers()["content-type"], "application/problem+json");
+        let problem: Value = response.json().await.unwrap();
+        assert_eq!(problem["type"], "/problems/limit-exceeded");
+    }
     app.shutdown().await;
 }
 

@@ -1,0 +1,152 @@
+//! Who may call the API, from which web pages, and which client a request counts against.
+//!
+//! - Keys: with `MESHFIT_API_KEYS` (or a keys file) set, every `/v1` route needs
+//!   `Authorization: Bearer <key>`; health, metrics, the spec and the page stay open. Keys are
+//!   kept only as SHA-256 digests, and a client is named by a digest's first bytes.
+//! - Origins: a browser sends `Origin` with every cross-origin POST, including the "simple"
+//!   ones (`text/plain`, forms) that skip the CORS preflight. A request that changes state and
+//!   names an origin other than the server's own or one in `MESHFIT_CORS_ORIGINS` is refused,
+//!   so no web page can make a visitor's browser submit jobs. Listed origins also get CORS
+//!   headers (tower-http's `CorsLayer`, added in `super::router`).
+//! - Clients: the key's name, or without keys the peer's IP address; the registry gives each
+//!   client at most its share of the workers and the queue.
+
+use super::problem::ApiError;
+use crate::jobs::Client;
+use axum::extract::{ConnectInfo, Request, State};
+use axum::http::{HeaderMap, Method, header};
+use axum::middleware::Next;
+use axum::response::{IntoResponse, Response};
+use sha2::{Digest, Sha256};
+use std::collections::HashSet;
+use std::fmt;
+use std::net::SocketAddr;
+use std::sync::Arc;
+
+/// Shortest key accepted: a key is a secret, not a name.
+pub const MIN_KEY_LEN: usize = 16;
+
+/// The configured API keys, as digests. Empty: the API is open.
+#[derive(Clone, Default, PartialEq, Eq)]
+pub struct ApiKeys(HashSet<[u8; 32]>);
+
+impl ApiKeys {
+    /// Adds a key.
+    pub fn insert(&mut self, key: &str) {
+        self.0.insert(Sha256::digest(key.as_bytes()).into());
+    }
+
+    /// How many keys there are.
+    pub fn len(&self) -> usize {
+        self.0.len()
+    }
+
+    /// Whether no key is configured (the API is open).
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    /// The client a presented key names, if it is one of ours.
+    fn client(&self, key: &str) -> Option<Client> {
+        let digest: [u8; 32] = Sha256::digest(key.as_bytes()).into();
+        self.0.contains(&digest).then(|| {
+            let name: String = digest[..6].iter().map(|b| format!("{b:02x}")).collect();
+            Client::from(format!("key:{name}"))
+        })
+    }
+}
+
+/// Never prints a key or its digest.
+impl fmt::Debug for ApiKeys {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "ApiKeys({} configured)", self.0.len())
+    }
+}
+
+/// What the access check needs, shared by every request.
+#[derive(Clone, Debug, Default)]
+pub struct Access {
+    /// The API keys; empty for an open API.
+    pub keys: ApiKeys,
+    /// Origins (`scheme://host[:port]`) whose pages may call the API.
+    pub origins: Arc<[String]>,
+}
+
+/// Authenticates `/v1` requests, refuses state changes from foreign origins, and tags each
+/// request with its [`Client`].
+pub async fn check(State(access): State<Arc<Access>>, mut req: Request, next: Next) -> Response {
+    if !req.uri().path().starts_with("/v1/") {
+        return next.run(req).await;
+    }
+    let changes_state = !matches!(*req.method(), Method::GET | Method::HEAD | Method::OPTIONS);
+    if changes_state && !origin_allowed(req.headers(), &access.origins) {
+        return ApiError::CrossOrigin.into_response();
+    }
+    let client = if access.keys.is_empty() {
+        let peer = req.extensions().get::<ConnectInfo<SocketAddr>>().map(|c| c.0.ip());
+        Client::from(peer.map_or_else(|| "addr:unknown".to_owned(), |ip| format!("addr:{ip}")))
+    } else {
+        let presented = bearer(req.headers());
+        match presented.and_then(|key| access.keys.client(key)) {
+            Some(client) => client,
+            None => return ApiError::Unauthorized { presented: presented.is_some() }.into_response(),
+        }
+    };
+    req.extensions_mut().insert(client);
+    next.run(req).await
+}
+
+/// The token of an `Authorization: Bearer` header.
+fn bearer(headers: &HeaderMap) -> Option<&str> {
+    let value = headers.get(header::AUTHORIZATION)?.to_str().ok()?;
+    let (scheme, token) = value.split_once(' ')?;
+    scheme.eq_ignore_ascii_case("bearer").then(|| token.trim())
+}
+
+/// No `Origin` (not a browser, or a same-origin GET), the server's own origin, or a listed
+/// one.
+fn origin_allowed(headers: &HeaderMap, allowed: &[String]) -> bool {
+    let Some(origin) = headers.get(header::ORIGIN).and_then(|o| o.to_str().ok()) else {
+        return headers.get(header::ORIGIN).is_none();
+    };
+    let own = headers.get(header::HOST).and_then(|h| h.to_str().ok()).is_some_and(|host| {
+        origin.strip_prefix("http://").or_else(|| origin.strip_prefix("https://")) == Some(host)
+    });
+    own || allowed.iter().any(|a| a == "*" || a.eq_ignore_ascii_case(origin))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use axum::http::HeaderValue;
+
+    fn headers(pairs: &[(header::HeaderName, &str)]) -> HeaderMap {
+        pairs.iter().map(|(k, v)| (k.clone(), HeaderValue::from_str(v).unwrap())).collect()
+    }
+
+    #[test]
+    fn origins_are_allowed_when_absent_own_or_listed() {
+        let listed = ["https://app.example".to_owned()];
+        assert!(origin_allowed(&headers(&[]), &listed));
+        let own = headers(&[(header::ORIGIN, "http://localhost:8080"), (header::HOST, "localhost:8080")]);
+        assert!(origin_allowed(&own, &[]));
+        assert!(origin_allowed(&headers(&[(header::ORIGIN, "https://app.example")]), &listed));
+        let foreign = headers(&[(header::ORIGIN, "https://evil.example"), (header::HOST, "localhost:8080")]);
+        assert!(!origin_allowed(&foreign, &listed));
+        assert!(!origin_allowed(&headers(&[(header::ORIGIN, "null")]), &listed));
+        assert!(origin_allowed(&foreign, &["*".to_owned()]));
+    }
+
+    #[test]
+    fn keys_name_their_client_without_revealing_it() {
+        let mut keys = ApiKeys::default();
+        keys.insert("correct horse battery staple");
+        let client = keys.client("correct horse battery staple").unwrap();
+        assert!(client.as_str().starts_with("key:") && !client.as_str().contains("horse"));
+        assert_eq!(keys.client("correct horse battery stapler"), None);
+        assert!(!format!("{keys:?}").contains("horse"));
+        let auth = headers(&[(header::AUTHORIZATION, "Bearer  abc ")]);
+        assert_eq!(bearer(&auth), Some("abc"));
+        assert_eq!(bearer(&headers(&[(header::AUTHORIZATION, "Basic abc")])), None);
+    }
+}

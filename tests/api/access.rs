@@ -1,0 +1,111 @@
+//! API keys, origins and each client's share of the workers and the queue.
+
+use crate::helpers::{TestApp, spawn_with, test_config};
+use meshfit::config::Config;
+use meshfit::http::access::ApiKeys;
+use serde_json::{Value, json};
+
+const KEY_A: &str = "key-a-0123456789abcdef";
+const KEY_B: &str = "key-b-0123456789abcdef";
+
+fn with_keys(config: Config) -> Config {
+    let mut keys = ApiKeys::default();
+    keys.insert(KEY_A);
+    keys.insert(KEY_B);
+    Config { api_keys: keys, ..config }
+}
+
+async fn post_as(app: &TestApp, key: &str, path: &str, body: &Value) -> reqwest::Response {
+    app.client.post(app.url(path)).bearer_auth(key).json(body).send().await.unwrap()
+}
+
+async fn status_as(app: &TestApp, key: &str, id: &str) -> Value {
+    let response = app.client.get(app.url(&format!("/v1/jobs/{id}"))).bearer_auth(key).send().await.unwrap();
+    response.json().await.unwrap()
+}
+
+#[tokio::test]
+async fn with_keys_every_v1_route_needs_one_and_health_stays_open() {
+    let app = spawn_with(with_keys(test_config())).await;
+    let body = json!({"function": "x*y", "max_vertices": 50});
+    let missing = app.post("/v1/meshes", &body).await;
+    assert_eq!(missing.status(), 401);
+    assert_eq!(missing.headers()["www-authenticate"], "Bearer");
+    assert_eq!(missing.json::<Value>().await.unwrap()["type"], "/problems/unauthorized");
+    let wrong = post_as(&app, "key-c-0123456789abcdef", "/v1/meshes", &body).await;
+    assert_eq!(wrong.status(), 401);
+    assert_eq!(app.get("/v1/jobs/0123").await.status(), 401, "reads need a key too");
+    assert_eq!(app.metric("meshfit_engine_runs_total").await, 0.0);
+
+    let ok = post_as(&app, KEY_A, "/v1/meshes", &body).await;
+    assert_eq!(ok.status(), 200);
+    for open in ["/healthz", "/readyz", "/metrics", "/openapi.yaml"] {
+        assert_eq!(app.get(open).await.status(), 200, "{open}");
+    }
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_page_of_another_origin_cannot_submit_jobs_unless_listed() {
+    let config = Config { cors_origins: vec!["https://app.example".into()], ..test_config() };
+    let app = spawn_with(config).await;
+    let body = r#"{"function": "x+y", "max_vertices": 50}"#;
+    let from = |origin: &str| {
+        // What a form or fetch without preflight sends: text/plain, with the page's origin.
+        let request = app.client.post(app.url("/v1/jobs")).header("content-type", "text/plain");
+        request.header("origin", origin).body(body).send()
+    };
+    let foreign = from("https://evil.example").await.unwrap();
+    assert_eq!(foreign.status(), 403);
+    assert_eq!(foreign.json::<Value>().await.unwrap()["type"], "/problems/cross-origin");
+    assert_eq!(app.metric("meshfit_cache_misses_total").await, 0.0, "no job was looked up or made");
+
+    let listed = from("https://app.example").await.unwrap();
+    assert_eq!(listed.status(), 202);
+    assert_eq!(listed.headers()["access-control-allow-origin"], "https://app.example");
+    assert!(listed.headers()["access-control-expose-headers"].to_str().unwrap().contains("location"));
+    let own = from(&format!("http://{}", app.addr)).await.unwrap();
+    assert_eq!(own.status(), 200, "the server's own page (the same job, finished or joined)");
+
+    let preflight = app
+        .client
+        .request(reqwest::Method::OPTIONS, app.url("/v1/meshes"))
+        .header("origin", "https://app.example")
+        .header("access-control-request-method", "POST")
+        .header("access-control-request-headers", "content-type,authorization")
+        .send()
+        .await
+        .unwrap();
+    assert!(preflight.status().is_success());
+    assert!(preflight.headers()["access-control-allow-methods"].to_str().unwrap().contains("POST"));
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn one_client_cannot_take_every_worker_or_the_whole_queue() {
+    // Two workers and a queue of 8: each key may run 1 job and hold 5.
+    let app = spawn_with(with_keys(Config { client_share: 0.5, ..test_config() })).await;
+    let long = |i: usize| json!({"function": format!("sin(40*x)*cos(40*y)+{i}"), "max_vertices": 2_000_000});
+    let mut ids = Vec::new();
+    for i in 0..5 {
+        let status: Value = post_as(&app, KEY_A, "/v1/jobs", &long(i)).await.json().await.unwrap();
+        ids.push(status["id"].as_str().unwrap().to_owned());
+    }
+    while status_as(&app, KEY_A, &ids[0]).await["status"] != "running" {
+        tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+    }
+    let refused = post_as(&app, KEY_A, "/v1/jobs", &long(5)).await;
+    assert_eq!(refused.status(), 429);
+    assert!(refused.headers()["retry-after"].to_str().unwrap().parse::<u64>().unwrap() >= 1);
+    let problem: Value = refused.json().await.unwrap();
+    assert_eq!(problem["type"], "/problems/share-used");
+
+    // The other worker is B's: its small job finishes while A's second job still waits.
+    let small = post_as(&app, KEY_B, "/v1/meshes", &json!({"function": "x*y", "max_vertices": 10})).await;
+    assert_eq!(small.status(), 200);
+    assert_eq!(status_as(&app, KEY_A, &ids[1]).await["status"], "queued");
+    for id in &ids {
+        app.client.delete(app.url(&format!("/v1/jobs/{id}"))).bearer_auth(KEY_A).send().await.unwrap();
+    }
+    app.shutdown().await;
+}
