@@ -28,7 +28,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Serve the HTTP API (the default). Flags override MESHFIT_* variables.
-    Serve(ServeArgs),
+    Serve(Box<ServeArgs>),
     /// Refine a mesh for F and write it as JSON to stdout.
     Mesh(MeshArgs),
     /// Solve a boundary value problem on an adaptive mesh: FILE holds the JSON body of
