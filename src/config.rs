@@ -39,7 +39,12 @@ pub struct Config {
     pub max_expression_len: usize,
     /// Longest a job may run (`MESHFIT_JOB_TIME_LIMIT_MS`, default 60 s); caps `time_limit_ms`.
     pub job_time_limit: Duration,
-    /// Memory for finished meshes (`MESHFIT_CACHE_BYTES`, default 1 GiB).
+    /// The memory budget (`MESHFIT_MEMORY_BYTES`, default half the machine's or the
+    /// container's memory): request bodies, jobs (by their vertex budgets) and cached meshes
+    /// are charged to it before they are taken; past it, 503.
+    pub memory_bytes: u64,
+    /// Memory for finished meshes (`MESHFIT_CACHE_BYTES`, default 1 GiB, and at most half
+    /// the memory budget); part of the budget.
     pub cache_bytes: u64,
     /// Where finished meshes are also written, to survive restarts (`MESHFIT_CACHE_DIR`, unset).
     pub cache_dir: Option<PathBuf>,
@@ -87,6 +92,7 @@ impl Default for Config {
             max_body_bytes: 256 << 20,
             max_expression_len: 4096,
             job_time_limit: Duration::from_secs(60),
+            memory_bytes: crate::jobs::default_memory_bytes(),
             cache_bytes: 1 << 30,
             cache_dir: None,
             cache_dir_bytes: 10 << 30,
@@ -161,6 +167,11 @@ impl TryFrom<RawConfig> for Config {
                 }),
                 "MESHFIT_JOB_TIME_LIMIT_MS" => millis().map(|d| config.job_time_limit = d),
                 "MESHFIT_CACHE_BYTES" => number().map(|n| config.cache_bytes = n),
+                "MESHFIT_MEMORY_BYTES" => number().and_then(|n| {
+                    (n >= 64 << 20)
+                        .then(|| config.memory_bytes = n)
+                        .ok_or("must be at least 67108864 (64 MiB)")
+                }),
                 "MESHFIT_CACHE_DIR" => {
                     config.cache_dir = (!v.is_empty()).then(|| PathBuf::from(v));
                     Ok(())
@@ -220,6 +231,18 @@ impl TryFrom<RawConfig> for Config {
                 let shown =
                     if name == "MESHFIT_API_KEYS" { "<hidden>".to_owned() } else { format!("{value:?}") };
                 problems.push(format!("{name}={shown}: {why}"));
+            }
+        }
+        // The cache is part of the budget; a default cache larger than half of it shrinks,
+        // a configured one is an error.
+        if config.cache_bytes > config.memory_bytes / 2 {
+            if raw.0.contains_key("MESHFIT_CACHE_BYTES") {
+                problems.push(format!(
+                    "MESHFIT_CACHE_BYTES={}: must be at most half of MESHFIT_MEMORY_BYTES ({})",
+                    config.cache_bytes, config.memory_bytes
+                ));
+            } else {
+                config.cache_bytes = config.memory_bytes / 2;
             }
         }
         if problems.is_empty() { Ok(config) } else { Err(ConfigError(problems)) }

@@ -79,7 +79,8 @@ pub async fn serve(
     let cache = tokio::task::spawn_blocking(move || jobs::Cache::new(bytes, dir, dir_bytes))
         .await
         .map_err(std::io::Error::other)??;
-    let jobs = jobs::Jobs::new(config.workers.get(), config.queue, config.client_share, cache, metrics);
+    let (workers, queue, share) = (config.workers.get(), config.queue, config.client_share);
+    let jobs = jobs::Jobs::new(workers, queue, share, config.memory_bytes, cache, metrics);
     let limits = jobs::Limits {
         max_vertices: config.max_vertices,
         max_grid_points: config.max_grid_points,

@@ -63,6 +63,10 @@ struct ServeArgs {
     /// MESHFIT_JOB_TIME_LIMIT_MS: longest a job may run [default: 60000].
     #[arg(long, value_name = "MS")]
     job_time_limit_ms: Option<String>,
+    /// MESHFIT_MEMORY_BYTES: the memory budget for bodies, jobs and cached meshes [default:
+    /// half the machine's or the container's memory].
+    #[arg(long, value_name = "BYTES")]
+    memory_bytes: Option<String>,
     /// MESHFIT_CACHE_BYTES: memory for finished meshes [default: 1073741824].
     #[arg(long, value_name = "BYTES")]
     cache_bytes: Option<String>,
@@ -118,6 +122,7 @@ impl ServeArgs {
             ("MESHFIT_MAX_BODY_BYTES", &self.max_body_bytes),
             ("MESHFIT_MAX_EXPRESSION_LEN", &self.max_expression_len),
             ("MESHFIT_JOB_TIME_LIMIT_MS", &self.job_time_limit_ms),
+            ("MESHFIT_MEMORY_BYTES", &self.memory_bytes),
             ("MESHFIT_CACHE_BYTES", &self.cache_bytes),
             ("MESHFIT_CACHE_DIR", &self.cache_dir),
             ("MESHFIT_CACHE_DIR_BYTES", &self.cache_dir_bytes),

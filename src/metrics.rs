@@ -51,6 +51,12 @@ pub struct Metrics {
     pub http_requests: Family<RequestLabels, Counter>,
     /// Request latency until the response head, in seconds.
     pub http_latency: Histogram,
+    /// The memory budget in bytes.
+    pub memory_budget_bytes: Gauge,
+    /// Bytes charged to the budget by bodies and jobs (the cache's are `cache_bytes`).
+    pub memory_charged_bytes: Gauge,
+    /// Requests refused because they did not fit in the memory budget.
+    pub memory_refusals: Counter,
     /// Connections open now, past the cap included.
     pub connections_open: Gauge,
     /// Connections refused for the cap (answered with a 503, or closed at once).
@@ -72,6 +78,9 @@ impl Default for Metrics {
             cache_disk_bytes: Gauge::default(),
             http_requests: Family::default(),
             http_latency: Histogram::new(exponential_buckets(0.0005, 4.0, 10)),
+            memory_budget_bytes: Gauge::default(),
+            memory_charged_bytes: Gauge::default(),
+            memory_refusals: Counter::default(),
             connections_open: Gauge::default(),
             connections_refused: Counter::default(),
             registry: Registry::default(),
@@ -98,6 +107,21 @@ impl Default for Metrics {
             "http_request_duration_seconds",
             "Time to the response head",
             m.http_latency.clone(),
+        );
+        registry.register(
+            "memory_budget_bytes",
+            "The memory budget (MESHFIT_MEMORY_BYTES)",
+            m.memory_budget_bytes.clone(),
+        );
+        registry.register(
+            "memory_charged_bytes",
+            "Bytes of the budget charged to request bodies and jobs; cached meshes are cache_bytes",
+            m.memory_charged_bytes.clone(),
+        );
+        registry.register(
+            "memory_refusals",
+            "Requests refused because they did not fit in the memory budget",
+            m.memory_refusals.clone(),
         );
         registry.register("connections_open", "Connections open now", m.connections_open.clone());
         registry.register(

@@ -68,22 +68,22 @@ pub async fn jobs_evaluate(
             }
         };
         if binary {
-            if body.0.len() % 16 != 0 {
+            if body.bytes.len() % 16 != 0 {
                 return Err(ApiError::InvalidRequest(format!(
                     "a binary body is (x, y) pairs of little-endian f64, 16 bytes each; got {} bytes",
-                    body.0.len()
+                    body.bytes.len()
                 )));
             }
             let f64_at = |c: &[u8]| f64::from_le_bytes(c.try_into().expect("8 bytes"));
             let points: Vec<Point> = body
-                .0
+                .bytes
                 .chunks_exact(16)
                 .map(|pair| Point::new(f64_at(&pair[..8]), f64_at(&pair[8..])))
                 .collect();
             let out: Vec<u8> = locator.values(&points).iter().flat_map(|v| v.to_le_bytes()).collect();
             Ok(([(header::CONTENT_TYPE, HeaderValue::from_static(OCTET_STREAM))], out).into_response())
         } else {
-            let Points { points } = parse_json(&body.0)?;
+            let Points { points } = parse_json(&body.bytes)?;
             let points: Vec<Point> = points.iter().map(|&[x, y]| Point::new(x, y)).collect();
             let values = locator.values(&points).into_iter().map(|v| (!v.is_nan()).then_some(v)).collect();
             Ok(axum::Json(Values { values }).into_response())

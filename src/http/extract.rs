@@ -1,30 +1,64 @@
 //! The request body as bytes, with a rejection that is a problem document, and JSON parsing
 //! whose errors are problems too (axum's AppJson pattern).
 
+use super::AppState;
 use super::problem::ApiError;
+use crate::jobs::{Charge, OverBudget};
 use axum::body::Bytes;
 use axum::extract::{FromRequest, Request};
-use axum::http::{HeaderMap, StatusCode, header};
+use axum::http::{HeaderMap, header};
+use bytes::BytesMut;
+use futures_util::StreamExt;
 use serde::Deserialize;
 
-/// The raw body, bounded by the router's `DefaultBodyLimit`.
-pub struct Body(pub Bytes);
+/// The raw body, read under the body limit and charged to the memory budget while it is
+/// held: a declared length is charged before the first byte is read, a chunked body as it
+/// grows.
+pub struct Body {
+    /// The bytes.
+    pub bytes: Bytes,
+    /// Their share of the memory budget, returned when the body is dropped.
+    _charge: Charge,
+}
 
 /// The body limit, so a rejection can name it.
 #[derive(Clone, Copy)]
 pub struct BodyLimit(pub usize);
 
-impl<S: Send + Sync> FromRequest<S> for Body {
+impl FromRequest<AppState> for Body {
     type Rejection = ApiError;
 
-    async fn from_request(req: Request, state: &S) -> Result<Self, ApiError> {
-        let limit = req.extensions().get::<BodyLimit>().map_or(0, |l| l.0);
-        match Bytes::from_request(req, state).await {
-            Ok(bytes) => Ok(Body(bytes)),
-            Err(e) if e.status() == StatusCode::PAYLOAD_TOO_LARGE => Err(ApiError::BodyTooLarge(limit)),
-            Err(e) if timed_out(&e) => Err(ApiError::BodyTimeout),
-            Err(e) => Err(ApiError::MalformedJson(e.body_text())),
+    async fn from_request(req: Request, state: &AppState) -> Result<Self, ApiError> {
+        let limit = req.extensions().get::<BodyLimit>().map_or(usize::MAX, |l| l.0);
+        let declared =
+            req.headers().get(header::CONTENT_LENGTH).and_then(|v| v.to_str().ok()?.parse::<u64>().ok());
+        if declared.is_some_and(|n| n > limit as u64) {
+            return Err(ApiError::BodyTooLarge(limit));
         }
+        let over = |o: OverBudget| {
+            state.jobs.metrics().memory_refusals.inc();
+            ApiError::OverBudget(o.needed, o.available, state.jobs.retry_after())
+        };
+        let declared = declared.unwrap_or(0);
+        let mut charge = state.jobs.budget().charge(declared).map_err(over)?;
+        let mut body = BytesMut::with_capacity(declared as usize);
+        let mut stream = req.into_body().into_data_stream();
+        while let Some(chunk) = stream.next().await {
+            let chunk = chunk.map_err(|e| {
+                if timed_out(&e) {
+                    ApiError::BodyTimeout
+                } else {
+                    ApiError::MalformedJson(format!("the body could not be read: {e}"))
+                }
+            })?;
+            let len = body.len() + chunk.len();
+            if len > limit {
+                return Err(ApiError::BodyTooLarge(limit));
+            }
+            charge.grow_to(len as u64).map_err(over)?;
+            body.extend_from_slice(&chunk);
+        }
+        Ok(Body { bytes: body.freeze(), _charge: charge })
     }
 }
 

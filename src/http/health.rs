@@ -28,6 +28,9 @@ pub async fn metrics(State(state): State<AppState>) -> impl IntoResponse {
     let metrics = state.jobs.metrics();
     metrics.cache_bytes.set(i64::try_from(state.jobs.cache_bytes()).unwrap_or(i64::MAX));
     metrics.cache_disk_bytes.set(i64::try_from(state.jobs.cache_disk_bytes()).unwrap_or(i64::MAX));
+    let budget = state.jobs.budget();
+    metrics.memory_budget_bytes.set(i64::try_from(budget.limit()).unwrap_or(i64::MAX));
+    metrics.memory_charged_bytes.set(i64::try_from(budget.charged()).unwrap_or(i64::MAX));
     ([(header::CONTENT_TYPE, "application/openmetrics-text; version=1.0.0; charset=utf-8")], metrics.encode())
 }
 

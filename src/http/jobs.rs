@@ -57,7 +57,7 @@ async fn prepare(
     kind: Kind,
 ) -> Result<(JobKeys, JobSpec), ApiError> {
     let limits = state.limits;
-    let body = JobBody::from_parts(headers, body.0).await?;
+    let body = JobBody::from_parts(headers, body.bytes).await?;
     let (keys, spec) = tokio::task::spawn_blocking(move || {
         let spec = match body {
             JobBody::Json(json) if kind == Kind::Solution || (kind == Kind::Any && names_physics(&json)) => {

@@ -47,6 +47,9 @@ pub enum ApiError {
     Cancelled,
     /// 503 `queue-full`, with `Retry-After`: (jobs waiting, seconds).
     QueueFull(usize, u64),
+    /// 503 `over-memory-budget`, with `Retry-After`: the request does not fit in
+    /// `MESHFIT_MEMORY_BYTES` now; (bytes needed, bytes free, seconds).
+    OverBudget(u64, u64, u64),
     /// 429 `share-used`, with `Retry-After`: the client holds its share of the workers and
     /// the queue; (jobs held, seconds).
     ShareUsed(usize, u64),
@@ -76,6 +79,9 @@ impl From<SubmitError> for ApiError {
         match e {
             SubmitError::QueueFull { waiting, retry_after } => ApiError::QueueFull(waiting, retry_after),
             SubmitError::ShareUsed { held, retry_after } => ApiError::ShareUsed(held, retry_after),
+            SubmitError::OverBudget { needed, available, retry_after } => {
+                ApiError::OverBudget(needed, available, retry_after)
+            }
             SubmitError::ShuttingDown => ApiError::ShuttingDown,
         }
     }
@@ -209,6 +215,14 @@ impl ApiError {
                 let detail = format!("{waiting} jobs are already waiting for a worker; retry shortly");
                 (StatusCode::SERVICE_UNAVAILABLE, "queue-full", "Server is busy", detail)
             }
+            ApiError::OverBudget(needed, available, _) => {
+                ext.insert("limit".into(), json!({"name": "MESHFIT_MEMORY_BYTES"}));
+                let detail = format!(
+                    "this request needs {needed} bytes of memory and {available} are free now; retry shortly, \
+                     or ask for fewer vertices or a smaller grid"
+                );
+                (StatusCode::SERVICE_UNAVAILABLE, "over-memory-budget", "Server memory is committed", detail)
+            }
             ApiError::ShareUsed(held, _) => {
                 let detail = format!(
                     "you have {held} jobs running or queued, your share of this server (MESHFIT_CLIENT_SHARE); \
@@ -283,7 +297,9 @@ impl IntoResponse for ApiError {
         let headers = response.headers_mut();
         headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(PROBLEM_JSON));
         match self {
-            ApiError::QueueFull(_, seconds) | ApiError::ShareUsed(_, seconds) => {
+            ApiError::QueueFull(_, seconds)
+            | ApiError::ShareUsed(_, seconds)
+            | ApiError::OverBudget(_, _, seconds) => {
                 headers.insert(header::RETRY_AFTER, HeaderValue::from(seconds));
             }
             ApiError::ShuttingDown | ApiError::TooManyConnections => {

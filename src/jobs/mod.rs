@@ -10,10 +10,12 @@
 //! - `job`: a job's state, its outcome, and [`Record`], the one view clients get;
 //! - `registry`: [`Jobs`], the table of jobs, the queue bound, the cache and the families;
 //! - `share`: each [`Client`]'s share of the workers and the queue;
+//! - `budget`: the memory [`Budget`] that bodies and jobs are charged to before they start;
 //! - `worker`: one job's run on the blocking pool;
 //! - `cache`, `key`, `spec`, `solution`: stored results, ids, and validated requests of meshes
 //!   and of boundary value problems.
 
+mod budget;
 mod cache;
 mod job;
 mod key;
@@ -23,6 +25,7 @@ mod solution;
 mod spec;
 mod worker;
 
+pub use budget::{Budget, Charge, OverBudget, default_limit as default_memory_bytes};
 pub use cache::{Cache, Hit};
 pub use job::{Job, JobError, Outcome, Record, Snapshot, Status};
 pub use key::{ENGINE_VERSION, JobKeys, job_id, job_keys};

@@ -1,5 +1,6 @@
 //! The registry: which jobs exist, who waits on them, the queue's bound and the cache in front.
 
+use super::budget::Budget;
 use super::job::{Job, JobError, Record, Snapshot, Status};
 use super::share::{Charge, Client, Shares};
 use super::{Cache, JobKeys, JobSpec, worker};
@@ -58,6 +59,16 @@ pub enum SubmitError {
         /// How many wait.
         waiting: usize,
         /// Seconds until a place is likely free.
+        retry_after: u64,
+    },
+    /// The job's memory does not fit in the budget now.
+    #[error("the job needs {needed} bytes and {available} of the memory budget are free")]
+    OverBudget {
+        /// Bytes the job needs.
+        needed: u64,
+        /// Bytes free.
+        available: u64,
+        /// Seconds until a worker, and its memory, is likely free.
         retry_after: u64,
     },
     /// The client already holds its share of the workers and the queue.
@@ -122,6 +133,7 @@ pub(super) struct Inner {
     pub(super) metrics: Arc<Metrics>,
     pub(super) closed: AtomicBool,
     pub(super) shares: Shares,
+    pub(super) budget: Arc<Budget>,
     /// The mean time a job ran, in seconds (f64 bits; a moving average): the basis of every
     /// `Retry-After`.
     pub(super) mean_run: AtomicU64,
@@ -185,8 +197,18 @@ impl Inner {
 
 impl Jobs {
     /// A registry running at most `workers` refinements at once, with at most `queue` jobs
-    /// waiting beyond them, of which one client may hold `share` (in (0, 1]).
-    pub fn new(workers: usize, queue: usize, share: f64, cache: Cache, metrics: Arc<Metrics>) -> Self {
+    /// waiting beyond them, of which one client may hold `share` (in (0, 1]), and whose jobs,
+    /// bodies and cached meshes share `memory_bytes`.
+    pub fn new(
+        workers: usize,
+        queue: usize,
+        share: f64,
+        memory_bytes: u64,
+        cache: Cache,
+        metrics: Arc<Metrics>,
+    ) -> Self {
+        let cached = cache.clone();
+        let budget = Budget::new(memory_bytes, move || cached.memory_bytes());
         Self {
             inner: Arc::new(Inner {
                 permits: Arc::new(Semaphore::new(workers)),
@@ -199,6 +221,7 @@ impl Jobs {
                 metrics,
                 closed: AtomicBool::new(false),
                 shares: Shares::new(share, workers, queue),
+                budget,
                 mean_run: AtomicU64::new(1f64.to_bits()),
             }),
         }
@@ -207,6 +230,17 @@ impl Jobs {
     /// The metrics the registry updates.
     pub fn metrics(&self) -> &Arc<Metrics> {
         &self.inner.metrics
+    }
+
+    /// The memory budget that bodies and jobs are charged to.
+    pub fn budget(&self) -> &Arc<Budget> {
+        &self.inner.budget
+    }
+
+    /// Seconds until a worker, and the memory its job holds, is likely free: the
+    /// `Retry-After` of a refusal made outside `submit`.
+    pub fn retry_after(&self) -> u64 {
+        self.inner.retry_after(self.inner.workers)
     }
 
     /// Bytes of meshes cached in memory.
@@ -285,6 +319,14 @@ impl Jobs {
             held,
             retry_after: inner.retry_after(inner.shares.workers),
         })?;
+        let memory = inner.budget.charge(spec.memory_bytes()).map_err(|over| {
+            inner.metrics.memory_refusals.inc();
+            SubmitError::OverBudget {
+                needed: over.needed,
+                available: over.available,
+                retry_after: inner.retry_after(inner.workers),
+            }
+        })?;
         inner.waiting.fetch_add(1, Ordering::SeqCst);
         inner.metrics.jobs_queued.inc();
         let (state, _) = watch::channel(Snapshot {
@@ -306,7 +348,7 @@ impl Jobs {
         let waiter = inner.attach(&job, detached);
         table.jobs.insert(id, Entry::Live(job.clone()));
         drop(table);
-        tokio::spawn(worker::run(self.inner.clone(), job, spec, charge));
+        tokio::spawn(worker::run(self.inner.clone(), job, spec, (charge, memory)));
         Ok(Ticket::Job(waiter))
     }
 
@@ -406,7 +448,8 @@ mod tests {
     use std::time::Duration;
 
     fn jobs(workers: usize, queue: usize) -> Jobs {
-        Jobs::new(workers, queue, 1.0, Cache::new(64 << 20, None, 0).unwrap(), Arc::new(Metrics::default()))
+        let cache = Cache::new(64 << 20, None, 0).unwrap();
+        Jobs::new(workers, queue, 1.0, 8 << 30, cache, Arc::new(Metrics::default()))
     }
 
     fn request(body: serde_json::Value) -> (JobKeys, JobSpec) {

@@ -1,6 +1,7 @@
 //! The worker: waits for a permit, refines (with progress and a trace) or solves on the
 //! blocking pool, and files the outcome.
 
+use super::budget;
 use super::job::{Job, JobError, Outcome, Record, Status};
 use super::registry::{Entry, FINISHED_KEPT, Inner};
 use super::share::Charge;
@@ -15,7 +16,8 @@ use std::sync::atomic::Ordering;
 use std::time::Duration;
 
 /// Waits for a permit, refines on the blocking pool, stores the result and finishes the job.
-pub(super) async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec, charge: Charge) {
+pub(super) async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec, charges: (Charge, budget::Charge)) {
+    let (charge, memory) = charges;
     // One of the client's permits first, so that a client past its share of the workers
     // waits without holding a place another client could run in.
     let permits = async {
@@ -59,7 +61,7 @@ pub(super) async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec, charge:
     inner.metrics.jobs_finished.get_or_create(&StateLabel { state }).inc();
     tracing::info!(job = %job.id, state, "job finished");
     job.finish(outcome, elapsed);
-    drop(charge);
+    drop((charge, memory));
     // Waiting clients hold the job (and its mesh) until they have read it; the table keeps
     // only the record.
     let record = Arc::new(Record::of(&job.snapshot()));

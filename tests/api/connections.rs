@@ -106,6 +106,57 @@ async fn a_client_that_stops_reading_is_dropped_with_its_response() {
 }
 
 #[tokio::test]
+async fn bodies_and_jobs_are_charged_to_the_memory_budget_before_they_are_taken() {
+    let config = meshfit::config::Config {
+        memory_bytes: 64 << 20,
+        cache_bytes: 8 << 20,
+        max_body_bytes: 100 << 20,
+        ..test_config()
+    };
+    let app = spawn_with(config).await;
+    // A job whose vertex budget cannot fit is refused before it runs.
+    let big = app.post("/v1/jobs", &json!({"function": "x*y", "max_vertices": 1_000_000})).await;
+    assert_eq!(big.status(), 503);
+    assert!(big.headers()["retry-after"].to_str().unwrap().parse::<u64>().unwrap() >= 1);
+    assert_eq!(big.json::<Value>().await.unwrap()["type"], "/problems/over-memory-budget");
+    assert_eq!(app.metric("meshfit_engine_runs_total").await, 0.0);
+
+    // A body is charged by its declared length while it is read; a second one that does
+    // not fit is refused before a byte of it is read.
+    let mut slow = TcpStream::connect(app.addr).await.unwrap();
+    let head = format!(
+        "POST /v1/meshes HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n{{",
+        40 << 20
+    );
+    slow.write_all(head.as_bytes()).await.unwrap();
+    timeout(GUARD, async {
+        while app.metric("meshfit_memory_charged_bytes").await != (40 << 20) as f64 {
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+    })
+    .await
+    .expect("the body being read was never charged");
+    let mut second = TcpStream::connect(app.addr).await.unwrap();
+    second.write_all(head.as_bytes()).await.unwrap();
+    let refused = String::from_utf8(read_to_close(&mut second).await).unwrap();
+    assert!(refused.starts_with("HTTP/1.1 503"), "{refused}");
+    assert!(refused.contains("/problems/over-memory-budget"), "{refused}");
+    assert_eq!(app.metric("meshfit_memory_refusals_total").await, 2.0);
+
+    drop(slow);
+    timeout(GUARD, async {
+        while app.metric("meshfit_memory_charged_bytes").await != 0.0 {
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+    })
+    .await
+    .expect("an abandoned body's charge was never returned");
+    let small = app.post("/v1/meshes", &json!({"function": "x*y", "max_vertices": 1000})).await;
+    assert_eq!(small.status(), 200);
+    app.shutdown().await;
+}
+
+#[tokio::test]
 async fn past_the_connection_cap_healthz_answers_and_other_routes_get_503() {
     let app = spawn_with(meshfit::config::Config { max_connections: 4, ..test_config() }).await;
     let mut held = Vec::new();

@@ -28,6 +28,7 @@ pub fn test_config() -> Config {
         max_body_bytes: 1 << 20,
         max_expression_len: 200,
         job_time_limit: Duration::from_secs(30),
+        memory_bytes: 4 << 30,
         cache_bytes: 256 << 20,
         cache_dir: None,
         cache_dir_bytes: 64 << 20,

@@ -1,0 +1,176 @@
+//! The memory budget: admission control charges what a request will hold before the work
+//! starts, so that load is refused with a 503 instead of ending in an out-of-memory kill.
+//!
+//! Charged: request bodies while they are read, each job from submission to its end (its
+//! decoded grid and its vertex budget at the bytes per vertex measured below), and the
+//! cache's meshes in memory as they stand.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Peak bytes per vertex of a mesh job: the engine, the result and its trace. Measured with
+/// `/usr/bin/time -f %M meshfit mesh --function 'sin(9*x)*cos(7*y)' --max-vertices 1000000`:
+/// 142 MB with `--criterion variation`, 212 MB with `error`; rounded up.
+pub const MESH_BYTES_PER_VERTEX: u64 = 256;
+
+/// Peak bytes per vertex of a solution: the sparse Cholesky factor dominates. Measured the
+/// same way on `meshfit solve` at 10^5 vertices (a Poisson peak, 125 MB) and 2·10^5 (the
+/// README's magnet, 282 MB); rounded up.
+pub const SOLUTION_BYTES_PER_VERTEX: u64 = 1536;
+
+/// Bytes per grid point once decoded (f64 samples).
+pub const GRID_BYTES_PER_POINT: u64 = 8;
+
+/// The budget, and the bytes charged against it now.
+pub struct Budget {
+    limit: u64,
+    charged: AtomicU64,
+    /// Bytes held outside the charges (the cache's meshes), read at each admission.
+    held: Box<dyn Fn() -> u64 + Send + Sync>,
+}
+
+impl std::fmt::Debug for Budget {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Budget").field("limit", &self.limit).field("charged", &self.charged()).finish()
+    }
+}
+
+/// Bytes that did not fit: what was asked and what was left.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct OverBudget {
+    /// Bytes the request needed.
+    pub needed: u64,
+    /// Bytes left in the budget when it asked.
+    pub available: u64,
+}
+
+/// Bytes charged until dropped; it can grow (a body being read).
+#[derive(Debug)]
+pub struct Charge {
+    budget: Option<Arc<Budget>>,
+    bytes: u64,
+}
+
+impl Budget {
+    /// A budget of `limit` bytes, of which `held` reports what is held outside the charges.
+    pub fn new(limit: u64, held: impl Fn() -> u64 + Send + Sync + 'static) -> Arc<Self> {
+        Arc::new(Self { limit, charged: AtomicU64::new(0), held: Box::new(held) })
+    }
+
+    /// The budget in bytes.
+    pub fn limit(&self) -> u64 {
+        self.limit
+    }
+
+    /// Bytes charged now (not counting those held outside the charges).
+    pub fn charged(&self) -> u64 {
+        self.charged.load(Ordering::SeqCst)
+    }
+
+    /// Charges `bytes`, or says why not.
+    ///
+    /// # Errors
+    /// When the charges, the bytes held and `bytes` would pass the limit.
+    pub fn charge(self: &Arc<Self>, bytes: u64) -> Result<Charge, OverBudget> {
+        let mut charge = Charge { budget: Some(self.clone()), bytes: 0 };
+        charge.grow_to(bytes)?;
+        Ok(charge)
+    }
+
+    fn reserve(&self, bytes: u64) -> Result<(), OverBudget> {
+        let held = (self.held)();
+        self.charged
+            .fetch_update(Ordering::SeqCst, Ordering::SeqCst, |charged| {
+                let total = charged.checked_add(held)?.checked_add(bytes)?;
+                (total <= self.limit).then_some(charged + bytes)
+            })
+            .map(drop)
+            .map_err(|charged| OverBudget {
+                needed: bytes,
+                available: self.limit.saturating_sub(charged.saturating_add(held)),
+            })
+    }
+}
+
+impl Charge {
+    /// A charge against no budget (the command line, which has none).
+    pub fn none() -> Self {
+        Self { budget: None, bytes: 0 }
+    }
+
+    /// Bytes charged.
+    pub fn bytes(&self) -> u64 {
+        self.bytes
+    }
+
+    /// Grows the charge to `bytes` (never shrinks it).
+    ///
+    /// # Errors
+    /// When the growth does not fit; the charge keeps what it had.
+    pub fn grow_to(&mut self, bytes: u64) -> Result<(), OverBudget> {
+        let more = bytes.saturating_sub(self.bytes);
+        if let Some(budget) = &self.budget
+            && more > 0
+        {
+            budget.reserve(more)?;
+        }
+        self.bytes = self.bytes.max(bytes);
+        Ok(())
+    }
+}
+
+impl Drop for Charge {
+    fn drop(&mut self) {
+        if let Some(budget) = &self.budget {
+            budget.charged.fetch_sub(self.bytes, Ordering::SeqCst);
+        }
+    }
+}
+
+/// The default budget: half the machine's memory, or of the container's limit when it has a
+/// smaller one (cgroup v2 `memory.max`).
+pub fn default_limit() -> u64 {
+    let total = std::fs::read_to_string("/proc/meminfo").ok().and_then(|text| {
+        let kib = text.lines().find_map(|l| l.strip_prefix("MemTotal:"))?.trim().strip_suffix("kB")?;
+        kib.trim().parse::<u64>().ok().map(|k| k * 1024)
+    });
+    let cgroup =
+        std::fs::read_to_string("/sys/fs/cgroup/memory.max").ok().and_then(|t| t.trim().parse::<u64>().ok());
+    match (total, cgroup) {
+        (Some(t), Some(c)) => t.min(c) / 2,
+        (Some(m), None) | (None, Some(m)) => m / 2,
+        // Not Linux, or no /proc: 2 GiB, a small machine's half.
+        (None, None) => 2 << 30,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::atomic::AtomicU64;
+
+    #[test]
+    fn charges_count_until_dropped_and_held_bytes_count_too() {
+        let held = Arc::new(AtomicU64::new(0));
+        let outside = held.clone();
+        let budget = Budget::new(1000, move || outside.load(Ordering::SeqCst));
+        let a = budget.charge(600).unwrap();
+        assert_eq!(budget.charge(500).unwrap_err(), OverBudget { needed: 500, available: 400 });
+        let mut b = budget.charge(300).unwrap();
+        assert_eq!(b.grow_to(500).unwrap_err(), OverBudget { needed: 200, available: 100 });
+        assert_eq!((b.bytes(), budget.charged()), (300, 900), "a failed growth keeps what it had");
+        drop(a);
+        b.grow_to(500).unwrap();
+        held.store(600, Ordering::SeqCst);
+        assert!(budget.charge(1).is_err(), "the cache's bytes leave no room");
+        drop(b);
+        assert_eq!(budget.charged(), 0);
+        assert!(budget.charge(400).is_ok());
+    }
+
+    #[test]
+    fn the_default_is_a_fraction_of_a_real_amount_of_memory() {
+        let limit = default_limit();
+        assert!(limit >= 64 << 20, "{limit}");
+    }
+}
