@@ -133,6 +133,8 @@ impl JobBody {
         let grid = grid.ok_or_else(|| {
             ApiError::InvalidRequest("a multipart request needs a `grid` part holding the grid file".into())
         })?;
+        // An absent or blank `request` part is the empty request.
+        let request = request.filter(|r| !r.iter().all(u8::is_ascii_whitespace));
         Ok(JobBody::Upload { request: request.unwrap_or_else(|| Bytes::from_static(b"{}")), grid })
     }
 }
