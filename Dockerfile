@@ -15,7 +15,11 @@ RUN apt-get update \
  && mkdir -p /var/cache/meshfit && chown meshfit /var/cache/meshfit
 COPY --from=build /src/target/release/meshfit /usr/local/bin/meshfit
 USER meshfit
-ENV MESHFIT_ADDR=0.0.0.0:8080 MESHFIT_LOG_FORMAT=json
+# `docker stop` sends SIGTERM and kills after 10 s. The server stops within the grace period
+# plus 5 s for connections to drain, so the grace here is 4 s; to give running jobs longer,
+# raise both (e.g. `docker stop -t 40` or compose's stop_grace_period: 40s with 30000 here).
+STOPSIGNAL SIGTERM
+ENV MESHFIT_ADDR=0.0.0.0:8080 MESHFIT_LOG_FORMAT=json MESHFIT_SHUTDOWN_GRACE_MS=4000
 EXPOSE 8080
 HEALTHCHECK --interval=10s --timeout=3s --start-period=5s \
   CMD curl -fsS http://127.0.0.1:8080/healthz || exit 1

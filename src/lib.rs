@@ -76,9 +76,18 @@ pub async fn serve(
     let metrics = Arc::new(metrics::Metrics::default());
     let (bytes, dir, dir_bytes) = (config.cache_bytes, config.cache_dir.clone(), config.cache_dir_bytes);
     // Opening a cache directory lists it and may prune it: blocking work.
-    let cache = tokio::task::spawn_blocking(move || jobs::Cache::new(bytes, dir, dir_bytes))
-        .await
-        .map_err(std::io::Error::other)??;
+    let cache = tokio::task::spawn_blocking(move || {
+        let shown = dir.as_ref().map(|d| d.display().to_string());
+        jobs::Cache::new(bytes, dir, dir_bytes).map_err(|e| {
+            let path = shown.unwrap_or_default();
+            std::io::Error::new(
+                e.kind(),
+                format!("MESHFIT_CACHE_DIR={path}: cannot use it as the cache directory: {e}"),
+            )
+        })
+    })
+    .await
+    .map_err(std::io::Error::other)??;
     let (workers, queue, share) = (config.workers.get(), config.queue, config.client_share);
     let jobs = jobs::Jobs::new(workers, queue, share, config.memory_bytes, cache, metrics);
     let limits = jobs::Limits {

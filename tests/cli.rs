@@ -232,3 +232,19 @@ fn solve_names_the_field_and_column_of_a_bad_expression() {
     let err = stderr_of_failure(&["solve", path.to_str().unwrap()]);
     assert!(err.contains("g:") && err.contains("column 4"), "{err}");
 }
+
+#[test]
+fn serve_stops_at_start_up_naming_a_cache_directory_it_cannot_use() {
+    // A regular file where the directory should be: it can be neither created nor listed.
+    let file = temp_file("not-a-directory", "x");
+    let out = Command::new(env!("CARGO_BIN_EXE_meshfit"))
+        .arg("serve")
+        .env("MESHFIT_ADDR", "127.0.0.1:0")
+        .env("MESHFIT_CACHE_DIR", &file)
+        .output()
+        .expect("meshfit runs");
+    assert!(!out.status.success());
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    let named = format!("MESHFIT_CACHE_DIR={}", file.display());
+    assert!(stderr.contains(&named) && stderr.contains("cannot use it"), "{stderr}");
+}

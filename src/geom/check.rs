@@ -40,7 +40,7 @@ impl Mesh {
     /// - Euler's relation for a triangulated convex polygon: triangles = 2n − h − 2.
     pub fn check_invariants(&self) -> Result<(), InvariantError> {
         let n = self.vertices.len();
-        ensure!(self.half.len() % 3 == 0, "{} half-edges is not a multiple of 3", self.half.len());
+        ensure!(self.half.len().is_multiple_of(3), "{} half-edges is not a multiple of 3", self.half.len());
         ensure!(self.outgoing.len() == n, "outgoing has {} entries for {n} vertices", self.outgoing.len());
         for (e, v) in self.half.iter().map(|h| h.origin).enumerate() {
             ensure!((v as usize) < n, "half-edge {e} starts at unknown vertex {v}");

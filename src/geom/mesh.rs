@@ -21,7 +21,7 @@ pub const fn next(e: u32) -> u32 {
 /// The half-edge before `e` in its triangle.
 #[inline]
 pub const fn prev(e: u32) -> u32 {
-    if e % 3 == 0 { e + 2 } else { e - 1 }
+    if e.is_multiple_of(3) { e + 2 } else { e - 1 }
 }
 
 /// One half-edge's slot: the vertex it leaves and its twin.

@@ -68,7 +68,7 @@ pub async fn jobs_evaluate(
             }
         };
         if binary {
-            if body.bytes.len() % 16 != 0 {
+            if !body.bytes.len().is_multiple_of(16) {
                 return Err(ApiError::InvalidRequest(format!(
                     "a binary body is (x, y) pairs of little-endian f64, 16 bytes each; got {} bytes",
                     body.bytes.len()

@@ -155,6 +155,9 @@ impl Disk {
     /// left behind (those more than an hour old: a younger one may be another server's write).
     fn open(dir: PathBuf, limit: u64) -> std::io::Result<Self> {
         std::fs::create_dir_all(&dir)?;
+        // A directory we cannot write to would fail every store, silently: find out now.
+        let probe = dir.join(format!(".probe-{}.tmp", std::process::id()));
+        std::fs::write(&probe, b"meshfit").and_then(|()| std::fs::remove_file(&probe))?;
         let evicted = Arc::new(std::sync::Mutex::new(Vec::new()));
         let files = moka::sync::Cache::builder()
             .max_capacity(limit)

@@ -424,7 +424,7 @@ impl<O: Observer> Run<'_, O> {
             return Some(StopReason::Cancelled);
         }
         self.steps += 1;
-        if self.steps % CLOCK_EVERY == 0 {
+        if self.steps.is_multiple_of(CLOCK_EVERY) {
             let now = Instant::now();
             if self.params.time_limit().is_some_and(|limit| now - self.start >= limit) {
                 return Some(StopReason::TimeLimit);
