@@ -86,3 +86,22 @@ async fn the_cache_directory_stays_within_its_byte_limit_keeping_what_is_in_use(
     assert_eq!(app.metric("meshfit_cache_disk_bytes").await, total as f64);
     app.shutdown().await;
 }
+
+#[tokio::test]
+async fn a_cache_directory_that_stops_taking_files_loses_no_answer() {
+    let dir = temp_dir("unwritable");
+    let app = spawn_with(with_dir(&dir)).await;
+    // The directory goes away and a file takes its place: every write into it fails.
+    std::fs::remove_dir_all(&dir).unwrap();
+    std::fs::write(&dir, b"in the way").unwrap();
+    let body = json!({"function": "x*exp(y)", "max_vertices": 3000});
+    let first = app.post("/v1/meshes", &body).await;
+    assert_eq!(first.status(), 200);
+    let first = first.bytes().await.unwrap();
+    let again = app.post("/v1/meshes", &body).await;
+    assert_eq!(again.headers()["x-cache"], "hit", "kept in memory");
+    assert_eq!(again.bytes().await.unwrap(), first);
+    assert_eq!(app.metric("meshfit_engine_runs_total").await, 1.0);
+    app.shutdown().await;
+    std::fs::remove_file(&dir).unwrap();
+}

@@ -107,3 +107,33 @@ async fn a_failing_job_streams_an_error_event_with_the_problem() {
     assert_eq!(problem["status"], 422);
     app.shutdown().await;
 }
+
+#[tokio::test]
+async fn a_stream_whose_client_hangs_up_mid_way_cancels_its_job() {
+    let app = spawn_app().await;
+    let body = json!({"function": "sin(40*x)*cos(40*y)", "max_vertices": 2_000_000});
+    let mut response = app
+        .client
+        .post(app.url("/v1/meshes"))
+        .header("accept", "text/event-stream")
+        .json(&body)
+        .send()
+        .await
+        .unwrap();
+    // Read until the first progress event, then hang up.
+    let mut seen = Vec::new();
+    while !String::from_utf8_lossy(&seen).contains("event: progress") {
+        seen.extend_from_slice(&response.chunk().await.unwrap().expect("the stream goes on"));
+    }
+    drop(response);
+    for _ in 0..1000 {
+        if app.metric("meshfit_jobs_finished_total{state=\"cancelled\"}").await == 1.0 {
+            assert_eq!(app.metric("meshfit_jobs_running").await, 0.0);
+            // The server goes on serving.
+            assert_eq!(app.get("/healthz").await.status(), 200);
+            return app.shutdown().await;
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(20)).await;
+    }
+    panic!("the job ran on after its only client hung up");
+}
