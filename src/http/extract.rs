@@ -10,6 +10,8 @@ use axum::http::{HeaderMap, header};
 use bytes::BytesMut;
 use futures_util::StreamExt;
 use serde::Deserialize;
+use std::time::Duration;
+use tokio::time::Instant;
 
 /// The raw body, read under the body limit and charged to the memory budget while it is
 /// held: a declared length is charged before the first byte is read, a chunked body as it
@@ -21,15 +23,30 @@ pub struct Body {
     _charge: Charge,
 }
 
-/// The body limit, so a rejection can name it.
+/// The limits on a body: its size, and its pace.
 #[derive(Clone, Copy)]
-pub struct BodyLimit(pub usize);
+pub struct BodyLimits {
+    /// Most bytes (`MESHFIT_MAX_BODY_BYTES`).
+    pub max_bytes: usize,
+    /// Longest pause (`MESHFIT_BODY_TIMEOUT_MS`); the router's timeout layer enforces it. A
+    /// body may also take no longer than this plus its length at [`MIN_BODY_RATE`].
+    pub timeout: Duration,
+}
+
+/// The slowest a body may arrive on average, in bytes per second, beyond the body timeout:
+/// a client trickling a few bytes a second never pauses long enough for the timeout, and
+/// would hold its connection and its charge for hours. 64 KiB/s takes a 256 MiB body in
+/// 68 minutes.
+pub const MIN_BODY_RATE: u64 = 64 << 10;
 
 impl FromRequest<AppState> for Body {
     type Rejection = ApiError;
 
     async fn from_request(req: Request, state: &AppState) -> Result<Self, ApiError> {
-        let limit = req.extensions().get::<BodyLimit>().map_or(usize::MAX, |l| l.0);
+        let limits = req.extensions().get::<BodyLimits>().copied();
+        let limit = limits.map_or(usize::MAX, |l| l.max_bytes);
+        let patience = limits.map_or(Duration::MAX, |l| l.timeout);
+        let start = Instant::now();
         let declared =
             req.headers().get(header::CONTENT_LENGTH).and_then(|v| v.to_str().ok()?.parse::<u64>().ok());
         if declared.is_some_and(|n| n > limit as u64) {
@@ -54,6 +71,10 @@ impl FromRequest<AppState> for Body {
             let len = body.len() + chunk.len();
             if len > limit {
                 return Err(ApiError::BodyTooLarge(limit));
+            }
+            let allowed = patience.saturating_add(Duration::from_secs_f64(len as f64 / MIN_BODY_RATE as f64));
+            if start.elapsed() > allowed {
+                return Err(ApiError::BodyTimeout);
             }
             charge.grow_to(len as u64).map_err(over)?;
             body.extend_from_slice(&chunk);

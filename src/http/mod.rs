@@ -21,7 +21,7 @@ use axum::response::IntoResponse;
 use axum::response::Response;
 use axum::routing::{get, post};
 use axum::{Extension, Router};
-use extract::BodyLimit;
+use extract::BodyLimits;
 use problem::ApiError;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -108,7 +108,7 @@ pub fn router(state: AppState, config: &Config) -> Router {
         .layer(middleware::from_fn_with_state(state.clone(), record_metrics))
         .layer(middleware::from_fn(head::check_sizes))
         .layer(middleware::from_fn_with_state(access, access::check))
-        .layer(Extension(BodyLimit(max_body_bytes)))
+        .layer(Extension(BodyLimits { max_bytes: max_body_bytes, timeout: config.body_timeout }))
         .layer(DefaultBodyLimit::max(max_body_bytes))
         // Each part of a body must arrive within the timeout; `extract::Body` answers 408.
         .layer(RequestBodyTimeoutLayer::new(config.body_timeout));

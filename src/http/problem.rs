@@ -29,7 +29,8 @@ pub enum ApiError {
     TargetTooLong(usize),
     /// 431 `limit-exceeded`: the request's headers take more bytes than this.
     HeadersTooLarge(usize),
-    /// 408 `body-timeout`: the body stopped arriving for `MESHFIT_BODY_TIMEOUT_MS`.
+    /// 408 `body-timeout`: the body stopped arriving for `MESHFIT_BODY_TIMEOUT_MS`, or came
+    /// slower than the minimum rate.
     BodyTimeout,
     /// 422 `non-finite-value`: F is NaN or infinite at a point the refinement needs.
     NonFinite(RefineError),
@@ -141,7 +142,9 @@ impl ApiError {
                 StatusCode::REQUEST_TIMEOUT,
                 "body-timeout",
                 "Request body stopped arriving",
-                "no part of the body arrived within this server's body timeout (MESHFIT_BODY_TIMEOUT_MS)".into(),
+                "the body paused longer than this server's body timeout (MESHFIT_BODY_TIMEOUT_MS), or arrived \
+                 slower than 64 KiB/s beyond it"
+                    .into(),
             ),
             ApiError::Spec(e) => {
                 let (slug, title) = match e {

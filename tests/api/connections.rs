@@ -66,6 +66,36 @@ async fn a_body_that_stops_arriving_gets_a_408_problem() {
 }
 
 #[tokio::test]
+async fn a_body_that_trickles_in_gets_a_408_once_past_the_timeout() {
+    let app =
+        spawn_with(meshfit::config::Config { body_timeout: Duration::from_millis(300), ..test_config() })
+            .await;
+    let mut stream = TcpStream::connect(app.addr).await.unwrap();
+    let head = "POST /v1/meshes HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\nContent-Length: 1000\r\n\r\n";
+    stream.write_all(head.as_bytes()).await.unwrap();
+    // Ten bytes every 50 ms never pause for the timeout; the whole body would take 5 s. The
+    // answer is read as it comes, and the trickle stops there.
+    let (mut reader, mut writer) = stream.split();
+    let trickle = async {
+        for _ in 0..100 {
+            if writer.write_all(b"          ").await.is_err() {
+                break;
+            }
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+        std::future::pending::<()>().await;
+    };
+    let mut first = vec![0u8; 4096];
+    let n = tokio::select! {
+        read = timeout(GUARD, reader.read(&mut first)) => read.expect("no answer").unwrap(),
+        () = trickle => unreachable!(),
+    };
+    let response = String::from_utf8_lossy(&first[..n]).into_owned();
+    assert!(response.starts_with("HTTP/1.1 408"), "{response}");
+    app.shutdown().await;
+}
+
+#[tokio::test]
 async fn a_client_that_stops_reading_is_dropped_with_its_response() {
     let config = meshfit::config::Config { write_timeout: Duration::from_millis(300), ..test_config() };
     let app = spawn_with(config).await;
