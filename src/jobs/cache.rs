@@ -90,10 +90,16 @@ impl Cache {
                 disk.files.invalidate(id);
                 return None;
             }
-            Err(why) => {
+            Err(Unreadable::Corrupt(why)) => {
                 tracing::warn!(id, %why, "discarding corrupt cache file");
                 let _ = std::fs::remove_file(&path);
                 disk.files.invalidate(id);
+                return None;
+            }
+            // The directory itself is unusable (gone, replaced, unreadable): the file may be
+            // fine, and results are still kept in memory.
+            Err(Unreadable::Io(e)) => {
+                tracing::warn!(id, error = %e, "could not read cache file");
                 return None;
             }
         };
@@ -256,13 +262,21 @@ fn write_entry(path: &Path, id: &str, result: &MeshResult, limit: u64) -> std::i
 }
 
 /// The result in the file at `path` and the file's size, `None` if there is no file.
-fn read_entry(path: &Path, id: &str) -> Result<Option<(MeshResult, u64)>, String> {
+/// Why a cache file was not read.
+enum Unreadable {
+    /// Reading failed: the file may be fine.
+    Io(std::io::Error),
+    /// The bytes are not a result of this id.
+    Corrupt(String),
+}
+
+fn read_entry(path: &Path, id: &str) -> Result<Option<(MeshResult, u64)>, Unreadable> {
     let data = match std::fs::read(path) {
         Ok(d) => d,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-        Err(e) => return Err(e.to_string()),
+        Err(e) => return Err(Unreadable::Io(e)),
     };
-    let result = compact::read(&data, id).map_err(|e| e.to_string())?;
+    let result = compact::read(&data, id).map_err(|e| Unreadable::Corrupt(e.to_string()))?;
     Ok(Some((result, data.len() as u64)))
 }
 

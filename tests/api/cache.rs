@@ -91,7 +91,10 @@ async fn the_cache_directory_stays_within_its_byte_limit_keeping_what_is_in_use(
 async fn a_cache_directory_that_stops_taking_files_loses_no_answer() {
     let dir = temp_dir("unwritable");
     let app = spawn_with(with_dir(&dir)).await;
-    // The directory goes away and a file takes its place: every write into it fails.
+    // Once the server answers it has opened the directory (a path it cannot use at start-up
+    // stops it, see tests/cli.rs); then the directory goes away and a file takes its place:
+    // every write into it fails.
+    assert_eq!(app.get("/healthz").await.status(), 200);
     std::fs::remove_dir_all(&dir).unwrap();
     std::fs::write(&dir, b"in the way").unwrap();
     let body = json!({"function": "x*exp(y)", "max_vertices": 3000});

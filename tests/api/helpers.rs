@@ -63,7 +63,8 @@ pub async fn spawn_with(config: Config) -> TestApp {
 /// A directory under the target dir, empty, unique to `name`.
 pub fn temp_dir(name: &str) -> PathBuf {
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("api-{name}"));
-    let _ = std::fs::remove_dir_all(&dir);
+    // A test may have left a file in the directory's place.
+    let _ = std::fs::remove_dir_all(&dir).or_else(|_| std::fs::remove_file(&dir));
     std::fs::create_dir_all(&dir).unwrap();
     dir
 }
