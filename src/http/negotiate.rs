@@ -123,6 +123,9 @@ pub enum Source {
     Partial,
 }
 
+/// Results up to this many vertices start their JSON encoding on the async worker.
+const INLINE_VERTICES: usize = 100_000;
+
 /// `result` of job `id` in the wanted form, or 304 when the client has these bytes.
 /// `elapsed` (the engine's time) goes into `Server-Timing`, never into the body.
 pub async fn result_response(
@@ -139,10 +142,18 @@ pub async fn result_response(
         _ => {
             let (format, options) =
                 (wanted.format, Options { id: Some(id.to_owned()), ..wanted.options.clone() });
-            // Pictures are drawn whole: off the async workers.
-            let encoding = tokio::task::spawn_blocking(move || output::encode(&result, format, &options))
-                .await
-                .map_err(|e| ApiError::Internal(format!("encoding panicked: {e}")))?;
+            // The JSON document is made chunk by chunk as the client reads, so its start is
+            // cheap (a solution's flux density is computed first: bounded by the size here).
+            // Pictures and binary meshes are made whole first: off the async workers. A trip
+            // to the blocking pool costs more than a small cached answer itself.
+            let inline = format == Format::Json && result.vertices.len() <= INLINE_VERTICES;
+            let encoding = if !inline {
+                tokio::task::spawn_blocking(move || output::encode(&result, format, &options))
+                    .await
+                    .map_err(|e| ApiError::Internal(format!("encoding panicked: {e}")))?
+            } else {
+                output::encode(&result, format, &options)
+            };
             let chunks = encoding.into_chunks().map(|c| Ok::<_, Infallible>(Bytes::from(c)));
             let mut response = Body::from_stream(futures_util::stream::iter(chunks)).into_response();
             let media = HeaderValue::from_static(wanted.format.media_type());
