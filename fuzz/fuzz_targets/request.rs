@@ -4,7 +4,7 @@
 //! and for `POST /v1/solutions` (`SolveRequest`, `JobSpec::from_solve_request`); when they
 //! hold the line `--grid--`, the part before it is the `request` part of a multipart upload
 //! and the part after it the `grid` file (`JobSpec::from_upload`). JSON goes through a copy
-//! of the service's `parse_json` (private in `http::extract`), with small `Limits`.
+//! of the service's `parse_json` (`meshfit::http::parse_json`), with small `Limits`.
 //!
 //! Checks that nothing panics; that every refusal renders as a problem document with a 4xx
 //! status; that an accepted spec is within the limits and hashes to the same 64-hex-digit id
@@ -15,13 +15,13 @@
 
 use libfuzzer_sys::fuzz_target;
 use meshfit::api::{JobRequest, SolveRequest};
+use meshfit::http::parse_json;
 use meshfit::http::problem::ApiError;
 use meshfit::jobs::{JobError, JobSpec, Limits, Work, job_keys};
 use meshfit::refine::trace::Recorder;
 use meshfit::refine::{Method, refine};
 use meshfit::result::MeshResult;
 use meshfit::source::Source;
-use serde::Deserialize;
 use std::time::Duration;
 
 /// Small enough that every accepted request runs in well under a second.
@@ -37,23 +37,6 @@ const GRID_PART: &[u8] = b"\n--grid--\n";
 
 /// Bodies above this are skipped: the limits refuse their contents anyway.
 const MAX_BODY: usize = 256 * 1024;
-
-/// `meshfit::http::extract::parse_json`, which is not public: syntax errors are 400
-/// (malformed), shape errors 422, and a body that is not an object is refused.
-fn parse_json<'a, T: Deserialize<'a>>(bytes: &'a [u8]) -> Result<T, ApiError> {
-    if bytes.iter().all(u8::is_ascii_whitespace) {
-        return Err(ApiError::MalformedJson("the body is empty; send a JSON object".into()));
-    }
-    let malformed = |e: serde_json::Error| match e.classify() {
-        serde_json::error::Category::Data => ApiError::InvalidRequest(e.to_string()),
-        _ => ApiError::MalformedJson(e.to_string()),
-    };
-    if bytes.iter().find(|b| !b.is_ascii_whitespace()) != Some(&b'{') {
-        serde_json::from_slice::<serde::de::IgnoredAny>(bytes).map_err(malformed)?;
-        return Err(ApiError::InvalidRequest("the body must be a JSON object".into()));
-    }
-    serde_json::from_slice(bytes).map_err(malformed)
-}
 
 /// A refusal must be a client error with a complete problem document.
 fn check_refusal(e: &ApiError) {

@@ -22,6 +22,7 @@ use axum::response::Response;
 use axum::routing::{get, post};
 use axum::{Extension, Router};
 use extract::BodyLimits;
+pub use extract::parse_json;
 use problem::ApiError;
 use std::sync::Arc;
 use std::time::{Duration, Instant};

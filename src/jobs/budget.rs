@@ -47,7 +47,7 @@ pub struct OverBudget {
 /// Bytes charged until dropped; it can grow (a body being read).
 #[derive(Debug)]
 pub struct Charge {
-    budget: Option<Arc<Budget>>,
+    budget: Arc<Budget>,
     bytes: u64,
 }
 
@@ -72,7 +72,7 @@ impl Budget {
     /// # Errors
     /// When the charges, the bytes held and `bytes` would pass the limit.
     pub fn charge(self: &Arc<Self>, bytes: u64) -> Result<Charge, OverBudget> {
-        let mut charge = Charge { budget: Some(self.clone()), bytes: 0 };
+        let mut charge = Charge { budget: self.clone(), bytes: 0 };
         charge.grow_to(bytes)?;
         Ok(charge)
     }
@@ -93,11 +93,6 @@ impl Budget {
 }
 
 impl Charge {
-    /// A charge against no budget (the command line, which has none).
-    pub fn none() -> Self {
-        Self { budget: None, bytes: 0 }
-    }
-
     /// Bytes charged.
     pub fn bytes(&self) -> u64 {
         self.bytes
@@ -109,10 +104,8 @@ impl Charge {
     /// When the growth does not fit; the charge keeps what it had.
     pub fn grow_to(&mut self, bytes: u64) -> Result<(), OverBudget> {
         let more = bytes.saturating_sub(self.bytes);
-        if let Some(budget) = &self.budget
-            && more > 0
-        {
-            budget.reserve(more)?;
+        if more > 0 {
+            self.budget.reserve(more)?;
         }
         self.bytes = self.bytes.max(bytes);
         Ok(())
@@ -121,9 +114,7 @@ impl Charge {
 
 impl Drop for Charge {
     fn drop(&mut self) {
-        if let Some(budget) = &self.budget {
-            budget.charged.fetch_sub(self.bytes, Ordering::SeqCst);
-        }
+        self.budget.charged.fetch_sub(self.bytes, Ordering::SeqCst);
     }
 }
 
