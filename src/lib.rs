@@ -23,9 +23,10 @@
 //! - [`output`]: the formats (json, obj, ply, stl, vtu, msh, glb, svg, png), each streamed
 //!   from a result; shared by the command line and the API.
 //! - [`jobs`]: validated, hashed job specs, the job record, the registry with its bounded
-//!   worker pool, the worker, and the cache of results. The only bridge between async code
-//!   and the engine.
-//! - [`http`]: routes, handlers, problem documents, server-sent events.
+//!   worker pool, each client's share of it, the memory budget, the worker, and the cache of
+//!   results. The only bridge between async code and the engine.
+//! - [`http`]: connections (their cap and timeouts), access (keys, origins), routes,
+//!   handlers, problem documents, server-sent events.
 //! - [`api`]: the wire types; [`config`], [`metrics`] and [`telemetry`] support the service.
 //!
 //! ```text
