@@ -83,6 +83,7 @@ async fn prepare(
     let (keys, spec) = if inline {
         parse()?
     } else {
+        let _permit = state.parsers.acquire().await.map_err(|e| ApiError::Internal(e.to_string()))?;
         tokio::task::spawn_blocking(parse)
             .await
             .map_err(|e| ApiError::Internal(format!("request parsing panicked: {e}")))??

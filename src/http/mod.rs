@@ -44,12 +44,17 @@ pub struct AppState {
     pub limits: Limits,
     /// Point-location indexes of results recently evaluated.
     pub locators: evaluate::Locators,
+    /// Large bodies parsed at once: one fewer than the cores (at least one), so that eight
+    /// 256 MiB grids being parsed cannot take every core from the async workers.
+    pub parsers: Arc<tokio::sync::Semaphore>,
 }
 
 impl AppState {
     /// The state of a server whose point-location indexes take at most `locator_bytes`.
     pub fn new(jobs: Jobs, limits: Limits, locator_bytes: u64) -> Self {
-        Self { jobs, limits, locators: evaluate::locators(locator_bytes) }
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let parsers = Arc::new(tokio::sync::Semaphore::new(cores.saturating_sub(1).max(1)));
+        Self { jobs, limits, locators: evaluate::locators(locator_bytes), parsers }
     }
 }
 
