@@ -98,7 +98,8 @@ pub async fn serve(
         job_time_limit: config.job_time_limit,
     };
     // Indexes are rebuilt in milliseconds; a quarter of the result cache's budget holds plenty.
-    let state = http::AppState::new(jobs.clone(), limits, config.cache_bytes / 4);
+    let body = http::BodyLimits { max_bytes: config.max_body_bytes, timeout: config.body_timeout };
+    let state = http::AppState::new(jobs.clone(), limits, body, config.cache_bytes / 4);
     let app = http::router(state, &config);
     let on_signal = jobs.clone();
     let grace = config.shutdown_grace;

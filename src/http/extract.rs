@@ -11,7 +11,7 @@ use bytes::BytesMut;
 use futures_util::StreamExt;
 use serde::Deserialize;
 use std::time::Duration;
-use tokio::time::Instant;
+use tokio::time::{Instant, timeout};
 
 /// The raw body, read under the body limit and charged to the memory budget while it is
 /// held: a declared length is charged before the first byte is read, a chunked body as it
@@ -24,12 +24,12 @@ pub struct Body {
 }
 
 /// The limits on a body: its size, and its pace.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Debug)]
 pub struct BodyLimits {
     /// Most bytes (`MESHFIT_MAX_BODY_BYTES`).
     pub max_bytes: usize,
-    /// Longest pause (`MESHFIT_BODY_TIMEOUT_MS`); the router's timeout layer enforces it. A
-    /// body may also take no longer than this plus its length at [`MIN_BODY_RATE`].
+    /// Longest pause (`MESHFIT_BODY_TIMEOUT_MS`); a body may also take no longer than this
+    /// plus its length at [`MIN_BODY_RATE`].
     pub timeout: Duration,
 }
 
@@ -43,9 +43,7 @@ impl FromRequest<AppState> for Body {
     type Rejection = ApiError;
 
     async fn from_request(req: Request, state: &AppState) -> Result<Self, ApiError> {
-        let limits = req.extensions().get::<BodyLimits>().copied();
-        let limit = limits.map_or(usize::MAX, |l| l.max_bytes);
-        let patience = limits.map_or(Duration::MAX, |l| l.timeout);
+        let BodyLimits { max_bytes: limit, timeout: patience } = state.body;
         let start = Instant::now();
         let declared =
             req.headers().get(header::CONTENT_LENGTH).and_then(|v| v.to_str().ok()?.parse::<u64>().ok());
@@ -60,14 +58,10 @@ impl FromRequest<AppState> for Body {
         let mut charge = state.jobs.budget().charge(declared).map_err(over)?;
         let mut body = BytesMut::with_capacity(declared as usize);
         let mut stream = req.into_body().into_data_stream();
-        while let Some(chunk) = stream.next().await {
-            let chunk = chunk.map_err(|e| {
-                if timed_out(&e) {
-                    ApiError::BodyTimeout
-                } else {
-                    ApiError::MalformedJson(format!("the body could not be read: {e}"))
-                }
-            })?;
+        // Each part must come within the timeout, and the whole at the minimum rate beyond it.
+        while let Some(chunk) = timeout(patience, stream.next()).await.map_err(|_| ApiError::BodyTimeout)? {
+            let chunk =
+                chunk.map_err(|e| ApiError::MalformedJson(format!("the body could not be read: {e}")))?;
             let len = body.len() + chunk.len();
             if len > limit {
                 return Err(ApiError::BodyTooLarge(limit));
@@ -81,11 +75,6 @@ impl FromRequest<AppState> for Body {
         }
         Ok(Body { bytes: body.freeze(), _charge: charge })
     }
-}
-
-/// Whether reading the body failed because it stopped arriving (the router's body timeout).
-fn timed_out(e: &(dyn std::error::Error + 'static)) -> bool {
-    std::iter::successors(Some(e), |e| e.source()).any(|e| e.is::<tower_http::timeout::TimeoutError>())
 }
 
 /// Parses JSON, telling syntax errors (400) from shape errors (422), each with its place.

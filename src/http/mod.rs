@@ -14,15 +14,14 @@ mod sse;
 use crate::config::Config;
 use crate::jobs::{Jobs, Limits};
 use crate::metrics::RequestLabels;
-use axum::extract::{DefaultBodyLimit, Request, State};
+use axum::Router;
+use axum::extract::{Request, State};
 use axum::http::{HeaderName, HeaderValue, Method, header};
 use axum::middleware::{self, Next};
 use axum::response::IntoResponse;
 use axum::response::Response;
 use axum::routing::{get, post};
-use axum::{Extension, Router};
-use extract::BodyLimits;
-pub use extract::parse_json;
+pub use extract::{BodyLimits, parse_json};
 use problem::ApiError;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -31,7 +30,6 @@ use tower_http::LatencyUnit;
 use tower_http::catch_panic::CatchPanicLayer;
 use tower_http::cors::{AllowOrigin, CorsLayer};
 use tower_http::request_id::{MakeRequestUuid, PropagateRequestIdLayer, SetRequestIdLayer};
-use tower_http::timeout::RequestBodyTimeoutLayer;
 use tower_http::trace::{DefaultOnResponse, TraceLayer};
 use tracing::Level;
 
@@ -44,6 +42,8 @@ pub struct AppState {
     pub limits: Limits,
     /// Point-location indexes of results recently evaluated.
     pub locators: evaluate::Locators,
+    /// The size and pace a request body must keep (`extract::Body` reads it).
+    pub body: BodyLimits,
     /// Large bodies parsed at once: one fewer than the cores (at least one), so that eight
     /// 256 MiB grids being parsed cannot take every core from the async workers.
     pub parsers: Arc<tokio::sync::Semaphore>,
@@ -51,10 +51,10 @@ pub struct AppState {
 
 impl AppState {
     /// The state of a server whose point-location indexes take at most `locator_bytes`.
-    pub fn new(jobs: Jobs, limits: Limits, locator_bytes: u64) -> Self {
+    pub fn new(jobs: Jobs, limits: Limits, body: BodyLimits, locator_bytes: u64) -> Self {
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
         let parsers = Arc::new(tokio::sync::Semaphore::new(cores.saturating_sub(1).max(1)));
-        Self { jobs, limits, locators: evaluate::locators(locator_bytes), parsers }
+        Self { jobs, limits, locators: evaluate::locators(locator_bytes), body, parsers }
     }
 }
 
@@ -76,7 +76,6 @@ pub const ROUTES: &[(&str, &str)] = &[
 
 /// The router with all layers; tests drive it through a real listener.
 pub fn router(state: AppState, config: &Config) -> Router {
-    let max_body_bytes = config.max_body_bytes;
     let access = Arc::new(access::Access {
         keys: config.api_keys.clone(),
         origins: config.cors_origins.clone().into(),
@@ -113,11 +112,7 @@ pub fn router(state: AppState, config: &Config) -> Router {
         }))
         .layer(middleware::from_fn_with_state(state.clone(), record_metrics))
         .layer(middleware::from_fn(head::check_sizes))
-        .layer(middleware::from_fn_with_state(access, access::check))
-        .layer(Extension(BodyLimits { max_bytes: max_body_bytes, timeout: config.body_timeout }))
-        .layer(DefaultBodyLimit::max(max_body_bytes))
-        // Each part of a body must arrive within the timeout; `extract::Body` answers 408.
-        .layer(RequestBodyTimeoutLayer::new(config.body_timeout));
+        .layer(middleware::from_fn_with_state(access, access::check));
     Router::new()
         .route("/v1/meshes", post(jobs::meshes_create))
         .route("/v1/solutions", post(jobs::solutions_create))

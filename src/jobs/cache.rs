@@ -141,6 +141,12 @@ impl Cache {
         self.partial.get(id)
     }
 
+    /// Bytes of results held in memory as last counted, without applying pending
+    /// insertions and evictions: cheap enough for every admission.
+    pub fn memory_bytes_estimate(&self) -> u64 {
+        self.memory.weighted_size() + self.partial.weighted_size()
+    }
+
     /// Bytes of results held in memory.
     pub fn memory_bytes(&self) -> u64 {
         self.memory.run_pending_tasks();

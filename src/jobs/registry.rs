@@ -208,7 +208,7 @@ impl Jobs {
         metrics: Arc<Metrics>,
     ) -> Self {
         let cached = cache.clone();
-        let budget = Budget::new(memory_bytes, move || cached.memory_bytes());
+        let budget = Budget::new(memory_bytes, move || cached.memory_bytes_estimate());
         Self {
             inner: Arc::new(Inner {
                 permits: Arc::new(Semaphore::new(workers)),

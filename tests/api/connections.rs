@@ -25,6 +25,16 @@ async fn read_to_close(stream: &mut TcpStream) -> Vec<u8> {
     }
 }
 
+/// Polls `done` every 20 ms until it holds; failing with `what` if it never does.
+async fn until<F: std::future::Future<Output = bool>>(what: &str, mut done: impl FnMut() -> F) {
+    let poll = async {
+        while !done().await {
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    };
+    timeout(GUARD, poll).await.unwrap_or_else(|_| panic!("{what}"));
+}
+
 /// A client that opens a new connection for every request, so that it holds none between them.
 fn unpooled() -> Client {
     Client::builder().pool_max_idle_per_host(0).timeout(GUARD).build().unwrap()
@@ -123,13 +133,7 @@ async fn a_client_that_stops_reading_is_dropped_with_its_response() {
         line.rsplit(' ').next().unwrap().parse::<u64>().unwrap()
     };
     assert_eq!(open().await, 2, "the stalled connection is open while it could still read");
-    timeout(GUARD, async {
-        while open().await != 1 {
-            tokio::time::sleep(Duration::from_millis(50)).await;
-        }
-    })
-    .await
-    .expect("the stalled reader was never dropped");
+    until("the stalled reader was never dropped", || async { open().await == 1 }).await;
     let received = read_to_close(&mut stalled).await.len();
     assert!(received < full, "received {received} of {full} bytes: the response was not cut short");
     app.shutdown().await;
@@ -159,13 +163,10 @@ async fn bodies_and_jobs_are_charged_to_the_memory_budget_before_they_are_taken(
         40 << 20
     );
     slow.write_all(head.as_bytes()).await.unwrap();
-    timeout(GUARD, async {
-        while app.metric("meshfit_memory_charged_bytes").await != (40 << 20) as f64 {
-            tokio::time::sleep(Duration::from_millis(10)).await;
-        }
+    until("the body being read was never charged", || async {
+        app.metric("meshfit_memory_charged_bytes").await == (40 << 20) as f64
     })
-    .await
-    .expect("the body being read was never charged");
+    .await;
     let mut second = TcpStream::connect(app.addr).await.unwrap();
     second.write_all(head.as_bytes()).await.unwrap();
     let refused = String::from_utf8(read_to_close(&mut second).await).unwrap();
@@ -174,13 +175,10 @@ async fn bodies_and_jobs_are_charged_to_the_memory_budget_before_they_are_taken(
     assert_eq!(app.metric("meshfit_memory_refusals_total").await, 2.0);
 
     drop(slow);
-    timeout(GUARD, async {
-        while app.metric("meshfit_memory_charged_bytes").await != 0.0 {
-            tokio::time::sleep(Duration::from_millis(10)).await;
-        }
+    until("an abandoned body's charge was never returned", || async {
+        app.metric("meshfit_memory_charged_bytes").await == 0.0
     })
-    .await
-    .expect("an abandoned body's charge was never returned");
+    .await;
     let small = app.post("/v1/meshes", &json!({"function": "x*y", "max_vertices": 1000})).await;
     assert_eq!(small.status(), 200);
     app.shutdown().await;
@@ -203,13 +201,10 @@ async fn past_the_connection_cap_healthz_answers_and_other_routes_get_503() {
     assert_eq!(problem["type"], "/problems/too-many-connections");
 
     drop(held);
-    timeout(GUARD, async {
-        while client.get(app.url("/v1/jobs/0123")).send().await.unwrap().status() != 404 {
-            tokio::time::sleep(Duration::from_millis(20)).await;
-        }
+    until("connections freed by their clients were never counted as closed", || async {
+        client.get(app.url("/v1/jobs/0123")).send().await.unwrap().status() == 404
     })
-    .await
-    .expect("connections freed by their clients were never counted as closed");
+    .await;
     assert!(app.metric("meshfit_connections_refused_total").await >= 2.0);
     app.shutdown().await;
 }
