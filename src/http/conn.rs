@@ -14,7 +14,7 @@
 //!   is closed as soon as it is accepted. The cap sits below the file limit, so `accept`
 //!   keeps working and the health check keeps answering.
 //!
-//! The body timeout is a layer of the router (see `super::router`).
+//! The body timeouts are kept where the body is read, in `super::extract::Body`.
 
 use super::problem::ApiError;
 use crate::metrics::Metrics;
