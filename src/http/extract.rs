@@ -29,7 +29,7 @@ pub struct BodyLimits {
     /// Most bytes (`MESHFIT_MAX_BODY_BYTES`).
     pub max_bytes: usize,
     /// Longest pause (`MESHFIT_BODY_TIMEOUT_MS`); a body may also take no longer than this
-    /// plus its length at [`MIN_BODY_RATE`].
+    /// plus its length at `MIN_BODY_RATE` (64 KiB/s).
     pub timeout: Duration,
 }
 
