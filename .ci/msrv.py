@@ -7,7 +7,8 @@ import subprocess
 import sys
 
 meta = json.loads(subprocess.check_output(["cargo", "metadata", "--format-version", "1", "--locked"]))
-version = lambda v: tuple(int(x) for x in (v or "0").split("."))
+# (major, minor, patch), so that "1.88" and "1.88.0" are the same version.
+version = lambda v: (tuple(int(x) for x in (v or "0").split(".")) + (0, 0))[:3]
 ours = next(p for p in meta["packages"] if p["name"] == "meshfit")["rust_version"]
 newer = [f"{p['name']} {p['version']} needs {p['rust_version']}" for p in meta["packages"]
          if version(p.get("rust_version")) > version(ours)]
