@@ -35,6 +35,9 @@ pub struct JobRequest<'a> {
     /// Stop after this many milliseconds; capped by the server's job time limit.
     #[serde(default, deserialize_with = "optional_count")]
     pub time_limit_ms: Option<u64>,
+    /// Also measure the final mesh against F (`stats.quality`: the E_n estimate, the RMS
+    /// error, the smallest angle); about 24 more evaluations of F per vertex. Default false.
+    pub quality: Option<bool>,
 }
 
 /// A count: a non-negative integer. JSON has one number type, so `1000.0` and `1e3` are the

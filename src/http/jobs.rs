@@ -176,7 +176,7 @@ async fn create(
         return Ok(match ticket {
             Ticket::Cached(r) | Ticket::Prefix(r) => final_stream(&id, &Outcome::Succeeded(r)),
             Ticket::Failed(e) => final_stream(&id, &Outcome::Failed(e)),
-            Ticket::Job(waiter) => job_stream(waiter, 0),
+            Ticket::Job(waiter) => job_stream(waiter, 0, false),
         });
     };
     match ticket {
@@ -299,15 +299,17 @@ const FINAL_EVENT_ID: u64 = u64::MAX;
 pub async fn jobs_events(
     State(state): State<AppState>,
     Path(id): Path<String>,
+    uri: Uri,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
+    let points = wants_points(&uri)?;
     let last_seen = headers
         .get("last-event-id")
         .and_then(|v| v.to_str().ok())
         .and_then(|v| v.trim().parse::<u64>().ok())
         .unwrap_or(0);
     if let Some(waiter) = state.jobs.watch(&id) {
-        return Ok(job_stream(waiter, last_seen));
+        return Ok(job_stream(waiter, last_seen, points));
     }
     let found = find(&state, &id).await?;
     if last_seen == FINAL_EVENT_ID {
@@ -318,6 +320,18 @@ pub async fn jobs_events(
         // Finished between the two looks: the record is there now.
         None => Err(ApiError::Internal("job vanished between lookups".into())),
     }
+}
+
+/// `?vertices=true` on the events route: progress events carry the new vertices.
+fn wants_points(uri: &Uri) -> Result<bool, ApiError> {
+    #[derive(serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct EventsQuery {
+        vertices: Option<bool>,
+    }
+    let axum::extract::Query(query) = axum::extract::Query::<EventsQuery>::try_from_uri(uri)
+        .map_err(|e| ApiError::InvalidRequest(format!("query string: {}", e.body_text())))?;
+    Ok(query.vertices.unwrap_or(false))
 }
 
 /// `DELETE /v1/jobs/{id}`: cancels the job and answers with its final status.
@@ -358,15 +372,20 @@ struct Watch {
     rx: tokio::sync::watch::Receiver<Snapshot>,
     last_seen: u64,
     last_progress: Option<Instant>,
+    /// With `?vertices=true`: the vertices this client has been sent.
+    points_sent: Option<usize>,
     /// The rest of the final event, once the job has finished.
     rest: Option<Box<dyn Iterator<Item = Bytes> + Send>>,
 }
 
 /// Progress events (throttled) and the final event of a job, skipping ids ≤ `last_seen`, with
-/// a keep-alive comment whenever the job is silent for [`sse::KEEP_ALIVE`].
-fn job_stream(waiter: Waiter, last_seen: u64) -> Response {
+/// a keep-alive comment whenever the job is silent for [`sse::KEEP_ALIVE`]. With `points`,
+/// each progress event carries the vertices added since the last one this client was sent
+/// (all of them from the first: a reconnecting client starts again at 0).
+fn job_stream(waiter: Waiter, last_seen: u64, points: bool) -> Response {
     let rx = waiter.job().subscribe();
-    let watch = Watch { waiter, rx, last_seen, last_progress: None, rest: None };
+    let points_sent = points.then_some(0);
+    let watch = Watch { waiter, rx, last_seen, last_progress: None, points_sent, rest: None };
     let events = stream::unfold(watch, |mut w| async move {
         loop {
             if let Some(rest) = &mut w.rest {
@@ -392,7 +411,12 @@ fn job_stream(waiter: Waiter, last_seen: u64) -> Response {
                 }
                 w.last_seen = snapshot.seq;
                 w.last_progress = Some(Instant::now());
-                return Some((sse::progress(snapshot.seq, &progress), w));
+                let Some(sent) = w.points_sent else {
+                    return Some((sse::progress(snapshot.seq, &progress, None), w));
+                };
+                let points = w.waiter.job().points(sent, progress.vertices);
+                w.points_sent = Some(sent + points.len());
+                return Some((sse::progress(snapshot.seq, &progress, Some((sent, &points))), w));
             }
             match tokio::time::timeout(sse::KEEP_ALIVE, w.rx.changed()).await {
                 Err(_) => return Some((sse::keep_alive(), w)),

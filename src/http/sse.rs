@@ -7,6 +7,7 @@
 //! `data:` line.
 
 use crate::api::ProgressEvent;
+use crate::geom::Vertex;
 use crate::output::{self, Format, Options};
 use crate::result::MeshResult;
 use axum::body::Body;
@@ -26,9 +27,25 @@ pub fn keep_alive() -> Bytes {
     Bytes::from_static(b":\n\n")
 }
 
-/// A `progress` event with id `seq`.
-pub fn progress(seq: u64, p: &ProgressEvent) -> Bytes {
-    let data = serde_json::to_string(p).expect("progress serializes");
+/// A `progress` event with id `seq`; with `points`, the vertices from index `first` on, as
+/// `"first_point"` and a flat `"points": [x, y, z, x, y, z, …]`.
+pub fn progress(seq: u64, p: &ProgressEvent, points: Option<(usize, &[Vertex])>) -> Bytes {
+    #[derive(serde::Serialize)]
+    struct WithPoints<'a> {
+        #[serde(flatten)]
+        progress: &'a ProgressEvent,
+        first_point: usize,
+        points: Vec<f64>,
+    }
+    let data = match points {
+        None => serde_json::to_string(p),
+        Some((first, vertices)) => serde_json::to_string(&WithPoints {
+            progress: p,
+            first_point: first,
+            points: vertices.iter().flat_map(|v| [v.x, v.y, v.z]).collect(),
+        }),
+    };
+    let data = data.expect("progress serializes");
     Bytes::from(format!("event: progress\nid: {seq}\ndata: {data}\n\n"))
 }
 

@@ -10,7 +10,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Peak bytes per vertex of a mesh job: the engine, the result and its trace. Measured with
 /// `/usr/bin/time -f %M meshfit mesh --function 'sin(9*x)*cos(7*y)' --max-vertices 1000000`:
-/// 142 MB with `--criterion variation`, 212 MB with `error`; rounded up.
+/// 142 MB with `--criterion variation`, 212 MB with `error`; with the 24-byte copy of each
+/// vertex a running job keeps for viewers, 236 MB; rounded up.
 pub const MESH_BYTES_PER_VERTEX: u64 = 256;
 
 /// Peak bytes per vertex of a solution: the sparse Cholesky factor dominates. Measured the

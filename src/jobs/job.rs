@@ -1,12 +1,13 @@
 //! The job record: a job's status, progress and outcome, and the one view of them clients get.
 
 use crate::api::ProgressEvent;
+use crate::geom::Vertex;
 use crate::refine::RefineError;
 use crate::result::MeshResult;
 use crate::result::Summary;
 use crate::solve::SolveError;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tokio::sync::{Notify, watch};
 
@@ -97,6 +98,10 @@ pub struct Job {
     /// cannot both decide.
     pub(super) detached: AtomicBool,
     pub(super) waiters: AtomicUsize,
+    /// A running mesh job's vertices as of its latest progress report, in insertion order,
+    /// for viewers that follow the mesh as it grows; emptied when the job finishes (the
+    /// result has them all).
+    pub(super) points: Mutex<Vec<Vertex>>,
 }
 
 impl Job {
@@ -113,6 +118,13 @@ impl Job {
     /// A receiver of state changes.
     pub fn subscribe(&self) -> watch::Receiver<Snapshot> {
         self.state.subscribe()
+    }
+
+    /// Vertices `from..to` of the mesh as it grows, as far as they are held: a progress report
+    /// that counts n vertices comes after the first n are here, until the job finishes.
+    pub fn points(&self, from: usize, to: usize) -> Vec<Vertex> {
+        let points = self.points.lock().expect("job points poisoned");
+        points.get(from..to.min(points.len())).map_or_else(Vec::new, <[Vertex]>::to_vec)
     }
 
     /// Asks the job to stop: a queued job ends at once, a running one within one insertion.
@@ -145,6 +157,7 @@ impl Job {
     }
 
     pub(super) fn finish(&self, outcome: Outcome, elapsed: Option<Duration>) {
+        *self.points.lock().expect("job points poisoned") = Vec::new();
         self.state.send_modify(|s| {
             s.seq += 1;
             s.elapsed = elapsed;

@@ -11,7 +11,7 @@ use sha2::{Digest, Sha256};
 
 /// Bumped whenever the engine may produce a different mesh for the same request, so that a
 /// cache (in memory or on disk) never serves a mesh the current engine would not make.
-pub const ENGINE_VERSION: &str = "meshfit-engine-4";
+pub const ENGINE_VERSION: &str = "meshfit-engine-5";
 
 /// A job's id, and the id of its family: the requests that differ from it only in budget,
 /// tolerance or time limit, whose runs are prefixes of one another.
@@ -78,6 +78,7 @@ pub fn job_keys(spec: &JobSpec) -> JobKeys {
     let p = &spec.params;
     field(&mut h, "method", p.method().to_string().as_bytes());
     field(&mut h, "criterion", p.criterion().to_string().as_bytes());
+    field(&mut h, "quality", &[u8::from(spec.quality)]);
     let mut family = h.clone();
     field(&mut family, "family", &[]);
     field(&mut h, "max_vertices", &(p.max_vertices() as u64).to_le_bytes());
@@ -184,9 +185,9 @@ mod tests {
         let body = output::encode(&result, Format::Json, &options).to_vec();
         let hash = format!("{:x}", Sha256::digest(&body));
         let pinned = (
-            "meshfit-engine-4",
-            "e421e8578f05a8f75df809d4031d0862cee2a6f36848d26719f11cfee51e4408",
-            "4ed52d6e2b48b4c91ac304266e88adceb74c732e0d000cf1db05ec9c6e350a06",
+            "meshfit-engine-5",
+            "7fe77e86a7378707d31ae84ab799c93d6b567f925adc09406da18671697ba1ff",
+            "bc88713014704964f91555b8ca2f6ceda3277c21c0c9176e146e9229746e4b55",
         );
         assert_eq!((ENGINE_VERSION, id.as_str(), hash.as_str()), pinned);
     }

@@ -344,6 +344,7 @@ impl Jobs {
             cancel_notify: Notify::new(),
             detached: AtomicBool::new(detached),
             waiters: AtomicUsize::new(0),
+            points: Mutex::new(Vec::new()),
         });
         let waiter = inner.attach(&job, detached);
         table.jobs.insert(id, Entry::Live(job.clone()));
@@ -385,9 +386,10 @@ impl Jobs {
         if !trace.covers(source.vertices.len(), max_vertices, tolerance) {
             return None;
         }
-        let (cache, id) = (self.inner.cache.clone(), id.to_owned());
+        let (cache, id, spec) = (self.inner.cache.clone(), id.to_owned(), spec.clone());
         tokio::task::spawn_blocking(move || {
-            let replayed = replay(&trace, &source.vertices, max_vertices, tolerance)?;
+            let mut replayed = replay(&trace, &source.vertices, max_vertices, tolerance)?;
+            spec.measure(&mut replayed);
             let result = Arc::new(MeshResult::from(replayed));
             cache.insert(&id, result.clone());
             Some(result)

@@ -3,7 +3,7 @@
 use super::solution::SolveSpec;
 use crate::api::{DomainInput, JobRequest, SolveRequest};
 use crate::geom::Rect;
-use crate::refine::{Params, ParamsError};
+use crate::refine::{Params, ParamsError, Refinement, estimate_error};
 use crate::source::{ExprError, Expression, GridFileError, GridHints, Source, decode_grid, decode_values};
 use std::sync::Arc;
 use std::time::Duration;
@@ -53,6 +53,19 @@ pub struct MeshSpec {
     pub domain: Rect,
     /// Method, criterion and stop rules, with the time limit already capped.
     pub params: Params,
+    /// Whether the result's stats measure the final mesh against F ([`estimate_error`]).
+    ///
+    /// [`estimate_error`]: crate::refine::estimate_error
+    pub quality: bool,
+}
+
+impl MeshSpec {
+    /// Measures a finished run of this spec against F when the request asked for it.
+    pub fn measure(&self, run: &mut Refinement) {
+        if self.quality {
+            run.stats.quality = Some(estimate_error(&run.mesh, &*self.source));
+        }
+    }
 }
 
 /// Why a request is not a valid job. Each variant says where the problem is.
@@ -262,7 +275,8 @@ impl JobSpec {
         if let Some(t) = request.tolerance {
             params = params.with_tolerance(t + 0.0).map_err(SpecError::Parameter)?;
         }
-        let mesh = MeshSpec { source: Arc::new(source), domain, params };
+        let quality = request.quality.unwrap_or(false);
+        let mesh = MeshSpec { source: Arc::new(source), domain, params, quality };
         Ok(Self { work: Work::Mesh(mesh), requested_time_limit })
     }
 }

@@ -7,6 +7,7 @@ use super::registry::{Entry, FINISHED_KEPT, Inner};
 use super::share::Charge;
 use super::{JobSpec, Work};
 use crate::api::ProgressEvent;
+use crate::geom::Mesh;
 use crate::metrics::StateLabel;
 use crate::refine::trace::Recorder;
 use crate::refine::{Observer, Progress, StopReason, refine};
@@ -78,13 +79,22 @@ pub(super) async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec, charges
     }
 }
 
-/// Reports progress into the job's watch channel and reads its cancel flag.
+/// Reports progress into the job's watch channel (a mesh's new vertices first, for viewers)
+/// and reads its cancel flag.
 struct JobObserver<'a> {
     job: &'a Job,
+    /// Whether vertices keep their values, so that viewers may be sent each one once: true
+    /// for a mesh; a solution's values change with every solve.
+    points: bool,
 }
 
 impl Observer for JobObserver<'_> {
-    fn progress(&mut self, p: &Progress) {
+    fn progress(&mut self, mesh: &Mesh, p: &Progress) {
+        if self.points {
+            let mut points = self.job.points.lock().expect("job points poisoned");
+            let held = points.len();
+            points.extend_from_slice(&mesh.vertices()[held..]);
+        }
         let event = ProgressEvent {
             vertices: p.vertices,
             triangles: p.triangles,
@@ -106,16 +116,17 @@ impl Observer for JobObserver<'_> {
 /// long the engine ran. A result a time limit stopped goes apart from the cache's answers:
 /// another run would reach another vertex count.
 fn compute(job: &Job, spec: &JobSpec, inner: &Inner) -> (Outcome, Option<Duration>) {
-    let mut observer = JobObserver { job };
+    let mut observer = JobObserver { job, points: matches!(spec.work, Work::Mesh(_)) };
     let (mut result, trace, elapsed) = match &spec.work {
         Work::Mesh(mesh) => {
             let mut recorder = Recorder::new(&mut observer, mesh.params.method(), mesh.params.criterion());
-            let refinement = match refine(&*mesh.source, mesh.domain, &mesh.params, &mut recorder) {
+            let mut refinement = match refine(&*mesh.source, mesh.domain, &mesh.params, &mut recorder) {
                 Ok(r) => r,
                 Err(e) => return (Outcome::Failed(JobError::Refine(e)), None),
             };
             let trace = recorder.finish(refinement.stats.stop);
             let elapsed = refinement.elapsed;
+            mesh.measure(&mut refinement);
             (MeshResult::from(refinement), Some(trace), elapsed)
         }
         Work::Solve(solve) => {

@@ -102,7 +102,7 @@ pub(super) fn refine<E: Estimator, O: Observer>(
         let Some(worst) = top else {
             break StopReason::Exhausted;
         };
-        run.observer.checked(worst.error);
+        run.checked(mesh, worst.error);
         if run.is_tolerance_met(worst.error) {
             break StopReason::Tolerance;
         }

@@ -44,6 +44,7 @@
 //! an engine version); it never changes between two runs of one version.
 
 mod error;
+mod history;
 mod metrics;
 mod params;
 pub mod trace;
@@ -51,6 +52,8 @@ mod variation;
 mod worst_edge;
 mod worst_triangle;
 
+use history::History;
+pub use history::Sample;
 pub use metrics::{ErrorEstimate, dense_max_error, estimate_error, variation};
 pub use params::{Criterion, MAX_VERTICES, Method, Params, ParamsError};
 pub use worst_edge::{Candidate, WorstEdgeQueue};
@@ -94,8 +97,8 @@ pub const PROGRESS_INTERVAL: Duration = Duration::from_millis(50);
 /// Watches a refinement. Every method has a no-op default and `refine` is generic over the
 /// observer, so an unused hook compiles to nothing in the hot loop.
 pub trait Observer {
-    /// A progress snapshot, at most every [`PROGRESS_INTERVAL`].
-    fn progress(&mut self, _progress: &Progress) {}
+    /// A progress snapshot of `mesh`, at most every [`PROGRESS_INTERVAL`].
+    fn progress(&mut self, _mesh: &Mesh, _progress: &Progress) {}
 
     /// Checked before every insertion; `true` stops the run with [`StopReason::Cancelled`].
     fn is_cancelled(&self) -> bool {
@@ -152,6 +155,12 @@ pub struct Stats {
     pub stop: StopReason,
     /// Whether the final mesh passes the exact in-circle test on every interior edge.
     pub delaunay: bool,
+    /// V_n and the worst criterion value at vertex counts 4, 6, 8, 12, 16, 24, … and at the
+    /// end: the run's convergence.
+    pub history: Vec<Sample>,
+    /// The final mesh measured against F, when the request asked (`quality`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub quality: Option<ErrorEstimate>,
 }
 
 /// A finished refinement.
@@ -223,6 +232,8 @@ where
         evaluations: sampler.evaluations,
         stop: round.stop,
         delaunay: mesh.is_delaunay(),
+        history: round.history,
+        quality: None,
     };
     Ok(Refinement { mesh, triangle_errors: round.triangle_errors, stats, elapsed: start.elapsed() })
 }
@@ -323,6 +334,8 @@ pub(crate) struct Round {
     pub flips: u64,
     /// Edges retired instead of split.
     pub retired: u64,
+    /// The convergence samples, ending with the final mesh's.
+    pub history: Vec<Sample>,
 }
 
 /// Refines `mesh` as it stands until a stop rule of `params` fires (the time limit counts
@@ -347,6 +360,7 @@ pub(crate) fn resume<E: Estimator, O: Observer>(
         stack: Vec::with_capacity(64),
         flips: 0,
         retired: 0,
+        history: History::new(),
     };
     let (stop, triangle_errors) = match params.criterion() {
         Criterion::Variation => (variation::refine(mesh, estimator, &mut run)?, None),
@@ -355,7 +369,8 @@ pub(crate) fn resume<E: Estimator, O: Observer>(
             (stop, Some(errors))
         }
     };
-    Ok(Round { stop, triangle_errors, flips: run.flips, retired: run.retired })
+    let history = run.history.finish(mesh);
+    Ok(Round { stop, triangle_errors, flips: run.flips, retired: run.retired, history })
 }
 
 /// F with a count of evaluations; a non-finite value is an error naming the point.
@@ -410,9 +425,17 @@ struct Run<'a, O> {
     stack: Vec<u32>,
     flips: u64,
     retired: u64,
+    history: History,
 }
 
 impl<O: Observer> Run<'_, O> {
+    /// The worst value `worst` is about to be compared with the tolerance on `mesh`.
+    #[inline]
+    fn checked(&mut self, mesh: &Mesh, worst: f64) {
+        self.observer.checked(worst);
+        self.history.check(mesh, worst);
+    }
+
     /// The stop rule that fires before the next insertion, if any: the budget, cancellation,
     /// and every [`CLOCK_EVERY`] steps the time limit; progress is reported on the same beat.
     /// `worst` is the current worst criterion value, asked only for a report.
@@ -431,12 +454,15 @@ impl<O: Observer> Run<'_, O> {
             }
             if now - self.last_report >= PROGRESS_INTERVAL {
                 self.last_report = now;
-                self.observer.progress(&Progress {
-                    vertices: mesh.num_vertices(),
-                    triangles: mesh.num_triangles(),
-                    worst: worst(),
-                    elapsed: now - self.start,
-                });
+                self.observer.progress(
+                    mesh,
+                    &Progress {
+                        vertices: mesh.num_vertices(),
+                        triangles: mesh.num_triangles(),
+                        worst: worst(),
+                        elapsed: now - self.start,
+                    },
+                );
             }
         }
         None

@@ -213,6 +213,54 @@ fn error_estimate_is_zero_for_a_linear_function_and_positive_for_a_curved_one() 
     assert_eq!(e.min_angle_deg.round(), 45.0);
 }
 
+#[test]
+fn the_history_samples_each_mark_once_and_ends_with_the_final_mesh() {
+    let f = |x: f64, y: f64| (5.0 * x).sin() * y + x * x;
+    for criterion in [Criterion::Variation, Criterion::Error] {
+        for method in [Method::Recursive, Method::SemiRecursive] {
+            let p = Params::new(1000).unwrap().with_method(method).with_criterion(criterion);
+            let r = refine(&f, Rect::unit(), &p, &mut ()).unwrap();
+            let h = &r.stats.history;
+            let counts: Vec<usize> = h.iter().map(|s| s.vertices).collect();
+            // Each mark is met at its own count (a step adds one vertex); the end is the budget.
+            assert_eq!(counts, [4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1000]);
+            let last = h.last().unwrap();
+            assert_eq!((last.variation, last.worst), (r.stats.variation, None), "the budget stopped it");
+            for s in &h[..h.len() - 1] {
+                let worst = s.worst.expect("sampled at a check");
+                assert!(worst.is_finite() && worst >= 0.0);
+                if criterion == Criterion::Variation {
+                    assert!(worst <= s.variation, "{worst} is one edge's variation, at most V_n");
+                }
+            }
+            // A smaller budget's history is the larger one's cut at its count, then its end.
+            let small = refine(
+                &f,
+                Rect::unit(),
+                &Params::new(100).unwrap().with_method(method).with_criterion(criterion),
+                &mut (),
+            )
+            .unwrap();
+            let cut: Vec<_> = h.iter().filter(|s| s.vertices < 100).copied().collect();
+            assert_eq!(small.stats.history[..cut.len()], cut[..]);
+            assert_eq!(small.stats.history.last().unwrap().vertices, 100);
+        }
+    }
+}
+
+#[test]
+fn a_run_stopped_by_its_tolerance_ends_its_history_with_the_check_that_stopped_it() {
+    let f = |x: f64, y: f64| x * x + y;
+    let p = Params::new(100_000).unwrap().with_criterion(Criterion::Variation).with_tolerance(0.05).unwrap();
+    let r = refine(&f, Rect::unit(), &p, &mut ()).unwrap();
+    assert_eq!(r.stats.stop, StopReason::Tolerance);
+    let last = r.stats.history.last().unwrap();
+    assert_eq!(last.vertices, r.stats.vertices);
+    assert!(last.worst.is_some_and(|w| w <= 0.05), "{last:?}");
+    let before = &r.stats.history[r.stats.history.len() - 2];
+    assert!(before.worst.is_some_and(|w| w > 0.05), "{before:?}");
+}
+
 // ---- Properties over random rectangles, surfaces and budgets --------------------------------
 
 const EXPRESSIONS: &[&str] = &[

@@ -11,6 +11,7 @@
 //! Cost: for `variation`, 24 bytes a step; for `error`, 24 bytes a step plus 12 bytes for
 //! each estimate (about five a step).
 
+use super::history::History;
 use super::{Criterion, Method, Observer, Progress, Refinement, Stats, StopReason, insert, variation};
 use crate::geom::{Mesh, NONE, Rect, Vertex};
 
@@ -92,8 +93,8 @@ impl<'o, O: Observer> Recorder<'o, O> {
 }
 
 impl<O: Observer> Observer for Recorder<'_, O> {
-    fn progress(&mut self, progress: &Progress) {
-        self.inner.progress(progress);
+    fn progress(&mut self, mesh: &Mesh, progress: &Progress) {
+        self.inner.progress(mesh, progress);
     }
 
     fn is_cancelled(&self) -> bool {
@@ -167,6 +168,7 @@ pub fn replay(
     }
     let (mut flips, mut retired, mut evaluations) = (0u64, 0u64, trace.base_evaluations);
     let mut stack = Vec::new();
+    let mut history = History::new();
     let stop = 'steps: {
         for step in 0.. {
             if mesh.num_vertices() >= max_vertices {
@@ -179,6 +181,7 @@ pub fn replay(
                     _ => return None,
                 };
             };
+            history.check(&mesh, worst);
             if tolerance.is_some_and(|t| worst <= t) {
                 break 'steps StopReason::Tolerance;
             }
@@ -216,6 +219,8 @@ pub fn replay(
         evaluations,
         stop,
         delaunay: mesh.is_delaunay(),
+        history: history.finish(&mesh),
+        quality: None,
     };
     Some(Refinement { mesh, triangle_errors, stats, elapsed: std::time::Duration::ZERO })
 }

@@ -28,7 +28,7 @@ pub(super) fn refine<F: Field, O: Observer>(
             queue.pop(mesh.vertices());
             continue;
         };
-        run.observer.checked(worst.value);
+        run.checked(mesh, worst.value);
         if run.is_tolerance_met(worst.value) {
             return Ok(StopReason::Tolerance);
         }

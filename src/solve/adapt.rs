@@ -182,12 +182,10 @@ pub fn adapt<O: Observer>(
         });
         let elapsed = start.elapsed();
         run.times.push(elapsed);
-        forward.0.progress(&Progress {
-            vertices: n,
-            triangles: mesh.num_triangles(),
-            worst: estimate,
-            elapsed,
-        });
+        forward.0.progress(
+            &mesh,
+            &Progress { vertices: n, triangles: mesh.num_triangles(), worst: estimate, elapsed },
+        );
 
         let remaining = settings.time_limit.map(|limit| limit.saturating_sub(elapsed));
         let stop = pending

@@ -137,3 +137,39 @@ async fn a_stream_whose_client_hangs_up_mid_way_cancels_its_job() {
     }
     panic!("the job ran on after its only client hung up");
 }
+
+#[tokio::test]
+async fn with_vertices_progress_events_carry_each_new_vertex_once_in_insertion_order() {
+    let app = spawn_app().await;
+    let body =
+        json!({"function": "sin(9*x)*cos(7*y) + x", "max_vertices": 600_000, "criterion": "variation"});
+    let status: Value = app.post("/v1/jobs", &body).await.json().await.unwrap();
+    let id = status["id"].as_str().unwrap();
+    let stream = app.get(&format!("/v1/jobs/{id}/events?vertices=true")).await;
+    let events = read_events(stream).await;
+    let (last, progress) = events.split_last().unwrap();
+    assert_eq!(last.event, "result");
+    assert!(progress.len() >= 2, "a 600k-vertex job reports progress more than once");
+    let mut points: Vec<f64> = Vec::new();
+    for event in progress {
+        let p: Value = serde_json::from_str(&event.data).unwrap();
+        // Each event starts where the last one ended and brings the mesh up to its count.
+        assert_eq!(p["first_point"].as_u64().unwrap() as usize, points.len() / 3, "{}", &event.data[..80]);
+        points.extend(p["points"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()));
+        assert_eq!(points.len() / 3, p["vertices"].as_u64().unwrap() as usize);
+    }
+    // What was streamed is a prefix of the final mesh's vertices, bit for bit.
+    let result: Value = serde_json::from_str(&last.data).unwrap();
+    let vertices = result["vertices"].as_array().unwrap();
+    assert!(points.len() / 3 < vertices.len());
+    for (k, xyz) in points.chunks(3).enumerate() {
+        let v: Vec<f64> = vertices[k].as_array().unwrap().iter().map(|c| c.as_f64().unwrap()).collect();
+        assert_eq!(xyz, &v[..], "vertex {k}");
+    }
+    // Without the parameter the events are as before: counts only.
+    let plain = read_events(app.get(&format!("/v1/jobs/{id}/events")).await).await;
+    assert!(plain.iter().all(|e| e.event != "progress" || !e.data.contains("points")));
+    let bad = app.get(&format!("/v1/jobs/{id}/events?vertices=yes")).await;
+    assert_eq!(bad.status(), 422);
+    app.shutdown().await;
+}

@@ -131,8 +131,12 @@ async fn smaller_budgets_and_passed_tolerances_are_replayed_byte_for_byte_withou
     let app = spawn_app().await;
     let grid: Vec<f64> =
         (0..40 * 30).map(|k| ((k % 40) as f64 * 0.4).sin() + ((k / 40) as f64 * 0.3).cos()).collect();
-    let sources =
-        [json!({"function": "sin(6*x)*cos(4*y)"}), json!({"grid": {"nx": 40, "ny": 30, "values": grid}})];
+    // With `quality` the replay measures its mesh against F as a fresh run does.
+    let sources = [
+        json!({"function": "sin(6*x)*cos(4*y)"}),
+        json!({"grid": {"nx": 40, "ny": 30, "values": grid}}),
+        json!({"function": "sin(6*x)*cos(4*y)", "quality": true}),
+    ];
     let mut runs = 0.0;
     for source in sources {
         for method in ["semi-recursive", "recursive"] {
@@ -178,7 +182,7 @@ async fn smaller_budgets_and_passed_tolerances_are_replayed_byte_for_byte_withou
             }
         }
     }
-    assert_eq!(app.metric("meshfit_prefix_hits_total").await, 16.0);
+    assert_eq!(app.metric("meshfit_prefix_hits_total").await, 24.0);
     app.shutdown().await;
 }
 
@@ -213,5 +217,28 @@ async fn every_format_comes_back_from_the_mesh_route_with_its_media_type_and_sig
         let by_accept = app.client.get(app.url(&format!("/v1/jobs/{id}/mesh"))).header("accept", media);
         assert_eq!(by_accept.send().await.unwrap().bytes().await.unwrap(), bytes, "{name} by Accept");
     }
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn quality_is_measured_only_when_asked_and_agrees_with_the_criterions_own_maximum() {
+    let app = spawn_app().await;
+    let body = json!({"function": "sin(6*x)*cos(4*y)", "max_vertices": 2000});
+    let plain: Value = app.post("/v1/meshes", &body).await.json().await.unwrap();
+    assert!(plain["stats"].get("quality").is_none(), "not asked, not measured");
+    let mut asked = body.clone();
+    asked["quality"] = json!(true);
+    let measured: Value = app.post("/v1/meshes", &asked).await.json().await.unwrap();
+    assert_ne!(plain["id"], measured["id"], "quality is part of the request");
+    assert_eq!(plain["vertices"], measured["vertices"], "and changes nothing of the mesh");
+    let (stats, quality) = (&measured["stats"], &measured["stats"]["quality"]);
+    // The error criterion samples the same lattice, so its final maximum is the E_n estimate.
+    assert_eq!(quality["max_error"], stats["max_triangle_error"]);
+    let (max, rms) = (quality["max_error"].as_f64().unwrap(), quality["rms_error"].as_f64().unwrap());
+    assert!(0.0 < rms && rms < max, "rms {rms}, max {max}");
+    let angle = quality["min_angle_deg"].as_f64().unwrap();
+    assert!(0.0 < angle && angle <= 60.0, "{angle}");
+    // 12 samples a triangle, minus none: F is finite everywhere.
+    assert_eq!(quality["samples"], 12 * stats["triangles"].as_u64().unwrap());
     app.shutdown().await;
 }

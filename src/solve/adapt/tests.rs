@@ -225,7 +225,7 @@ impl Observer for Inspector {
         }
     }
 
-    fn progress(&mut self, _progress: &Progress) {
+    fn progress(&mut self, _mesh: &Mesh, _progress: &Progress) {
         self.solves += 1;
     }
 }
@@ -296,7 +296,7 @@ struct CancelAfter {
 }
 
 impl Observer for CancelAfter {
-    fn progress(&mut self, _progress: &Progress) {
+    fn progress(&mut self, _mesh: &Mesh, _progress: &Progress) {
         self.solves += 1;
     }
 

@@ -1,0 +1,91 @@
+//! The convergence history a run's stats carry: V_n and the worst criterion value at vertex
+//! counts spaced evenly on a log scale, for a log-log plot of the run.
+//!
+//! A sample is taken at the first tolerance check at or past each mark, so a run and its
+//! [`replay`](super::trace::replay) sample the same meshes, and a smaller budget's history is
+//! the larger one's cut at its count plus its own final sample.
+
+use super::metrics::variation;
+use crate::geom::Mesh;
+use serde::{Deserialize, Serialize};
+
+/// The state of a run at one vertex count.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Sample {
+    /// Vertices n.
+    pub vertices: usize,
+    /// V_n = max |zᵢ − zⱼ| over the edges.
+    pub variation: f64,
+    /// The worst criterion value compared with the tolerance at this count: the largest e(T)
+    /// for `error`, the largest |zᵢ − zⱼ| still to split for `variation`. Absent from a final
+    /// sample at a count never checked (the budget stopped the run first).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub worst: Option<f64>,
+}
+
+/// The smallest mark above `n`. The marks are 4·2^k and 6·2^k (4, 6, 8, 12, 16, 24, …): two
+/// a doubling, in integers, so every machine samples the same counts.
+fn next_mark(n: usize) -> usize {
+    let mut mark = 4usize;
+    while mark <= n {
+        // 4·2^k → 6·2^k → 8·2^k.
+        mark = if mark.is_power_of_two() { mark / 2 * 3 } else { mark / 3 * 4 };
+    }
+    mark
+}
+
+/// Samples a run as it checks its worst values.
+#[derive(Debug, Clone)]
+pub(crate) struct History {
+    next: usize,
+    samples: Vec<Sample>,
+    /// The latest check: the count and the worst value.
+    last: Option<(usize, f64)>,
+}
+
+impl History {
+    pub(crate) fn new() -> Self {
+        Self { next: 4, samples: Vec::with_capacity(48), last: None }
+    }
+
+    /// The run compares `worst` with the tolerance on `mesh` as it stands. Walks the mesh's
+    /// edges only at a mark, so the samples of a whole run cost about four walks of its end.
+    #[inline]
+    pub(crate) fn check(&mut self, mesh: &Mesh, worst: f64) {
+        let n = mesh.num_vertices();
+        self.last = Some((n, worst));
+        if n >= self.next {
+            self.samples.push(Sample { vertices: n, variation: variation(mesh), worst: Some(worst) });
+            self.next = next_mark(n);
+        }
+    }
+
+    /// The samples, ending with the final mesh's (with the worst value of a check at its
+    /// count, as when the tolerance stopped the run).
+    pub(crate) fn finish(mut self, mesh: &Mesh) -> Vec<Sample> {
+        let n = mesh.num_vertices();
+        if self.samples.last().is_none_or(|s| s.vertices != n) {
+            let worst = self.last.filter(|&(at, _)| at == n).map(|(_, w)| w);
+            self.samples.push(Sample { vertices: n, variation: variation(mesh), worst });
+        }
+        self.samples
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn marks_are_four_and_six_times_powers_of_two() {
+        let mut marks = vec![];
+        let mut n = 3;
+        while n < 100 {
+            n = next_mark(n);
+            marks.push(n);
+        }
+        assert_eq!(marks, [4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128]);
+        assert_eq!(next_mark(1_000_000), 1_048_576);
+        assert_eq!(next_mark(5), 6);
+    }
+}
