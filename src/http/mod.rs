@@ -8,6 +8,7 @@ mod head;
 mod health;
 mod jobs;
 pub mod negotiate;
+mod page;
 pub mod problem;
 mod sse;
 
@@ -72,6 +73,8 @@ pub const ROUTES: &[(&str, &str)] = &[
     ("get", "/readyz"),
     ("get", "/metrics"),
     ("get", "/openapi.yaml"),
+    ("get", "/"),
+    ("get", "/assets/{name}"),
 ];
 
 /// The router with all layers; tests drive it through a real listener.
@@ -125,6 +128,8 @@ pub fn router(state: AppState, config: &Config) -> Router {
         .route("/readyz", get(health::readyz))
         .route("/metrics", get(health::metrics))
         .route("/openapi.yaml", get(health::openapi))
+        .route("/", get(page::index))
+        .route("/assets/{name}", get(page::asset))
         .fallback(|| async { ApiError::NotFound("no such route; see GET /openapi.yaml".into()) })
         .method_not_allowed_fallback(|| async { ApiError::MethodNotAllowed })
         .layer(layers)

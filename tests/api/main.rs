@@ -8,6 +8,7 @@ mod errors;
 mod events;
 mod helpers;
 mod jobs;
+mod page;
 mod results;
 mod service;
 mod solutions;

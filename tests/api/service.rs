@@ -116,3 +116,30 @@ async fn shutdown_cancels_a_detached_job_after_the_grace_period_and_returns() {
     app.shutdown().await;
     assert!(start.elapsed() < std::time::Duration::from_secs(2), "shutdown took {:?}", start.elapsed());
 }
+
+#[tokio::test]
+async fn the_page_and_its_assets_are_served_with_a_strict_content_policy() {
+    let app = spawn_app().await;
+    for (path, media) in [
+        ("/", "text/html; charset=utf-8"),
+        ("/assets/app.js", "text/javascript; charset=utf-8"),
+        ("/assets/app.css", "text/css; charset=utf-8"),
+    ] {
+        let response = app.get(path).await;
+        assert_eq!(response.status(), 200, "{path}");
+        assert_eq!(response.headers()["content-type"], media, "{path}");
+        let policy = response.headers()["content-security-policy"].to_str().unwrap().to_owned();
+        assert!(policy.starts_with("default-src 'self'"), "{policy}");
+        assert!(!response.text().await.unwrap().is_empty());
+    }
+    // The page loads only what the server serves.
+    let html = app.get("/").await.text().await.unwrap();
+    for asset in ["/assets/app.js", "/assets/app.css"] {
+        assert!(html.contains(&format!("\"{asset}\"")), "the page refers to {asset}");
+    }
+    assert!(!html.contains("http://") && !html.contains("https://"), "no asset from elsewhere");
+    let missing = app.get("/assets/nope.js").await;
+    assert_eq!(missing.status(), 404);
+    assert_eq!(missing.headers()["content-type"], "application/problem+json");
+    app.shutdown().await;
+}

@@ -1,0 +1,374 @@
+//! The page at `/`, driven in headless Chromium through chromedriver (WebDriver, fantoccini).
+//!
+//! Needs Debian's `chromium` and `chromium-driver` (`.ci/run` installs them). Without them the
+//! test says so and passes, unless `MESHFIT_BROWSER_TESTS=required` (set by `.ci/run`), which
+//! makes a missing browser a failure. `MESHFIT_UPDATE_SCREENSHOT=1` also writes the screenshot
+//! to docs/page.png, the one in the README.
+
+use crate::helpers::{TestApp, spawn_app};
+use fantoccini::{Client, ClientBuilder, Locator};
+use futures_util::FutureExt;
+use serde_json::{Value, json};
+use std::panic::AssertUnwindSafe;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::Duration;
+
+/// How long the page may take to finish a job: a bound on a wait, never an assertion.
+const PATIENCE: Duration = Duration::from_secs(120);
+
+/// chromedriver on a loopback port, killed when dropped.
+struct Driver {
+    child: Child,
+    url: String,
+}
+
+impl Drop for Driver {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn find_program(name: &str, variable: &str) -> Option<PathBuf> {
+    if let Some(path) = std::env::var_os(variable) {
+        return Some(PathBuf::from(path));
+    }
+    std::env::split_paths(&std::env::var_os("PATH")?).map(|dir| dir.join(name)).find(|p| p.is_file())
+}
+
+/// chromedriver and the browser, or `None` (with the reason printed) when this machine has none
+/// and they are not required.
+async fn browser() -> Option<(Driver, Client)> {
+    let required = std::env::var("MESHFIT_BROWSER_TESTS").is_ok_and(|v| v == "required");
+    let driver = find_program("chromedriver", "MESHFIT_CHROMEDRIVER");
+    let chromium = find_program("chromium", "MESHFIT_CHROMIUM");
+    let (Some(driver), Some(chromium)) = (driver, chromium) else {
+        assert!(!required, "MESHFIT_BROWSER_TESTS=required, but chromium or chromedriver is missing");
+        eprintln!("skipped: no chromium and chromedriver (apt-get install chromium chromium-driver)");
+        return None;
+    };
+    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let child = Command::new(driver)
+        .arg(format!("--port={port}"))
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("chromedriver starts");
+    let driver = Driver { child, url: format!("http://127.0.0.1:{port}") };
+    let capabilities = json!({
+        "goog:chromeOptions": {
+            "binary": chromium,
+            "args": ["--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--window-size=1280,1000",
+                     "--enable-unsafe-swiftshader", "--hide-scrollbars"],
+        }
+    });
+    let Value::Object(capabilities) = capabilities else { unreachable!() };
+    let connector = hyper_util::client::legacy::connect::HttpConnector::new();
+    // chromedriver takes a moment to listen.
+    for _ in 0..100 {
+        let session = ClientBuilder::new(connector.clone())
+            .capabilities(capabilities.clone())
+            .connect(&driver.url)
+            .await;
+        match session {
+            Ok(client) => return Some((driver, client)),
+            Err(_) => tokio::time::sleep(Duration::from_millis(100)).await,
+        }
+    }
+    panic!("chromedriver did not start a session at {}", driver.url);
+}
+
+/// Waits for the page's job to end (`body[data-state=done]`) or for an error to show.
+async fn wait_until(client: &Client, css: &str) {
+    client
+        .wait()
+        .at_most(PATIENCE)
+        .for_element(Locator::Css(css))
+        .await
+        .unwrap_or_else(|e| panic!("{css} never appeared: {e}"));
+}
+
+/// Of the canvas `id`: pixels that are not the white background, and distinct colours.
+async fn canvas_ink(client: &Client, id: &str) -> (u64, u64) {
+    let script = r#"
+        const c = document.getElementById(arguments[0]);
+        const d = c.getContext("2d").getImageData(0, 0, c.width, c.height).data;
+        let ink = 0; const colours = new Set();
+        for (let i = 0; i < d.length; i += 4) {
+            if (d[i] < 250 || d[i + 1] < 250 || d[i + 2] < 250) { ink++; colours.add((d[i] << 16) | (d[i + 1] << 8) | d[i + 2]); }
+        }
+        return [ink, colours.size, c.width * c.height];
+    "#;
+    let out = client.execute(script, vec![json!(id)]).await.unwrap();
+    (out[0].as_u64().unwrap(), out[1].as_u64().unwrap())
+}
+
+/// The stats table as the page shows it: `data-stat` name → the exact value.
+async fn page_stats(client: &Client) -> serde_json::Map<String, Value> {
+    let script = r##"
+        const out = {};
+        for (const td of document.querySelectorAll("#stats td[data-stat]")) out[td.dataset.stat] = JSON.parse(td.dataset.value);
+        return out;
+    "##;
+    match client.execute(script, vec![]).await.unwrap() {
+        Value::Object(map) => map,
+        other => panic!("stats: {other}"),
+    }
+}
+
+/// The job id of the page's result, from its download links.
+async fn page_job(client: &Client) -> String {
+    let href = client.find(Locator::Css("#download-links a[data-format=obj]")).await.unwrap();
+    let href = href.attr("href").await.unwrap().expect("a link");
+    href.strip_prefix("/v1/jobs/").and_then(|s| s.split('/').next()).expect("a job link").to_owned()
+}
+
+/// Saves what the browser shows as the test artifact `name`.png under the target directory,
+/// and returns the PNG.
+async fn screenshot(client: &Client, name: &str) -> Vec<u8> {
+    let png = client.screenshot().await.unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    let path = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("browser/{name}.png"));
+    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+    std::fs::write(&path, &png).unwrap();
+    eprintln!("screenshot: {}", path.display());
+    png
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_page_runs_a_shared_address_draws_the_mesh_and_shows_the_apis_stats() {
+    let Some((_driver, client)) = browser().await else { return };
+    let app = spawn_app().await;
+    // A failed assertion must still end the browser session, so it is caught and re-raised.
+    let outcome = AssertUnwindSafe(async {
+        shared_address(&app, &client).await;
+        bad_expression(&app, &client).await;
+        grid_file(&app, &client).await;
+        boundary_value_problem(&app, &client).await;
+    })
+    .catch_unwind()
+    .await;
+    let _ = client.close().await;
+    app.shutdown().await;
+    if let Err(panic) = outcome {
+        std::panic::resume_unwind(panic);
+    }
+}
+
+async fn shared_address(app: &TestApp, client: &Client) {
+    client.goto(&app.url("/?function=sin(5*x)*y&max_vertices=3000&x=0,2&y=0,1")).await.unwrap();
+    wait_until(client, "body[data-state=done]").await;
+
+    // The address filled the form and ran the job: the mesh is drawn filled by value.
+    let (ink, colours) = canvas_ink(client, "flat").await;
+    assert!(ink > 200_000, "the 800×800 canvas has {ink} drawn pixels");
+    assert!(colours > 40, "a mesh filled by value has many colours, got {colours}");
+    let (plot, _) = canvas_ink(client, "convergence").await;
+    assert!(plot > 2_000, "the convergence plot drew {plot} pixels");
+
+    // The stats on the page are the API's, bit for bit.
+    let id = page_job(client).await;
+    let status: Value = app.get(&format!("/v1/jobs/{id}")).await.json().await.unwrap();
+    let api = &status["stats"];
+    assert_eq!(api["vertices"], 3000);
+    let shown = page_stats(client).await;
+    let expected = [
+        ("vertices", &api["vertices"]),
+        ("triangles", &api["triangles"]),
+        ("variation", &api["variation"]),
+        ("max_triangle_error", &api["max_triangle_error"]),
+        ("max_error", &api["quality"]["max_error"]),
+        ("rms_error", &api["quality"]["rms_error"]),
+        ("min_angle_deg", &api["quality"]["min_angle_deg"]),
+        ("evaluations", &api["evaluations"]),
+        ("stop", &api["stop"]),
+    ];
+    for (name, value) in expected {
+        assert!(!value.is_null(), "the API reports {name}");
+        assert_eq!(shown.get(name), Some(value), "{name} on the page");
+    }
+
+    // Every format is offered, and the OBJ and PNG links download what they say.
+    let formats: Value = client
+        .execute(
+            "return [...document.querySelectorAll('#download-links a')].map(a => a.dataset.format)",
+            vec![],
+        )
+        .await
+        .unwrap();
+    assert_eq!(formats, json!(["json", "obj", "ply", "stl", "vtu", "msh", "glb", "svg", "png"]));
+    let obj = app.get(&format!("/v1/jobs/{id}/mesh?format=obj")).await;
+    assert_eq!(obj.headers()["content-type"], "model/obj");
+    assert_eq!(obj.text().await.unwrap().lines().filter(|l| l.starts_with("v ")).count(), 3000);
+    let png = app.get(&format!("/v1/jobs/{id}/mesh?format=png")).await.bytes().await.unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+
+    // The curl line reproduces the job: the same request gives the same id.
+    let curl = client.find(Locator::Id("curl")).await.unwrap().text().await.unwrap();
+    let body = curl.split(" -d '").nth(1).and_then(|s| s.strip_suffix('\'')).expect("a -d body");
+    let again = app.post("/v1/meshes", &serde_json::from_str(body).unwrap()).await;
+    assert_eq!(again.headers()["etag"], format!("\"{id}\"").as_str());
+
+    // The share link is the address that reproduces this view.
+    let share = client.find(Locator::Id("share")).await.unwrap().attr("href").await.unwrap().unwrap();
+    assert!(share.contains("function=sin%285*x%29*y") && share.contains("max_vertices=3000"), "{share}");
+
+    let png = screenshot(client, "page").await;
+    if std::env::var_os("MESHFIT_UPDATE_SCREENSHOT").is_some() {
+        std::fs::write(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/page.png"), small_png(&png)).unwrap();
+    }
+
+    // The 3-D view draws the surface.
+    client.find(Locator::Css("button[data-view=surface]")).await.unwrap().click().await.unwrap();
+    let drawn: Value = client
+        .execute(
+            r#"const c = document.getElementById("surface");
+               const g = c.getContext("webgl", {preserveDrawingBuffer: true});
+               if (!g) return -1;
+               const px = new Uint8Array(4 * c.width * c.height);
+               g.readPixels(0, 0, c.width, c.height, g.RGBA, g.UNSIGNED_BYTE, px);
+               let ink = 0; for (let i = 0; i < px.length; i += 4) if (px[i] < 250 || px[i+1] < 250 || px[i+2] < 250) ink++;
+               return ink;"#,
+            vec![],
+        )
+        .await
+        .unwrap();
+    // A browser without WebGL says so on the page instead (-1); one with it draws the surface.
+    let drawn = drawn.as_i64().unwrap();
+    assert!(drawn == -1 || drawn > 50_000, "the surface drew {drawn} pixels");
+    screenshot(client, "page-surface").await;
+
+    // The error view colours each triangle by its error, read from the PLY.
+    client.find(Locator::Css("button[data-view=error]")).await.unwrap().click().await.unwrap();
+    wait_until(client, "#legend[data-mode=error]").await;
+    let legend = client.find(Locator::Id("legend")).await.unwrap().text().await.unwrap();
+    assert!(legend.starts_with("log10 error per triangle"), "{legend}");
+    let (ink, colours) = canvas_ink(client, "flat").await;
+    assert!(ink > 200_000 && colours > 40, "error view: {ink} pixels, {colours} colours");
+    screenshot(client, "page-error").await;
+    client.find(Locator::Css("button[data-view=flat]")).await.unwrap().click().await.unwrap();
+}
+
+/// `png` again with a palette of 256 colours (NeuQuant), which keeps the README's copy small.
+fn small_png(png: &[u8]) -> Vec<u8> {
+    let mut reader = png::Decoder::new(std::io::Cursor::new(png)).read_info().unwrap();
+    let mut pixels = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut pixels).unwrap();
+    let channels = info.color_type.samples();
+    let rgba: Vec<u8> =
+        pixels[..info.buffer_size()].chunks(channels).flat_map(|p| [p[0], p[1], p[2], 255]).collect();
+    let quant = color_quant::NeuQuant::new(10, 256, &rgba);
+    let indices: Vec<u8> = rgba.chunks(4).map(|p| quant.index_of(p) as u8).collect();
+    let palette: Vec<u8> = quant.color_map_rgb();
+    let mut out = Vec::new();
+    let mut encoder = png::Encoder::new(&mut out, info.width, info.height);
+    encoder.set_color(png::ColorType::Indexed);
+    encoder.set_palette(palette);
+    encoder.set_compression(png::Compression::High);
+    encoder.write_header().unwrap().write_image_data(&indices).unwrap();
+    out
+}
+
+async fn bad_expression(app: &TestApp, client: &Client) {
+    // `q` is not a variable: the API names column 8, and the page shows it under the field.
+    client.goto(&app.url("/?function=sin(x)%2Bq")).await.unwrap();
+    wait_until(client, "body[data-state=failed]").await;
+    let text =
+        client.find(Locator::Css(".field-error[data-for=function]")).await.unwrap().text().await.unwrap();
+    assert!(text.contains("unknown variable") && text.contains("column 8"), "{text}");
+    let at: Value = client
+        .execute(
+            "const f = document.getElementById('function'); return [f.selectionStart, f.selectionEnd, f.classList.contains('invalid')]",
+            vec![],
+        )
+        .await
+        .unwrap();
+    assert_eq!(at, json!([7, 8, true]), "the input selects the character at column 8");
+}
+
+async fn grid_file(app: &TestApp, client: &Client) {
+    // A 16-bit greyscale heightmap, picked in the file input.
+    let (w, h) = (40u32, 30u32);
+    let heights: Vec<u8> = (0..w * h)
+        .flat_map(|k| {
+            let (i, j) = (f64::from(k % w), f64::from(k / w));
+            let v = 30_000.0 + 20_000.0 * (i / 6.0).sin() * (j / 5.0).cos();
+            (v as u16).to_be_bytes()
+        })
+        .collect();
+    let path = Path::new(env!("CARGO_TARGET_TMPDIR")).join("browser/heightmap.png");
+    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+    let mut encoder = png::Encoder::new(std::fs::File::create(&path).unwrap(), w, h);
+    encoder.set_color(png::ColorType::Grayscale);
+    encoder.set_depth(png::BitDepth::Sixteen);
+    encoder.write_header().unwrap().write_image_data(&heights).unwrap();
+
+    client.goto(&app.url("/")).await.unwrap();
+    let input = client.find(Locator::Id("grid-file")).await.unwrap();
+    input.send_keys(path.to_str().unwrap()).await.unwrap();
+    let disabled = client.find(Locator::Id("function")).await.unwrap().attr("disabled").await.unwrap();
+    assert!(disabled.is_some(), "a picked file replaces the function");
+    let budget = client.find(Locator::Id("max_vertices")).await.unwrap();
+    budget.clear().await.unwrap();
+    budget.send_keys("500").await.unwrap();
+    client.find(Locator::Id("run")).await.unwrap().click().await.unwrap();
+    wait_until(client, "body[data-state=done]").await;
+    let id = page_job(client).await;
+    let status: Value = app.get(&format!("/v1/jobs/{id}")).await.json().await.unwrap();
+    assert_eq!(status["stats"]["vertices"], 500);
+    let mesh: Value = app.get(&format!("/v1/jobs/{id}/mesh")).await.json().await.unwrap();
+    // The default domain of a grid: [0, nx-1] x [0, ny-1].
+    assert_eq!(mesh["vertices"][2], json!([39.0, 29.0, mesh["vertices"][2][2]]));
+    let shown = page_stats(client).await;
+    assert_eq!(shown.get("max_error"), Some(&status["stats"]["quality"]["max_error"]));
+    let curl = client.find(Locator::Id("curl")).await.unwrap().text().await.unwrap();
+    assert!(curl.contains("-F grid=@'heightmap.png'"), "{curl}");
+
+    // A file cannot travel in an address, so the link names the job, and opens it.
+    let share = client.find(Locator::Id("share")).await.unwrap().attr("href").await.unwrap().unwrap();
+    assert_eq!(share, format!("/?job={id}"));
+    client.goto(&app.url(&share)).await.unwrap();
+    wait_until(client, "body[data-state=done]").await;
+    assert_eq!(page_stats(client).await.get("vertices"), Some(&json!(500)));
+    let (ink, _) = canvas_ink(client, "flat").await;
+    assert!(ink > 100_000, "the shared job is drawn: {ink} pixels");
+}
+
+async fn boundary_value_problem(app: &TestApp, client: &Client) {
+    let problem = json!({
+        "domain": {"x": [0, 0.2], "y": [0, 0.1]},
+        "physics": "magnetostatic",
+        "regions": [
+            {"x": [0.04, 0.07], "y": [0.035, 0.065], "current_density": 2e6},
+            {"x": [0.11, 0.16], "y": [0.02, 0.08], "mu_r": 1000}
+        ],
+        "max_vertices": 3000
+    });
+    let query = format!("/?problem={}", urlencode(&problem.to_string()));
+    client.goto(&app.url(&query)).await.unwrap();
+    wait_until(client, "body[data-state=done]").await;
+    let (ink, colours) = canvas_ink(client, "flat").await;
+    assert!(ink > 100_000 && colours > 40, "solution: {ink} pixels, {colours} colours");
+    let id = page_job(client).await;
+    let status: Value = app.get(&format!("/v1/jobs/{id}")).await.json().await.unwrap();
+    let shown = page_stats(client).await;
+    for name in ["vertices", "unknowns", "solves", "estimate", "energy", "stop"] {
+        assert_eq!(shown.get(name), Some(&status["stats"][name]), "{name} on the page");
+    }
+    // |B| colouring is a different picture from u.
+    let before = canvas_ink(client, "flat").await;
+    client.execute("const s = document.getElementById('solve-colour'); s.value = 'b'; s.dispatchEvent(new Event('change'));", vec![]).await.unwrap();
+    wait_until(client, "#legend[data-label='|B| (T)']").await;
+    assert_ne!(canvas_ink(client, "flat").await, before, "|B| repaints the picture");
+    screenshot(client, "page-solution").await;
+}
+
+fn urlencode(s: &str) -> String {
+    s.bytes()
+        .map(|b| match b {
+            b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'_' | b'.' | b'~' => (b as char).to_string(),
+            _ => format!("%{b:02X}"),
+        })
+        .collect()
+}
