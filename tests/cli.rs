@@ -64,13 +64,17 @@ fn mesh_reads_a_grid_file_and_accepts_negative_domain_bounds() {
 }
 
 #[test]
-fn stats_flag_prints_only_the_stats_and_the_error_estimate() {
+fn stats_flag_prints_only_the_stats_with_their_history_and_the_error_estimate() {
     let doc = document(&["mesh", "--function", "x^2 + y^2", "--max-vertices", "200", "--stats"]);
     assert!(doc.get("vertices").is_none());
     assert_eq!(doc["stats"]["vertices"], 200);
     let max_error = doc["error"]["max_error"].as_f64().unwrap();
     assert!(max_error > 0.0 && max_error < 0.1, "E_n = {max_error}");
     assert!(doc["error"]["min_angle_deg"].as_f64().unwrap() > 0.0);
+    // The convergence history: 4, 6, 8, ..., 128, then the end at 200.
+    let counts: Vec<u64> =
+        doc["stats"]["history"].as_array().unwrap().iter().map(|s| s["vertices"].as_u64().unwrap()).collect();
+    assert_eq!(counts, [4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 200]);
 }
 
 #[test]

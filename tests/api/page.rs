@@ -304,7 +304,9 @@ async fn grid_file(app: &TestApp, client: &Client) {
     encoder.set_depth(png::BitDepth::Sixteen);
     encoder.write_header().unwrap().write_image_data(&heights).unwrap();
 
+    // A first visit runs the example; the file's job replaces it.
     client.goto(&app.url("/")).await.unwrap();
+    wait_until(client, "body[data-state=done]").await;
     let input = client.find(Locator::Id("grid-file")).await.unwrap();
     input.send_keys(path.to_str().unwrap()).await.unwrap();
     let disabled = client.find(Locator::Id("function")).await.unwrap().attr("disabled").await.unwrap();
@@ -313,7 +315,7 @@ async fn grid_file(app: &TestApp, client: &Client) {
     budget.clear().await.unwrap();
     budget.send_keys("500").await.unwrap();
     client.find(Locator::Id("run")).await.unwrap().click().await.unwrap();
-    wait_until(client, "body[data-state=done]").await;
+    wait_until(client, r#"body[data-state=done] #stats td[data-stat=vertices][data-value="500"]"#).await;
     let id = page_job(client).await;
     let status: Value = app.get(&format!("/v1/jobs/{id}")).await.json().await.unwrap();
     assert_eq!(status["stats"]["vertices"], 500);

@@ -968,5 +968,6 @@ if (asked === "job") {
 } else if (asked === "mesh") {
   $("mesh-form").requestSubmit();
 } else {
-  document.body.dataset.state = "idle";
+  // A first visit shows the example at once: a picture and a plot say more than a form.
+  $("mesh-form").requestSubmit();
 }
