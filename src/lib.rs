@@ -26,7 +26,8 @@
 //!   worker pool, each client's share of it, the memory budget, the worker, and the cache of
 //!   results. The only bridge between async code and the engine.
 //! - [`http`]: connections (their cap and timeouts), access (keys, origins), routes,
-//!   handlers, problem documents, server-sent events.
+//!   handlers, problem documents, server-sent events, and the page at `/`.
+//! - [`cpu`]: where CPU-bound work runs: the blocking pool, below the async workers' priority.
 //! - [`api`]: the wire types; [`config`], [`metrics`] and [`telemetry`] support the service.
 //!
 //! ```text
@@ -41,6 +42,7 @@
 
 pub mod api;
 pub mod config;
+pub mod cpu;
 pub mod geom;
 pub mod http;
 pub mod jobs;

@@ -56,7 +56,7 @@ pub async fn jobs_evaluate(
         .and_then(|v| v.to_str().ok())
         .is_some_and(|v| v.split(';').next().unwrap_or("").trim().eq_ignore_ascii_case(OCTET_STREAM));
     let locators = state.locators.clone();
-    tokio::task::spawn_blocking(move || {
+    crate::cpu::spawn(move || {
         let locator = match locators.get(&id) {
             Some((indexed, locator)) if indexed.upgrade().is_some_and(|r| Arc::ptr_eq(&r, &result)) => {
                 locator

@@ -84,7 +84,7 @@ async fn prepare(
         parse()?
     } else {
         let _permit = state.parsers.acquire().await.map_err(|e| ApiError::Internal(e.to_string()))?;
-        tokio::task::spawn_blocking(parse)
+        crate::cpu::spawn(parse)
             .await
             .map_err(|e| ApiError::Internal(format!("request parsing panicked: {e}")))??
     };

@@ -148,7 +148,7 @@ pub async fn result_response(
             // to the blocking pool costs more than a small cached answer itself.
             let inline = format == Format::Json && result.vertices.len() <= INLINE_VERTICES;
             let encoding = if !inline {
-                tokio::task::spawn_blocking(move || output::encode(&result, format, &options))
+                crate::cpu::spawn(move || output::encode(&result, format, &options))
                     .await
                     .map_err(|e| ApiError::Internal(format!("encoding panicked: {e}")))?
             } else {

@@ -387,7 +387,7 @@ impl Jobs {
             return None;
         }
         let (cache, id, spec) = (self.inner.cache.clone(), id.to_owned(), spec.clone());
-        tokio::task::spawn_blocking(move || {
+        crate::cpu::spawn(move || {
             let mut replayed = replay(&trace, &source.vertices, max_vertices, tolerance)?;
             spec.measure(&mut replayed);
             let result = Arc::new(MeshResult::from(replayed));

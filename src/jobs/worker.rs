@@ -38,9 +38,8 @@ pub(super) async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec, charges
             inner.metrics.jobs_running.inc();
             inner.metrics.engine_runs.inc();
             let (worker_job, worker) = (job.clone(), inner.clone());
-            let outcome = tokio::task::spawn_blocking(move || compute(&worker_job, &spec, &worker))
-                .await
-                .unwrap_or_else(|e| {
+            let outcome =
+                crate::cpu::spawn(move || compute(&worker_job, &spec, &worker)).await.unwrap_or_else(|e| {
                     tracing::error!(job = %job.id, error = %e, "refinement panicked");
                     (Outcome::Failed(JobError::Internal("the refinement panicked".into())), None)
                 });
