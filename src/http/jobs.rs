@@ -24,6 +24,11 @@ use tokio::time::Instant;
 /// Progress events go out at most this often, however fast the engine reports.
 const PROGRESS_EVERY: Duration = Duration::from_millis(100);
 
+/// The most vertices one progress event carries (about 4 MB of JSON): a client that joins a
+/// large job late, or stops reading, holds at most this much in its stream; the rest comes
+/// with the next events, or in the result.
+const POINTS_PER_EVENT: usize = 1 << 16;
+
 /// What a route takes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Kind {
@@ -380,8 +385,8 @@ struct Watch {
 
 /// Progress events (throttled) and the final event of a job, skipping ids ≤ `last_seen`, with
 /// a keep-alive comment whenever the job is silent for [`sse::KEEP_ALIVE`]. With `points`,
-/// each progress event carries the vertices added since the last one this client was sent
-/// (all of them from the first: a reconnecting client starts again at 0).
+/// each progress event carries the vertices added since the last one this client was sent,
+/// at most [`POINTS_PER_EVENT`] (from the first: a reconnecting client starts again at 0).
 fn job_stream(waiter: Waiter, last_seen: u64, points: bool) -> Response {
     let rx = waiter.job().subscribe();
     let points_sent = points.then_some(0);
@@ -414,7 +419,7 @@ fn job_stream(waiter: Waiter, last_seen: u64, points: bool) -> Response {
                 let Some(sent) = w.points_sent else {
                     return Some((sse::progress(snapshot.seq, &progress, None), w));
                 };
-                let points = w.waiter.job().points(sent, progress.vertices);
+                let points = w.waiter.job().points(sent, progress.vertices.min(sent + POINTS_PER_EVENT));
                 w.points_sent = Some(sent + points.len());
                 return Some((sse::progress(snapshot.seq, &progress, Some((sent, &points))), w));
             }
