@@ -1,11 +1,11 @@
 //! The page at `/`, driven in headless Chromium through chromedriver (WebDriver, fantoccini).
 //!
 //! Needs Debian's `chromium` and `chromium-driver` (`.ci/run` installs them). Without them the
-//! test says so and passes, unless `MESHFIT_BROWSER_TESTS=required` (set by `.ci/run`), which
-//! makes a missing browser a failure. `MESHFIT_UPDATE_SCREENSHOT=1` also writes the screenshot
+//! test says so and passes, unless `BROWSER_TESTS=required` (set by `.ci/run`), which
+//! makes a missing browser a failure. `UPDATE_SCREENSHOT=1` also writes the screenshot
 //! to docs/page.png, the one in the README.
 
-use crate::helpers::{TestApp, spawn_app};
+use crate::helpers::{TestApp, spawn_app, spawn_with, test_config};
 use fantoccini::{Client, ClientBuilder, Locator};
 use futures_util::FutureExt;
 use serde_json::{Value, json};
@@ -40,11 +40,11 @@ fn find_program(name: &str, variable: &str) -> Option<PathBuf> {
 /// chromedriver and the browser, or `None` (with the reason printed) when this machine has none
 /// and they are not required.
 async fn browser() -> Option<(Driver, Client)> {
-    let required = std::env::var("MESHFIT_BROWSER_TESTS").is_ok_and(|v| v == "required");
-    let driver = find_program("chromedriver", "MESHFIT_CHROMEDRIVER");
-    let chromium = find_program("chromium", "MESHFIT_CHROMIUM");
+    let required = std::env::var("BROWSER_TESTS").is_ok_and(|v| v == "required");
+    let driver = find_program("chromedriver", "CHROMEDRIVER");
+    let chromium = find_program("chromium", "CHROMIUM");
     let (Some(driver), Some(chromium)) = (driver, chromium) else {
-        assert!(!required, "MESHFIT_BROWSER_TESTS=required, but chromium or chromedriver is missing");
+        assert!(!required, "BROWSER_TESTS=required, but chromium or chromedriver is missing");
         eprintln!("skipped: no chromium and chromedriver (apt-get install chromium chromium-driver)");
         return None;
     };
@@ -140,17 +140,22 @@ async fn screenshot(client: &Client, name: &str) -> Vec<u8> {
 async fn the_page_runs_a_shared_address_draws_the_mesh_and_shows_the_apis_stats() {
     let Some((_driver, client)) = browser().await else { return };
     let app = spawn_app().await;
+    let mut keys = meshfit::http::access::ApiKeys::default();
+    keys.insert(KEY);
+    let keyed = spawn_with(meshfit::config::Config { api_keys: keys, ..test_config() }).await;
     // A failed assertion must still end the browser session, so it is caught and re-raised.
     let outcome = AssertUnwindSafe(async {
         shared_address(&app, &client).await;
         bad_expression(&app, &client).await;
         grid_file(&app, &client).await;
         boundary_value_problem(&app, &client).await;
+        api_key(&keyed, &client).await;
     })
     .catch_unwind()
     .await;
     let _ = client.close().await;
     app.shutdown().await;
+    keyed.shutdown().await;
     if let Err(panic) = outcome {
         std::panic::resume_unwind(panic);
     }
@@ -215,7 +220,7 @@ async fn shared_address(app: &TestApp, client: &Client) {
     assert!(share.contains("function=sin%285*x%29*y") && share.contains("max_vertices=3000"), "{share}");
 
     let png = screenshot(client, "page").await;
-    if std::env::var_os("MESHFIT_UPDATE_SCREENSHOT").is_some() {
+    if std::env::var_os("UPDATE_SCREENSHOT").is_some() {
         std::fs::write(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/page.png"), small_png(&png)).unwrap();
     }
 
@@ -364,6 +369,33 @@ async fn boundary_value_problem(app: &TestApp, client: &Client) {
     wait_until(client, "#legend[data-label='|B| (T)']").await;
     assert_ne!(canvas_ink(client, "flat").await, before, "|B| repaints the picture");
     screenshot(client, "page-solution").await;
+}
+
+const KEY: &str = "page-key-0123456789abcdef";
+
+async fn api_key(app: &TestApp, client: &Client) {
+    // Without a key the first visit's job is refused, and the key field opens.
+    client.goto(&app.url("/?function=x*y&max_vertices=300")).await.unwrap();
+    wait_until(client, "body[data-state=failed] #key-settings[open]").await;
+    let text = client.find(Locator::Id("general-error")).await.unwrap().text().await.unwrap();
+    assert!(!text.is_empty(), "the 401 is shown");
+    let field = client.find(Locator::Id("api-key")).await.unwrap();
+    field.send_keys(KEY).await.unwrap();
+    client
+        .execute("document.getElementById('api-key').dispatchEvent(new Event('change'))", vec![])
+        .await
+        .unwrap();
+    client.find(Locator::Id("run")).await.unwrap().click().await.unwrap();
+    wait_until(client, "body[data-state=done]").await;
+    // The page's job exists on the server, which only a keyed request could have made.
+    let id = page_job(client).await;
+    let status = app.client.get(app.url(&format!("/v1/jobs/{id}"))).bearer_auth(KEY).send().await.unwrap();
+    let status: Value = status.json().await.unwrap();
+    assert_eq!(status["stats"]["vertices"], 300);
+    let (ink, _) = canvas_ink(client, "flat").await;
+    assert!(ink > 100_000, "drawn with the key: {ink} pixels");
+    // The key stays in this browser only; the test leaves none behind.
+    client.execute("localStorage.clear()", vec![]).await.unwrap();
 }
 
 fn urlencode(s: &str) -> String {

@@ -150,8 +150,10 @@ function updateAddress() {
   history.replaceState(null, "", share);
 }
 
+// A server with keys needs one on every /v1 request; the page keeps it in this browser.
+const KEY = "meshfit-api-key";
 function authHeaders() {
-  const key = localStorage.getItem("meshfit-api-key");
+  const key = localStorage.getItem(KEY);
   return key ? { authorization: `Bearer ${key}` } : {};
 }
 
@@ -174,6 +176,7 @@ function showError(field, text) {
 // A problem document (RFC 9457), shown where it says the problem is.
 function showProblem(problem) {
   document.body.dataset.state = "failed";
+  if (problem.status === 401) $("key-settings").open = true;
   const detail = problem.detail || problem.title || "the request failed";
   if (view.kind === "solution") {
     showError("problem", problem.field ? `${detail}` : detail);
@@ -384,6 +387,18 @@ function showDownloads(id) {
     a.download = `meshfit-${id.slice(0, 8)}.${format}`;
     a.textContent = format.toUpperCase();
     a.dataset.format = format;
+    // A link cannot send a key: with one, the file is fetched and saved from memory.
+    a.addEventListener("click", async (e) => {
+      const headers = authHeaders();
+      if (!headers.authorization) return;
+      e.preventDefault();
+      const response = await fetch(a.href, { headers });
+      if (!response.ok) return showProblem(await response.json());
+      const url = URL.createObjectURL(await response.blob());
+      const save = Object.assign(document.createElement("a"), { href: url, download: a.download });
+      save.click();
+      setTimeout(() => URL.revokeObjectURL(url), 10000);
+    });
     links.append(a);
   }
   $("downloads").hidden = false;
@@ -943,6 +958,12 @@ function wire() {
   });
   $("arrows").addEventListener("change", scheduleDraw);
   regionDrag();
+  $("api-key").value = localStorage.getItem(KEY) || "";
+  $("api-key").addEventListener("change", () => {
+    const key = $("api-key").value.trim();
+    if (key) localStorage.setItem(KEY, key);
+    else localStorage.removeItem(KEY);
+  });
   const surface = $("surface");
   let drag = null;
   surface.addEventListener("pointerdown", (e) => {
