@@ -6,6 +6,7 @@
 //! the larger one's cut at its count plus its own final sample.
 
 use super::metrics::variation;
+use super::{Criterion, Method};
 use crate::geom::Mesh;
 use serde::{Deserialize, Serialize};
 
@@ -41,23 +42,72 @@ pub(crate) struct History {
     samples: Vec<Sample>,
     /// The latest check: the count and the worst value.
     last: Option<(usize, f64)>,
+    /// Criterion `variation`: V_n can be known without a walk (see [`History::known`]).
+    free: bool,
+    /// Method `recursive`: edges, retired ones included, are never removed but by a split.
+    recursive: bool,
+    /// The largest |zᵢ − zⱼ| of a retired edge, once one was.
+    retired_max: Option<f64>,
 }
 
 impl History {
-    pub(crate) fn new() -> Self {
-        Self { next: 4, samples: Vec::with_capacity(48), last: None }
+    pub(crate) fn new(criterion: Criterion, method: Method) -> Self {
+        Self {
+            next: 4,
+            samples: Vec::with_capacity(48),
+            last: None,
+            free: criterion == Criterion::Variation,
+            recursive: method == Method::Recursive,
+            retired_max: None,
+        }
     }
 
-    /// The run compares `worst` with the tolerance on `mesh` as it stands. Walks the mesh's
-    /// edges only at a mark, so the samples of a whole run cost about four walks of its end.
-    #[inline]
+    /// The edge of the latest check was retired, not split.
+    pub(crate) fn retired(&mut self) {
+        let value = self.last.map_or(0.0, |(_, worst)| worst);
+        self.retired_max = Some(self.retired_max.map_or(value, |m| m.max(value)));
+    }
+
+    /// V_n without a walk, where it is known. With `variation` the worst value at a check is
+    /// the largest |zᵢ − zⱼ| of the queued edges, and every edge is queued but the retired
+    /// ones; a retired edge's value is the worst value of the check that retired it. Retired
+    /// edges stay in a recursive mesh; a flip may remove one from a Delaunay mesh, so there
+    /// only a run that retired none knows V_n.
+    fn known(&self, worst: f64) -> Option<f64> {
+        match self.retired_max {
+            _ if !self.free => None,
+            None => Some(worst),
+            Some(retired) if self.recursive => Some(worst.max(retired)),
+            Some(_) => None,
+        }
+    }
+
+    /// The run compares `worst` with the tolerance on `mesh` as it stands. Where V_n is not
+    /// [known](History::known), the mesh's edges are walked at each mark: about 3.3 walks of
+    /// the final mesh over a run.
+    #[inline(always)]
     pub(crate) fn check(&mut self, mesh: &Mesh, worst: f64) {
         let n = mesh.num_vertices();
         self.last = Some((n, worst));
         if n >= self.next {
-            self.samples.push(Sample { vertices: n, variation: variation(mesh), worst: Some(worst) });
-            self.next = next_mark(n);
+            self.sample(mesh, worst);
         }
+    }
+
+    /// A sample at a mark, out of line: the check in the refinement loop stays a compare.
+    #[cold]
+    #[inline(never)]
+    fn sample(&mut self, mesh: &Mesh, worst: f64) {
+        let (n, known) = (mesh.num_vertices(), self.known(worst));
+        debug_assert!(known.is_none_or(|v| v.to_bits() == variation(mesh).to_bits()), "V_n is not {known:?}");
+        let variation = known.unwrap_or_else(|| variation(mesh));
+        self.samples.push(Sample { vertices: n, variation, worst: Some(worst) });
+        self.next = next_mark(n);
+    }
+
+    /// V_n of the final mesh, as [`History::finish`] will record it.
+    pub(crate) fn final_variation(samples: &[Sample]) -> f64 {
+        samples.last().map_or(0.0, |s| s.variation)
     }
 
     /// The samples, ending with the final mesh's (with the worst value of a check at its

@@ -225,7 +225,8 @@ where
     let stats = Stats {
         vertices: mesh.num_vertices(),
         triangles: mesh.num_triangles(),
-        variation: variation(&mesh),
+        // The history's final sample walked the final mesh (or knew V_n): not again here.
+        variation: History::final_variation(&round.history),
         max_triangle_error,
         flips: round.flips,
         retired_edges: round.retired,
@@ -360,7 +361,7 @@ pub(crate) fn resume<E: Estimator, O: Observer>(
         stack: Vec::with_capacity(64),
         flips: 0,
         retired: 0,
-        history: History::new(),
+        history: History::new(params.criterion(), params.method()),
     };
     let (stop, triangle_errors) = match params.criterion() {
         Criterion::Variation => (variation::refine(mesh, estimator, &mut run)?, None),
@@ -489,6 +490,7 @@ impl<O: Observer> Run<'_, O> {
         let (floor_sq, min_area_x2) = self.floors.at(a.point(), b.point());
         if a.point().distance_sq(b.point()) < floor_sq || !mesh.can_split(e, m, min_area_x2) {
             self.retired += 1;
+            self.history.retired();
             return Ok(None);
         }
         let z = field.midpoint(a, b, m)?;

@@ -249,6 +249,22 @@ fn the_history_samples_each_mark_once_and_ends_with_the_final_mesh() {
 }
 
 #[test]
+fn the_history_knows_v_n_past_retired_edges_and_matches_a_walk() {
+    // Steps: edges across them are split down to the floors, then retired.
+    let steps = |x: f64, y: f64| (3.0 * x).floor() + y;
+    for method in [Method::Recursive, Method::SemiRecursive] {
+        let r = refine(&steps, Rect::unit(), &params(20_000, method), &mut ()).unwrap();
+        assert!(r.stats.retired_edges > 0, "{method}: the floor retires edges");
+        // Every sample was checked against a walk of the mesh by the debug assertion in
+        // `History::sample`; the last one is the final mesh's.
+        let last = r.stats.history.last().unwrap();
+        assert_eq!(last.variation.to_bits(), variation(&r.mesh).to_bits());
+        assert_eq!(r.stats.variation.to_bits(), last.variation.to_bits());
+        assert!(r.stats.history.len() > 10);
+    }
+}
+
+#[test]
 fn a_run_stopped_by_its_tolerance_ends_its_history_with_the_check_that_stopped_it() {
     let f = |x: f64, y: f64| x * x + y;
     let p = Params::new(100_000).unwrap().with_criterion(Criterion::Variation).with_tolerance(0.05).unwrap();

@@ -12,7 +12,7 @@
 //! each estimate (about five a step).
 
 use super::history::History;
-use super::{Criterion, Method, Observer, Progress, Refinement, Stats, StopReason, insert, variation};
+use super::{Criterion, Method, Observer, Progress, Refinement, Stats, StopReason, insert};
 use crate::geom::{Mesh, NONE, Rect, Vertex};
 
 /// What a traced run did, step by step.
@@ -168,7 +168,7 @@ pub fn replay(
     }
     let (mut flips, mut retired, mut evaluations) = (0u64, 0u64, trace.base_evaluations);
     let mut stack = Vec::new();
-    let mut history = History::new();
+    let mut history = History::new(trace.criterion, trace.method);
     let stop = 'steps: {
         for step in 0.. {
             if mesh.num_vertices() >= max_vertices {
@@ -188,6 +188,7 @@ pub fn replay(
             let &split = trace.splits.get(step)?;
             if split == NONE {
                 retired += 1;
+                history.retired();
             } else {
                 let v = *vertices.get(mesh.num_vertices())?;
                 let (a, b) = (mesh.point(mesh.origin(split)), mesh.point(mesh.dest(split)));
@@ -209,17 +210,18 @@ pub fn replay(
         true => Some(errors.get(..mesh.num_triangles())?.to_vec()),
         false => None,
     };
+    let history = history.finish(&mesh);
     let stats = Stats {
         vertices: mesh.num_vertices(),
         triangles: mesh.num_triangles(),
-        variation: variation(&mesh),
+        variation: History::final_variation(&history),
         max_triangle_error: triangle_errors.as_ref().map(|e| e.iter().copied().fold(0.0, f64::max)),
         flips,
         retired_edges: retired,
         evaluations,
         stop,
         delaunay: mesh.is_delaunay(),
-        history: history.finish(&mesh),
+        history,
         quality: None,
     };
     Some(Refinement { mesh, triangle_errors, stats, elapsed: std::time::Duration::ZERO })
