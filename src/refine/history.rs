@@ -105,7 +105,7 @@ impl History {
         self.next = next_mark(n);
     }
 
-    /// V_n of the final mesh, as [`History::finish`] will record it.
+    /// V_n of the final mesh: that of the last of [`History::finish`]'s samples.
     pub(crate) fn final_variation(samples: &[Sample]) -> f64 {
         samples.last().map_or(0.0, |s| s.variation)
     }
