@@ -343,15 +343,7 @@ async fn grid_file(app: &TestApp, client: &Client) {
 }
 
 async fn boundary_value_problem(app: &TestApp, client: &Client) {
-    let problem = json!({
-        "domain": {"x": [0, 0.2], "y": [0, 0.1]},
-        "physics": "magnetostatic",
-        "regions": [
-            {"x": [0.04, 0.07], "y": [0.035, 0.065], "current_density": 2e6},
-            {"x": [0.11, 0.16], "y": [0.02, 0.08], "mu_r": 1000}
-        ],
-        "max_vertices": 3000
-    });
+    let problem = crate::solutions::magnet();
     let query = format!("/?problem={}", urlencode(&problem.to_string()));
     client.goto(&app.url(&query)).await.unwrap();
     wait_until(client, "body[data-state=done]").await;

@@ -14,7 +14,7 @@ fn smooth(max_vertices: u64) -> Value {
 }
 
 /// A conductor beside an iron block in a box: the README's example.
-fn magnet() -> Value {
+pub fn magnet() -> Value {
     json!({
         "domain": {"x": [0, 0.2], "y": [0, 0.1]},
         "physics": "magnetostatic",
