@@ -148,3 +148,10 @@ impl JobBody {
         Ok(JobBody::Upload { request: request.unwrap_or_else(|| Bytes::from_static(b"{}")), grid })
     }
 }
+
+/// A request's query string as `T`; a malformed one is a 422 saying what is wrong.
+pub(super) fn query<T: serde::de::DeserializeOwned>(uri: &axum::http::Uri) -> Result<T, ApiError> {
+    let axum::extract::Query(query) = axum::extract::Query::<T>::try_from_uri(uri)
+        .map_err(|e| ApiError::InvalidRequest(format!("query string: {}", e.body_text())))?;
+    Ok(query)
+}

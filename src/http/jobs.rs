@@ -334,8 +334,7 @@ fn wants_points(uri: &Uri) -> Result<bool, ApiError> {
     struct EventsQuery {
         vertices: Option<bool>,
     }
-    let axum::extract::Query(query) = axum::extract::Query::<EventsQuery>::try_from_uri(uri)
-        .map_err(|e| ApiError::InvalidRequest(format!("query string: {}", e.body_text())))?;
+    let query: EventsQuery = super::extract::query(uri)?;
     Ok(query.vertices.unwrap_or(false))
 }
 

@@ -7,7 +7,6 @@ use super::problem::ApiError;
 use crate::output::{self, Format, Options};
 use crate::result::MeshResult;
 use axum::body::Body;
-use axum::extract::Query;
 use axum::http::{HeaderMap, HeaderValue, StatusCode, Uri, header};
 use axum::response::{IntoResponse, Response};
 use bytes::Bytes;
@@ -42,8 +41,7 @@ impl Wanted {
     /// # Errors
     /// 406 for a format nobody knows; 422 for a malformed query or an option out of range.
     pub fn from_request(uri: &Uri, headers: &HeaderMap) -> Result<Self, ApiError> {
-        let Query(query) = Query::<OutputQuery>::try_from_uri(uri)
-            .map_err(|e| ApiError::InvalidRequest(format!("query string: {}", e.body_text())))?;
+        let query: OutputQuery = super::extract::query(uri)?;
         let format = match &query.format {
             Some(name) => Format::from_name(name).ok_or_else(|| ApiError::NotAcceptable(name.clone()))?,
             None => from_accept(headers)?,

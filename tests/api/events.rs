@@ -169,9 +169,16 @@ async fn with_vertices_progress_events_carry_each_new_vertex_once_in_insertion_o
         let v: Vec<f64> = vertices[k].as_array().unwrap().iter().map(|c| c.as_f64().unwrap()).collect();
         assert_eq!(xyz, &v[..], "vertex {k}");
     }
-    // Without the parameter the events are as before: counts only.
-    let plain = read_events(app.get(&format!("/v1/jobs/{id}/events")).await).await;
-    assert!(plain.iter().all(|e| e.event != "progress" || !e.data.contains("points")));
+    // Without the parameter the events are as before: counts only. (A running job: a
+    // finished one sends no progress to look at.)
+    let other =
+        json!({"function": "sin(9*x)*cos(7*y) - x", "max_vertices": 600_000, "criterion": "variation"});
+    let status: Value = app.post("/v1/jobs", &other).await.json().await.unwrap();
+    let plain =
+        read_events(app.get(&format!("/v1/jobs/{}/events", status["id"].as_str().unwrap())).await).await;
+    let progress: Vec<_> = plain.iter().filter(|e| e.event == "progress").collect();
+    assert!(!progress.is_empty(), "a running job reports progress");
+    assert!(progress.iter().all(|e| !e.data.contains("points")));
     let bad = app.get(&format!("/v1/jobs/{id}/events?vertices=yes")).await;
     assert_eq!(bad.status(), 422);
     app.shutdown().await;
