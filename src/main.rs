@@ -222,7 +222,7 @@ struct MeshArgs {
     /// Stop after this many milliseconds.
     #[arg(long, value_name = "MS")]
     time_limit_ms: Option<u64>,
-    /// Print only the stats and the E_n estimate.
+    /// Print only the stats, the E_n estimate and the refinement's time (`elapsed_ms`).
     #[arg(long, conflicts_with_all = ["format", "output"])]
     stats: bool,
     #[command(flatten)]
@@ -388,7 +388,12 @@ fn mesh(args: &MeshArgs) -> Result<()> {
     let result = refine(&source, rect, &params, &mut ())?;
     if args.stats {
         let mut out = BufWriter::new(std::io::stdout().lock());
-        json::write_stats(&result.stats, estimate_error(&result.mesh, &source), &mut out)?;
+        let document = json::StatsDocument {
+            stats: &result.stats,
+            error: estimate_error(&result.mesh, &source),
+            elapsed_ms: result.elapsed.as_secs_f64() * 1e3,
+        };
+        json::write_stats(&document, &mut out)?;
         writeln!(out)?;
         return out.flush().context("writing to stdout");
     }

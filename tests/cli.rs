@@ -71,6 +71,7 @@ fn stats_flag_prints_only_the_stats_with_their_history_and_the_error_estimate() 
     let max_error = doc["error"]["max_error"].as_f64().unwrap();
     assert!(max_error > 0.0 && max_error < 0.1, "E_n = {max_error}");
     assert!(doc["error"]["min_angle_deg"].as_f64().unwrap() > 0.0);
+    assert!(doc["elapsed_ms"].as_f64().is_some_and(|ms| ms > 0.0), "no refinement time: {doc}");
     // The convergence history: 4, 6, 8, ..., 128, then the end at 200.
     let counts: Vec<u64> =
         doc["stats"]["history"].as_array().unwrap().iter().map(|s| s["vertices"].as_u64().unwrap()).collect();

@@ -58,21 +58,23 @@ pub fn encode(result: &Arc<MeshResult>, options: &Options) -> Encoding {
     Encoding::new(parts)
 }
 
-/// The stats-only document: `{"stats": {...}, "error": {...}}`.
+/// The stats-only document: `{"stats": {...}, "error": {...}, "elapsed_ms": ...}`.
 #[derive(Serialize)]
 pub struct StatsDocument<'a> {
     /// The run's counters and outcome.
     pub stats: &'a Stats,
     /// The E_n estimate.
     pub error: ErrorEstimate,
+    /// The refinement's wall-clock time (not the estimate's), as a job's status reports it.
+    pub elapsed_ms: f64,
 }
 
 /// Writes the stats-only document to `out`.
 ///
 /// # Errors
 /// Whatever writing to `out` returns.
-pub fn write_stats(stats: &Stats, error: ErrorEstimate, out: &mut impl Write) -> io::Result<()> {
-    serde_json::to_writer_pretty(&mut *out, &StatsDocument { stats, error }).map_err(io::Error::from)
+pub fn write_stats(document: &StatsDocument<'_>, out: &mut impl Write) -> io::Result<()> {
+    serde_json::to_writer_pretty(&mut *out, document).map_err(io::Error::from)
 }
 
 #[cfg(test)]

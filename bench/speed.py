@@ -1,0 +1,229 @@
+#!/usr/bin/env python3
+"""Refinement time of meshfit against pydelatin (hmm's greedy insertion) on the same grids, and
+meshfit's time on Franke's expression against its targets.
+
+Run by hand, never in CI (it builds the release binary and takes minutes):
+
+    pip install numpy matplotlib pydelatin
+    python3 bench/speed.py > docs/speed.md
+    python3 bench/speed.py --no-build --quick     # smoke test: 1025 grid and DEM, 10^4, 1 run
+
+Grids: Franke's function sampled at 1025 x 1025 and 4097 x 4097 on [0,1]^2, and the two
+elevation rasters of matplotlib's sample data (jacksboro_fault_dem.npz, topobathy.npz). Each is
+written as a float64 .npy file for `meshfit mesh --grid`. meshfit's time is the `elapsed_ms` of
+`--stats`: the refinement alone, without reading the file or estimating the error. pydelatin's
+time is its constructor (copying the raster in, then refining). The tools run alternately,
+`--runs` times each, and the tables give medians. E_max is the max error at the grid nodes.
+"""
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from matplotlib import cbook
+
+ROOT = Path(__file__).resolve().parent.parent
+MESHFIT = ROOT / "target" / "release" / "meshfit"
+METHODS = ["semi-recursive", "recursive"]
+
+# Copied from benches/support/franke.rs (meval syntax: ^ is a power).
+FRANKE = ("0.75*exp(-((9*x-2)^2 + (9*y-2)^2)/4) + 0.75*exp(-((9*x+1)^2)/49 - (9*y+1)/10)"
+          " + 0.5*exp(-((9*x-7)^2 + (9*y-3)^2)/4) - 0.2*exp(-((9*x-4)^2) - (9*y-7)^2)")
+
+# (criterion, method, n, target ms) for meshfit on the FRANKE expression over [0,1]^2.
+EXPRESSION_CASES = [
+    ("error", "semi-recursive", 100_000, 100),
+    ("variation", "semi-recursive", 100_000, 40),
+    ("variation", "semi-recursive", 1_000_000, 1000),
+    ("variation", "recursive", 1_000_000, 400),
+]
+
+
+def franke(x, y):
+    return (0.75 * np.exp(-((9 * x - 2) ** 2 + (9 * y - 2) ** 2) / 4)
+            + 0.75 * np.exp(-((9 * x + 1) ** 2) / 49 - (9 * y + 1) / 10)
+            + 0.5 * np.exp(-((9 * x - 7) ** 2 + (9 * y - 3) ** 2) / 4)
+            - 0.2 * np.exp(-((9 * x - 4) ** 2) - (9 * y - 7) ** 2))
+
+
+def franke_grid(size):
+    """Franke's function on a size x size grid over [0,1]^2, shape (ny, nx): row j is y_j."""
+    xs = np.linspace(0.0, 1.0, size)
+    gx, gy = np.meshgrid(xs, xs)
+    return franke(gx, gy)
+
+
+def sample_grid(name, key):
+    """An elevation array from matplotlib's sample data as float64, or None if it is absent."""
+    try:
+        with cbook.get_sample_data(name) as data:
+            return np.asarray(data[key], dtype=np.float64)
+    except (OSError, KeyError) as e:
+        print(f"skipping {name}: {e}", file=sys.stderr)
+        return None
+
+
+def grids(args):
+    """(name, loader) pairs; loaders run one at a time so only one big grid is in memory."""
+    out = [("franke 1025", lambda: franke_grid(1025))]
+    if not (args.quick or args.skip_4097):
+        out.append(("franke 4097", lambda: franke_grid(4097)))
+    out.append(("jacksboro DEM", lambda: sample_grid("jacksboro_fault_dem.npz", "elevation")))
+    if not args.quick:
+        out.append(("topobathy", lambda: sample_grid("topobathy.npz", "topo")))
+    return out
+
+
+def run_meshfit(source, n, method, criterion="error"):
+    """(elapsed_ms, vertices, max_error) from `meshfit mesh ... --stats`; source is CLI args."""
+    out = subprocess.run(
+        [str(MESHFIT), "mesh", *source, "--max-vertices", str(n), "--method", method,
+         "--criterion", criterion, "--stats"],
+        check=True, capture_output=True).stdout
+    doc = json.loads(out)
+    return doc["elapsed_ms"], doc["stats"]["vertices"], doc["error"]["max_error"]
+
+
+def run_pydelatin(heights, n):
+    """(ms, vertices, max_error) for pydelatin stopping on the point budget n.
+
+    max_error=0 so only max_points stops it (its default max_error=0.001 would stop early).
+    tin.error is hmm's max error over every raster pixel, i.e. at the grid nodes, so it is free.
+    """
+    from pydelatin import Delatin
+    start = time.perf_counter()
+    tin = Delatin(heights, max_points=n, max_error=0.0)
+    ms = (time.perf_counter() - start) * 1e3
+    return ms, len(tin.vertices), float(tin.error)
+
+
+def ratio(ms, reference_ms):
+    r = ms / reference_ms
+    return f"{r:.2f}x slower" if r >= 1 else f"{1 / r:.2f}x faster"
+
+
+def median_of(runs):
+    """Medians of the time and the last run's vertices and error (those are deterministic)."""
+    return statistics.median(r[0] for r in runs), runs[-1][1], runs[-1][2]
+
+
+def bench_grids(args, tmp):
+    """Returns (time rows, check rows) for the Markdown tables."""
+    times, checks = [], []
+    for name, load in grids(args):
+        values = load()
+        if values is None:
+            continue
+        ny, nx = values.shape
+        path = Path(tmp) / (name.replace(" ", "_") + ".npy")
+        np.save(path, values)
+        # pydelatin's binding takes float32 only (it would convert float64 itself, inside the
+        # timed constructor): it gets the same values, rounded once here. The DEMs (int16,
+        # float32) are exact in float32; Franke's values move by ~1e-8 relative.
+        heights = values.astype(np.float32)
+        del values
+        for n in args.sizes:
+            if n >= nx * ny:
+                print(f"skipping {name} at n={n}: the grid has only {nx * ny} nodes", file=sys.stderr)
+                continue
+            results = {m: [] for m in [*METHODS, "pydelatin"]}
+            for run in range(args.runs):  # alternate, so drift in the machine's speed hits all
+                for method in METHODS:
+                    results[method].append(run_meshfit(["--grid", str(path)], n, method))
+                results["pydelatin"].append(run_pydelatin(heights, n))
+                for tool, rs in results.items():
+                    ms, v, err = rs[-1]
+                    print(f"{name} {nx}x{ny} n={n} run {run + 1} {tool}: {ms:.1f} ms, {v} vertices,"
+                          f" E_max {err:.3e}", file=sys.stderr)
+            semi, rec, pyd = (median_of(results[t]) for t in [*METHODS, "pydelatin"])
+            times.append(f"| {name} | {n} | {semi[0]:.1f} | {rec[0]:.1f} | {pyd[0]:.1f} |"
+                         f" {ratio(semi[0], pyd[0])} | {ratio(rec[0], pyd[0])} |")
+            checks.append(f"| {name} | {nx}x{ny} | {n} | {semi[1]} | {rec[1]} | {pyd[1]} |"
+                          f" {semi[2]:.3e} | {rec[2]:.3e} | {pyd[2]:.3e} |")
+    return times, checks
+
+
+def bench_expressions(args):
+    rows = []
+    for criterion, method, n, target in EXPRESSION_CASES:
+        if args.quick and n > 100_000:
+            continue
+        runs = [run_meshfit(["--function", FRANKE], n, method, criterion) for _ in range(args.runs)]
+        for ms, v, err in runs:
+            print(f"franke expression {criterion} {method} n={n}: {ms:.1f} ms, {v} vertices,"
+                  f" E_n estimate {err:.3e}", file=sys.stderr)
+        ms, v, err = median_of(runs)
+        verdict = "met" if ms <= target else "missed"
+        rows.append(f"| {criterion} | {method} | {n} | {v} | {ms:.1f} | {target} | {verdict} |")
+    return rows
+
+
+def command_output(argv):
+    try:
+        return subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def machine():
+    cpu = "unknown"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        cpu = platform.processor() or cpu
+    from pydelatin import __version__ as pydelatin_version
+    rev = command_output(["git", "rev-parse", "HEAD"])
+    if command_output(["git", "status", "--porcelain", "--untracked-files=no"]):
+        rev += " (with uncommitted changes)"
+    return [f"- machine: {os.cpu_count()} CPUs (nproc {command_output(['nproc'])}), {cpu}",
+            f"- {command_output([str(MESHFIT), '--version'])}, commit {rev}",
+            f"- pydelatin {pydelatin_version}, numpy {np.__version__}, Python {platform.python_version()}"]
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--runs", type=int, default=3, help="runs per tool and case; the tables give medians")
+    parser.add_argument("--sizes", type=int, nargs="+", default=[10_000, 100_000], help="vertex budgets on the grids")
+    parser.add_argument("--no-build", action="store_true", help="use target/release/meshfit as it is")
+    parser.add_argument("--quick", action="store_true",
+                        help="smoke test: the 1025 grid and the DEM at 10^4, expressions at 10^5 only, 1 run")
+    parser.add_argument("--skip-4097", action="store_true", help="leave out the 4097 x 4097 Franke grid")
+    args = parser.parse_args()
+    if args.quick:
+        args.runs, args.sizes = 1, [10_000]
+    if not args.no_build:
+        subprocess.run(["cargo", "build", "--release"], cwd=ROOT, check=True)
+
+    print("\n".join(machine()) + f"\n- {args.runs} run(s) per case, medians\n")
+    with tempfile.TemporaryDirectory(prefix="meshfit-speed-") as tmp:
+        times, checks = bench_grids(args, tmp)
+    print("## Grids: refinement time, criterion error\n")
+    print("| grid | n | meshfit semi (ms) | meshfit recursive (ms) | pydelatin (ms) | semi/pydelatin"
+          " | recursive/pydelatin |")
+    print("|---|---|---|---|---|---|---|")
+    print("\n".join(times))
+    print("\n## Grids: vertices reached and E_max at the grid nodes\n")
+    print("| grid | size | n | vertices semi | vertices recursive | vertices pydelatin | E_max semi"
+          " | E_max recursive | E_max pydelatin |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    print("\n".join(checks), flush=True)
+    rows = bench_expressions(args)
+    print("\n## Franke's expression on [0,1]^2 (meshfit)\n")
+    print("| criterion | method | n | vertices | median (ms) | target (ms) | target |")
+    print("|---|---|---|---|---|---|---|")
+    print("\n".join(rows))
+
+
+if __name__ == "__main__":
+    main()
