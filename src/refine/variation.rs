@@ -10,8 +10,7 @@ pub(super) fn refine<F: Field, O: Observer>(
     field: &mut F,
     run: &mut Run<'_, O>,
 ) -> Result<StopReason, F::Error> {
-    // About three edges per vertex are queued over a run.
-    let mut queue = WorstEdgeQueue::with_capacity(3 * run.params.max_vertices().min(1 << 24) + 8);
+    let mut queue = WorstEdgeQueue::new();
     for edge in mesh.edges() {
         queue.push(candidate(mesh, edge.a, edge.b), mesh.vertices());
     }
