@@ -48,6 +48,8 @@ pub(crate) struct History {
     recursive: bool,
     /// The largest |zᵢ − zⱼ| of a retired edge, once one was.
     retired_max: Option<f64>,
+    /// Criterion `variation`: the count at the stop and the largest |zᵢ − zⱼ| still queued.
+    end: Option<(usize, f64)>,
 }
 
 impl History {
@@ -59,6 +61,7 @@ impl History {
             free: criterion == Criterion::Variation,
             recursive: method == Method::Recursive,
             retired_max: None,
+            end: None,
         }
     }
 
@@ -105,6 +108,12 @@ impl History {
         self.next = next_mark(n);
     }
 
+    /// Criterion `variation` stopped at `n` vertices with `worst` the largest |zᵢ − zⱼ| of the
+    /// edges still queued, so [`History::finish`] may know V_n without a walk.
+    pub(crate) fn ended(&mut self, n: usize, worst: f64) {
+        self.end = Some((n, worst));
+    }
+
     /// V_n of the final mesh: that of the last of [`History::finish`]'s samples.
     pub(crate) fn final_variation(samples: &[Sample]) -> f64 {
         samples.last().map_or(0.0, |s| s.variation)
@@ -115,8 +124,15 @@ impl History {
     pub(crate) fn finish(mut self, mesh: &Mesh) -> Vec<Sample> {
         let n = mesh.num_vertices();
         if self.samples.last().is_none_or(|s| s.vertices != n) {
-            let worst = self.last.filter(|&(at, _)| at == n).map(|(_, w)| w);
-            self.samples.push(Sample { vertices: n, variation: variation(mesh), worst });
+            let at_n = |state: Option<(usize, f64)>| state.filter(|&(at, _)| at == n).map(|(_, w)| w);
+            let worst = at_n(self.last);
+            let known = at_n(self.end).or(worst).and_then(|w| self.known(w));
+            debug_assert!(
+                known.is_none_or(|v| v.to_bits() == variation(mesh).to_bits()),
+                "V_n is not {known:?}"
+            );
+            let variation = known.unwrap_or_else(|| variation(mesh));
+            self.samples.push(Sample { vertices: n, variation, worst });
         }
         self.samples
     }

@@ -16,16 +16,15 @@ pub(super) fn refine<F: Field, O: Observer>(
     }
     run.observer.started(field.evaluations());
     loop {
-        if let Some(stop) = run.stop_before_step(mesh, || queue.peek().map_or(0.0, |c| c.value)) {
+        let top = settle(&mut queue, mesh);
+        if let Some(stop) = run.stop_before_step(mesh, || top.map_or(0.0, |(c, _)| c.value)) {
+            if let Some((worst, _)) = top {
+                run.history.ended(mesh.num_vertices(), worst.value);
+            }
             return Ok(stop);
         }
-        let Some(&worst) = queue.peek() else {
+        let Some((worst, e)) = top else {
             return Ok(StopReason::Exhausted);
-        };
-        let Some(e) = mesh.find_edge(worst.a, worst.b) else {
-            // Flipped away since it was queued.
-            queue.pop(mesh.vertices());
-            continue;
         };
         run.checked(mesh, worst.value);
         if run.is_tolerance_met(worst.value) {
@@ -54,6 +53,19 @@ pub(super) fn refine<F: Field, O: Observer>(
         });
         run.observer.inserted(mesh, split.vertex);
         run.observer.stepped(Some(e), field.evaluations());
+    }
+}
+
+/// The worst queued edge that is still in the mesh, with its half-edge: entries for edges
+/// flipped away since they were queued are dropped on the way.
+#[inline]
+fn settle(queue: &mut WorstEdgeQueue, mesh: &Mesh) -> Option<(Candidate, u32)> {
+    loop {
+        let &top = queue.peek()?;
+        if let Some(e) = mesh.find_edge(top.a, top.b) {
+            return Some((top, e));
+        }
+        queue.pop(mesh.vertices());
     }
 }
 
