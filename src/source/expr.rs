@@ -1,10 +1,14 @@
-//! A `meval` expression in x and y, compiled once into a small stack program.
+//! A `meval` expression in x and y, compiled once into a small stack program and a tree of
+//! closures.
 //!
 //! meval parses (its tokenizer and shunting-yard are public); evaluation runs our own
 //! compiled form: variables are slots, functions are resolved to pointers once, and the
 //! transcendental functions come from the `libm` crate, a pure-Rust port of musl's libm, so
 //! the same expression gives the same bits on every machine (the platform libm may differ in
-//! the last ulp). The compiled program is `Send + Sync`, unlike meval's bound closures.
+//! the last ulp). Batches run the stack program, each operation over all their points; one
+//! point runs the closures ([`closures`]), which keep values in registers. Both do the same
+//! operations in the same order. The compiled forms are `Send + Sync`, unlike meval's bound
+//! closures.
 
 use super::Surface;
 use crate::geom::Point;
@@ -12,6 +16,9 @@ use meval::shunting_yard::{RPNError, to_rpn};
 use meval::tokenizer::{Operation, ParseError, Token, tokenize};
 use std::cell::RefCell;
 use std::fmt;
+use std::sync::Arc;
+
+mod closures;
 
 /// The most values an expression may hold pending at once while evaluating; deeper nesting
 /// is rejected at parse time so evaluation can use a fixed stack array and never allocate.
@@ -110,6 +117,8 @@ enum Op {
 pub struct Expression {
     text: String,
     program: Vec<Op>,
+    /// The program as closures, for one point at a time (absent for a very tall tree).
+    scalar: Option<Arc<dyn Fn(f64, f64) -> f64 + Send + Sync>>,
 }
 
 impl fmt::Debug for Expression {
@@ -196,7 +205,8 @@ impl Expression {
             ExprError { column: column(index), kind: ExprErrorKind::Unbalanced(what) }
         })?;
         let program = compile(&rpn).map_err(|kind| ExprError { column: 1, kind })?;
-        Ok(Self { text: text.to_owned(), program })
+        let scalar = closures::build(&program).map(Arc::from);
+        Ok(Self { text: text.to_owned(), program, scalar })
     }
 
     /// The text it was parsed from.
@@ -207,6 +217,14 @@ impl Expression {
     /// F(x, y).
     #[inline]
     pub fn eval_xy(&self, x: f64, y: f64) -> f64 {
+        match &self.scalar {
+            Some(f) => f(x, y),
+            None => self.run_program(x, y),
+        }
+    }
+
+    /// F(x, y) by the stack program: the same bits as the closures, several times slower.
+    fn run_program(&self, x: f64, y: f64) -> f64 {
         let mut stack = [0.0f64; MAX_DEPTH];
         let mut sp = 0usize;
         // `compile` verified the depth and operand counts, so the indexing below stays in
@@ -565,6 +583,18 @@ mod tests {
         assert_eq!(f("1.5e1 + 2E-1"), 15.2);
     }
 
+    #[test]
+    fn a_chain_too_tall_for_closures_runs_on_the_stack_program_with_the_same_bits() {
+        // `x+x+…` nests to the left: stack depth 2, tree height 4,000.
+        let long = vec!["x"; 4000].join("+");
+        let f = Expression::parse(&long).unwrap();
+        assert!(f.scalar.is_none(), "a 4,000-level tree was built as closures");
+        assert_eq!(f.eval_xy(0.25, 0.0), 1000.0);
+        let short = Expression::parse(&vec!["x"; 100].join("+")).unwrap();
+        assert!(short.scalar.is_some());
+        assert_eq!(short.eval_xy(0.1, 0.0).to_bits(), short.run_program(0.1, 0.0).to_bits());
+    }
+
     fn expression() -> impl Strategy<Value = String> {
         let leaf = prop_oneof![
             Just("x".to_owned()),
@@ -574,9 +604,12 @@ mod tests {
         ];
         leaf.prop_recursive(4, 24, 3, |inner| {
             prop_oneof![
-                (inner.clone(), inner.clone(), "[-+*/^]").prop_map(|(a, b, op)| format!("({a}) {op} {b}")),
+                (inner.clone(), inner.clone(), "[-+*/^%]").prop_map(|(a, b, op)| format!("({a}) {op} {b}")),
                 (inner.clone(), "sin|cos|exp|abs|tanh|sqrt|atan").prop_map(|(a, f)| format!("{f}({a})")),
-                (inner.clone(), inner.clone()).prop_map(|(a, b)| format!("max({a}, {b})")),
+                (inner.clone(), inner.clone(), "max|min|atan2")
+                    .prop_map(|(a, b, f)| format!("{f}({a}, {b})")),
+                (inner.clone(), inner.clone(), inner.clone())
+                    .prop_map(|(a, b, c)| format!("min({a}, {b}, {c})")),
                 inner.clone().prop_map(|a| format!("-{a}")),
             ]
         })

@@ -1,0 +1,59 @@
+//! Evaluating F: Franke's function compiled from its meval text, one point at a time (what the
+//! `variation` criterion asks for each new vertex) and in batches (what the error criterion's
+//! samples use), against the same function as native Rust, with std's `exp` and with `libm`'s
+//! (the portable one the compiled expression calls, so results agree on every machine).
+//!
+//! Run with `cargo bench --bench expression`; throughput is in points per second.
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+#[path = "support/franke.rs"]
+mod support;
+
+use meshfit::geom::Point;
+use meshfit::source::{Expression, Surface};
+use std::hint::black_box;
+use support::{FRANKE, franke};
+
+/// Franke's function with `libm::exp`, the floor for an evaluator that must match it bit for bit.
+fn franke_libm(x: f64, y: f64) -> f64 {
+    let (a, b) = (9.0 * x, 9.0 * y);
+    0.75 * libm::exp(-((a - 2.0).powi(2) + (b - 2.0).powi(2)) / 4.0)
+        + 0.75 * libm::exp(-(a + 1.0).powi(2) / 49.0 - (b + 1.0) / 10.0)
+        + 0.5 * libm::exp(-((a - 7.0).powi(2) + (b - 3.0).powi(2)) / 4.0)
+        - 0.2 * libm::exp(-(a - 4.0).powi(2) - (b - 7.0).powi(2))
+}
+
+fn expression(c: &mut Criterion) {
+    let compiled = Expression::parse(FRANKE).unwrap();
+    // A fixed scatter over [0, 1]² (a Weyl sequence).
+    let points: Vec<Point> = (0..4096u64)
+        .map(|k| {
+            Point::new(
+                (k as f64 * 0.618_033_988_749_894_9).fract(),
+                (k as f64 * 0.754_877_666_246_692_7).fract(),
+            )
+        })
+        .collect();
+    let mut out = vec![0.0; points.len()];
+    let mut group = c.benchmark_group("expression/franke");
+    group.throughput(Throughput::Elements(points.len() as u64));
+    group.bench_function("native_std_exp", |b| {
+        b.iter(|| black_box(&points).iter().map(|p| franke(p.x, p.y)).sum::<f64>())
+    });
+    group.bench_function("native_libm_exp", |b| {
+        b.iter(|| black_box(&points).iter().map(|p| franke_libm(p.x, p.y)).sum::<f64>())
+    });
+    group.bench_function("compiled_one_by_one", |b| {
+        b.iter(|| black_box(&points).iter().map(|&p| compiled.eval(p)).sum::<f64>())
+    });
+    group.bench_function("compiled_batch", |b| {
+        b.iter(|| {
+            compiled.eval_many(black_box(&points), &mut out);
+            out[0]
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, expression);
+criterion_main!(benches);
