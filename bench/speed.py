@@ -5,7 +5,7 @@ meshfit's time on Franke's expression against its targets.
 Run by hand, never in CI (it builds the release binary and takes minutes):
 
     pip install numpy matplotlib pydelatin
-    python3 bench/speed.py > docs/speed.md
+    python3 bench/speed.py                        # tables on stdout, for docs/speed.md
     python3 bench/speed.py --no-build --quick     # smoke test: 1025 grid and DEM, 10^4, 1 run
 
 Grids: Franke's function sampled at 1025 x 1025 and 4097 x 4097 on [0,1]^2, and the two

@@ -8,7 +8,7 @@
 //! `Ord`, which would mean storing the length too: 24-byte entries, a third more memory and
 //! cache traffic on the hottest structure of the run.
 //!
-//! Most entries are never popped: a run ends with about three queued edges per vertex, all
+//! Most entries are never popped: a run ends with three to four queued edges per vertex, all
 //! below the last value split. One heap of all of them costs a pop a cache miss per level at
 //! 10^6 vertices. So only the entries in the top band of values (1/16 of an octave) are in
 //! the heap; the others wait in a bucket per band, appended to in order, and a band is

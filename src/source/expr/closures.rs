@@ -3,8 +3,8 @@
 //! The stack program decodes every operation for every point and moves each value through a
 //! stack array in memory; for one point that is most of the cost (the batch evaluator pays it
 //! once per 16 points). Here each operation is a closure that calls its operands' closures
-//! and keeps the values in registers, and an operand that is a constant is folded into its
-//! operator's closure. The operations, and their order on each value, are the program's, so
+//! and keeps the values in registers, and an operand that is a constant or a variable is
+//! folded into its operator's closure. The operations, and their order on each value, are the program's, so
 //! the results are the same bits.
 
 use super::Op;
