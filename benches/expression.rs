@@ -1,7 +1,8 @@
 //! Evaluating F: Franke's function compiled from its meval text, one point at a time (what the
 //! `variation` criterion asks for each new vertex) and in batches (what the error criterion's
 //! samples use), against the same function as native Rust, with std's `exp` and with `libm`'s
-//! (the portable one the compiled expression calls, so results agree on every machine).
+//! (the portable one the compiled expression calls, so results agree on every machine); and
+//! batches of 3 to 12 points, the sizes the error criterion's triangle estimates ask for.
 //!
 //! Run with `cargo bench --bench expression`; throughput is in points per second.
 
@@ -52,6 +53,16 @@ fn expression(c: &mut Criterion) {
             out[0]
         })
     });
+    for size in [3, 6, 9, 12] {
+        group.bench_function(format!("compiled_batches_of_{size}"), |b| {
+            b.iter(|| {
+                for (p, o) in black_box(&points).chunks(size).zip(out.chunks_mut(size)) {
+                    compiled.eval_many(p, o);
+                }
+                out[0]
+            })
+        });
+    }
     group.finish();
 }
 
