@@ -15,18 +15,26 @@ use crate::geom::{Mesh, NONE, Point, raster};
 use crate::refine::Method;
 use crate::source::{BLOCK, Grid, Surface};
 
-/// What is known of one triangle slot.
+/// What is known of one triangle slot: 32 bytes, aligned, so one cache line holds it whole.
 #[derive(Debug, Clone, Copy)]
+#[repr(align(32))]
 struct Slot {
-    /// e(T).
+    /// e(T); NaN from the moment a step rewrites the triangle until it is estimated again
+    /// (an estimate is finite), so that the slot's edges are not lent out meanwhile.
     error: f64,
     /// The error on each of its edges' lattice points, by half-edge position. Both triangles
     /// of an edge sample the same points (the weights of the third corner are zero and IEEE
     /// addition commutes), so a neighbour may take these instead of evaluating F again.
     edges: [f64; 3],
-    /// Whether `error` and `edges` describe the triangle now in the slot; false from the
-    /// moment a step rewrites it until it is estimated again.
-    fresh: bool,
+}
+
+impl Slot {
+    const STALE: Self = Self { error: f64::NAN, edges: [0.0; 3] };
+
+    /// Whether `error` and `edges` describe the triangle now in the slot.
+    fn is_fresh(&self) -> bool {
+        !self.error.is_nan()
+    }
 }
 
 /// Triangle errors and the queue over them.
@@ -41,16 +49,16 @@ impl Estimates {
     fn invalidate(&mut self, t: u32) {
         let t = t as usize;
         if self.slots.len() <= t {
-            self.slots.resize(t + 1, Slot { error: 0.0, edges: [0.0; 3], fresh: false });
+            self.slots.resize(t + 1, Slot::STALE);
         }
-        self.slots[t].fresh = false;
+        self.slots[t] = Slot::STALE;
     }
 
     /// The error on the edge of half-edge `e` as a fresh triangle on its far side knows it.
     fn known_edge_error(&self, mesh: &Mesh, e: u32) -> Option<f64> {
         let f = mesh.twin(e);
         let slot = self.slots.get((f / 3) as usize).filter(|_| f != NONE)?;
-        slot.fresh.then_some(slot.edges[(f % 3) as usize])
+        slot.is_fresh().then_some(slot.edges[(f % 3) as usize])
     }
 
     /// [`Estimates::known_edge_error`] for each edge of triangle `t`.
@@ -62,8 +70,9 @@ impl Estimates {
         observer.estimated(t, error);
         let seq = self.next_seq;
         self.next_seq += 1;
+        debug_assert!(error.is_finite(), "e(T) = {error}");
         self.invalidate(t);
-        self.slots[t as usize] = Slot { error, edges, fresh: true };
+        self.slots[t as usize] = Slot { error, edges };
         self.queue.set(Entry { error, seq, t });
     }
 }
@@ -350,7 +359,7 @@ mod tests {
     /// Triangle 0 of S4 on [0,1]×[0,0.5] is P1 P2 P3: a bottom side of length 1, a right side
     /// of 0.5 and the diagonal P3→P1 of √1.25.
     fn slot(error: f64, edges: [f64; 3]) -> Slot {
-        Slot { error, edges, fresh: true }
+        Slot { error, edges }
     }
 
     #[test]
