@@ -12,7 +12,7 @@ use meshfit::refine::{Method, Params, refine};
 use meshfit::result::MeshResult;
 use meshfit::result::locate::Locator;
 use std::hint::black_box;
-use support::franke;
+use support::{franke, scatter};
 
 fn evaluate(c: &mut Criterion) {
     let mut group = c.benchmark_group("evaluate");
@@ -20,15 +20,7 @@ fn evaluate(c: &mut Criterion) {
         let params = Params::new(100_000).unwrap().with_method(method);
         let mesh: MeshResult = refine(&franke, Rect::unit(), &params, &mut ()).unwrap().into();
         let locator = Locator::new(&mesh);
-        // A fixed scatter of points (a Weyl sequence), in no order the mesh knows.
-        let points: Vec<Point> = (0..1_000_000u64)
-            .map(|k| {
-                Point::new(
-                    (k as f64 * 0.618_033_988_749_894_9).fract(),
-                    (k as f64 * 0.754_877_666_246_692_7).fract(),
-                )
-            })
-            .collect();
+        let points: Vec<Point> = scatter(1_000_000);
         group.throughput(Throughput::Elements(points.len() as u64));
         group.sample_size(10);
         group.bench_function(format!("{method}/franke/100000/1000000_points"), |b| {

@@ -13,7 +13,7 @@ mod support;
 use meshfit::geom::Point;
 use meshfit::source::{Expression, Surface};
 use std::hint::black_box;
-use support::{FRANKE, franke};
+use support::{FRANKE, franke, scatter};
 
 /// Franke's function with `libm::exp`, the floor for an evaluator that must match it bit for bit.
 fn franke_libm(x: f64, y: f64) -> f64 {
@@ -26,15 +26,7 @@ fn franke_libm(x: f64, y: f64) -> f64 {
 
 fn expression(c: &mut Criterion) {
     let compiled = Expression::parse(FRANKE).unwrap();
-    // A fixed scatter over [0, 1]² (a Weyl sequence).
-    let points: Vec<Point> = (0..4096u64)
-        .map(|k| {
-            Point::new(
-                (k as f64 * 0.618_033_988_749_894_9).fract(),
-                (k as f64 * 0.754_877_666_246_692_7).fract(),
-            )
-        })
-        .collect();
+    let points: Vec<Point> = scatter(4096);
     let mut out = vec![0.0; points.len()];
     let mut group = c.benchmark_group("expression/franke");
     group.throughput(Throughput::Elements(points.len() as u64));

@@ -45,13 +45,18 @@ struct Estimates {
 }
 
 impl Estimates {
-    /// Marks triangle `t` as rewritten, so neighbours stop borrowing its edge errors.
-    fn invalidate(&mut self, t: u32) {
+    /// Triangle `t`'s slot, made (stale) if the triangle is new.
+    fn slot_mut(&mut self, t: u32) -> &mut Slot {
         let t = t as usize;
         if self.slots.len() <= t {
             self.slots.resize(t + 1, Slot::STALE);
         }
-        self.slots[t] = Slot::STALE;
+        &mut self.slots[t]
+    }
+
+    /// Marks triangle `t` as rewritten, so neighbours stop borrowing its edge errors.
+    fn invalidate(&mut self, t: u32) {
+        *self.slot_mut(t) = Slot::STALE;
     }
 
     /// The error on the edge of half-edge `e` as a fresh triangle on its far side knows it.
@@ -71,8 +76,7 @@ impl Estimates {
         let seq = self.next_seq;
         self.next_seq += 1;
         debug_assert!(error.is_finite(), "e(T) = {error}");
-        self.invalidate(t);
-        self.slots[t as usize] = Slot { error, edges };
+        *self.slot_mut(t) = Slot { error, edges };
         self.queue.set(Entry { error, seq, t });
     }
 }
