@@ -155,7 +155,7 @@ impl Links {
 }
 
 /// A `progress` server-sent event.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ProgressEvent {
     /// Vertices so far.
     pub vertices: usize,

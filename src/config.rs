@@ -78,6 +78,18 @@ pub struct Config {
     /// The share of the workers and of the queue one client (key, or address without keys)
     /// may hold (`MESHFIT_CLIENT_SHARE`, in (0, 1], default 0.5).
     pub client_share: f64,
+    /// Replicas share results and jobs through this Redis (`MESHFIT_REDIS_URL`,
+    /// `redis://host:port/db`; unset: this process serves alone), with the settings below.
+    pub redis_url: Option<String>,
+    /// How long Redis keeps results, records and requests (`MESHFIT_REDIS_TTL_MS`, default a
+    /// day).
+    pub redis_ttl: Duration,
+    /// The largest result (compact form) or request body kept in Redis
+    /// (`MESHFIT_REDIS_MAX_BYTES`, default 256 MiB, a mesh of about 3·10^6 vertices); larger ones stay on their replica.
+    pub redis_max_bytes: u64,
+    /// A job's lease (`MESHFIT_REDIS_LEASE_MS`, default 10 s): how long after its replica
+    /// dies another takes it over.
+    pub redis_lease: Duration,
 }
 
 impl Default for Config {
@@ -105,6 +117,10 @@ impl Default for Config {
             api_keys: ApiKeys::default(),
             cors_origins: Vec::new(),
             client_share: 0.5,
+            redis_url: None,
+            redis_ttl: Duration::from_secs(24 * 3600),
+            redis_max_bytes: 256 << 20,
+            redis_lease: Duration::from_secs(10),
         }
     }
 }
@@ -222,14 +238,29 @@ impl TryFrom<RawConfig> for Config {
                     }
                     _ => Err("expected a number in (0, 1], e.g. 0.5"),
                 },
+                // TLS (rediss://) would need one of redis-rs's TLS features, which are not built.
+                "MESHFIT_REDIS_URL" => match redis::parse_redis_url(v).filter(|u| u.scheme() == "redis") {
+                    Some(_) => {
+                        config.redis_url = Some(v.to_owned());
+                        Ok(())
+                    }
+                    None => Err("expected redis://[user:password@]host[:port][/db]"),
+                },
+                "MESHFIT_REDIS_TTL_MS" => millis().map(|d| config.redis_ttl = d),
+                "MESHFIT_REDIS_MAX_BYTES" => number().map(|n| config.redis_max_bytes = n),
+                "MESHFIT_REDIS_LEASE_MS" => millis().and_then(|d| {
+                    (d >= Duration::from_millis(30))
+                        .then(|| config.redis_lease = d)
+                        .ok_or("must be at least 30")
+                }),
                 // RUST_LOG-style filtering is read by the tracing subscriber itself.
                 "MESHFIT_LOG" => Ok(()),
                 _ => Err("unknown setting"),
             };
             if let Err(why) = outcome {
-                // A key is a secret: name the variable, not its value.
-                let shown =
-                    if name == "MESHFIT_API_KEYS" { "<hidden>".to_owned() } else { format!("{value:?}") };
+                // A key, or a URL with a password, is a secret: name the variable, not its value.
+                let secret = matches!(name.as_str(), "MESHFIT_API_KEYS" | "MESHFIT_REDIS_URL");
+                let shown = if secret { "<hidden>".to_owned() } else { format!("{value:?}") };
                 problems.push(format!("{name}={shown}: {why}"));
             }
         }
@@ -297,6 +328,27 @@ mod tests {
         assert_eq!((c.workers.get(), c.max_vertices), (3, 1000));
         assert_eq!((c.cache_dir, c.cache_dir_bytes), (Some(PathBuf::from("/tmp/x")), 1_000_000));
         assert_eq!(c.log_format, LogFormat::Json);
+    }
+
+    #[test]
+    fn redis_settings_are_read_and_a_bad_url_is_reported_without_its_password() {
+        let c = Config::try_from(raw(&[
+            ("MESHFIT_REDIS_URL", "redis://cache:6380/2"),
+            ("MESHFIT_REDIS_LEASE_MS", "2500"),
+            ("MESHFIT_REDIS_MAX_BYTES", "1_000"),
+        ]))
+        .unwrap();
+        assert_eq!(c.redis_url.as_deref(), Some("redis://cache:6380/2"));
+        assert_eq!((c.redis_lease, c.redis_max_bytes), (Duration::from_millis(2500), 1000));
+        assert_eq!(Config::try_from(RawConfig::default()).unwrap().redis_url, None, "alone by default");
+        let err = Config::try_from(raw(&[
+            ("MESHFIT_REDIS_URL", "http://user:s3cret@cache:6379"),
+            ("MESHFIT_REDIS_LEASE_MS", "5"),
+        ]))
+        .unwrap_err();
+        assert_eq!(err.0.len(), 2, "{err}");
+        assert!(err.0.iter().any(|p| p.starts_with("MESHFIT_REDIS_URL=<hidden>")), "{err}");
+        assert!(!err.to_string().contains("s3cret"), "{err}");
     }
 
     #[test]

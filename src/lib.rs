@@ -25,6 +25,8 @@
 //! - [`jobs`]: validated, hashed job specs, the job record, the registry with its bounded
 //!   worker pool, each client's share of it, the memory budget, the worker, and the cache of
 //!   results. The only bridge between async code and the engine.
+//! - [`cluster`]: Redis, for replicas that share results and jobs: keys, leases, records
+//!   and messages. `jobs` decides what to do with them.
 //! - [`http`]: connections (their cap and timeouts), access (keys, origins), routes,
 //!   handlers, problem documents, server-sent events, and the page at `/`.
 //! - [`cpu`]: where CPU-bound work runs: the blocking pool, below the async workers' priority.
@@ -33,7 +35,8 @@
 //! ```text
 //! http ──▶ jobs ──▶ refine ──▶ geom
 //!   │        │        └──────▶ source ──▶ geom
-//!   │        └──▶ result ──▶ refine
+//!   │        ├──▶ result ──▶ refine
+//!   │        └──▶ cluster ──▶ api, result (Redis)
 //!   └──▶ api, output ──▶ result
 //! solve ──▶ geom
 //! ```
@@ -41,6 +44,7 @@
 #![warn(missing_docs)]
 
 pub mod api;
+pub mod cluster;
 pub mod config;
 pub mod cpu;
 pub mod geom;
@@ -76,7 +80,11 @@ pub async fn serve(
     config: Config,
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
-    let metrics = Arc::new(metrics::Metrics::default());
+    let mut metrics = metrics::Metrics::default();
+    if config.redis_url.is_some() {
+        metrics.register_redis();
+    }
+    let metrics = Arc::new(metrics);
     let (bytes, dir, dir_bytes) = (config.cache_bytes, config.cache_dir.clone(), config.cache_dir_bytes);
     // Opening a cache directory lists it and may prune it: blocking work.
     let cache = tokio::task::spawn_blocking(move || {
@@ -92,13 +100,25 @@ pub async fn serve(
     .await
     .map_err(std::io::Error::other)??;
     let (workers, queue, share) = (config.workers.get(), config.queue, config.client_share);
-    let jobs = jobs::Jobs::new(workers, queue, share, config.memory_bytes, cache, metrics);
+    let mut jobs = jobs::Jobs::new(workers, queue, share, config.memory_bytes, cache, metrics.clone());
     let limits = jobs::Limits {
         max_vertices: config.max_vertices,
         max_grid_points: config.max_grid_points,
         max_expression_len: config.max_expression_len,
         job_time_limit: config.job_time_limit,
     };
+    if let Some(url) = &config.redis_url {
+        let settings = cluster::Settings {
+            url: url.clone(),
+            ttl: config.redis_ttl,
+            max_bytes: config.redis_max_bytes,
+            lease: config.redis_lease,
+        };
+        let cluster = cluster::Cluster::connect(settings, metrics.redis_errors.clone())
+            .map_err(|e| std::io::Error::other(format!("MESHFIT_REDIS_URL: {e}")))?;
+        tracing::info!(replica = cluster.replica(), "sharing results and jobs through redis");
+        jobs = jobs.shared(cluster, Arc::new(http::Replicas::new(limits)));
+    }
     // Indexes are rebuilt in milliseconds; a quarter of the result cache's budget holds plenty.
     let body = http::BodyLimits { max_bytes: config.max_body_bytes, timeout: config.body_timeout };
     let state = http::AppState::new(jobs.clone(), limits, body, config.cache_bytes / 4);

@@ -108,6 +108,22 @@ struct ServeArgs {
     /// [default: 0.5].
     #[arg(long, value_name = "FRACTION")]
     client_share: Option<String>,
+    /// MESHFIT_REDIS_URL: share results and jobs with other replicas through this Redis
+    /// [default: unset, this process serves alone]. A password in it would show in the
+    /// process list: give that one as the variable.
+    #[arg(long, value_name = "URL")]
+    redis_url: Option<String>,
+    /// MESHFIT_REDIS_TTL_MS: how long Redis keeps results, records and requests
+    /// [default: 86400000].
+    #[arg(long, value_name = "MS")]
+    redis_ttl_ms: Option<String>,
+    /// MESHFIT_REDIS_MAX_BYTES: largest result or request kept in Redis [default: 268435456].
+    #[arg(long, value_name = "BYTES")]
+    redis_max_bytes: Option<String>,
+    /// MESHFIT_REDIS_LEASE_MS: a job's lease, how soon another replica takes over the job of
+    /// one that died [default: 10000].
+    #[arg(long, value_name = "MS")]
+    redis_lease_ms: Option<String>,
 }
 
 impl ServeArgs {
@@ -135,6 +151,10 @@ impl ServeArgs {
             ("MESHFIT_API_KEYS_FILE", &self.api_keys_file),
             ("MESHFIT_CORS_ORIGINS", &self.cors_origins),
             ("MESHFIT_CLIENT_SHARE", &self.client_share),
+            ("MESHFIT_REDIS_URL", &self.redis_url),
+            ("MESHFIT_REDIS_TTL_MS", &self.redis_ttl_ms),
+            ("MESHFIT_REDIS_MAX_BYTES", &self.redis_max_bytes),
+            ("MESHFIT_REDIS_LEASE_MS", &self.redis_lease_ms),
         ];
         for (name, value) in flags {
             if let Some(v) = value {

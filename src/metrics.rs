@@ -61,6 +61,16 @@ pub struct Metrics {
     pub connections_open: Gauge,
     /// Connections refused for the cap (answered with a 503, or closed at once).
     pub connections_refused: Counter,
+    /// Results read from Redis: made by another replica.
+    pub shared_hits: Counter,
+    /// Jobs followed here while another replica runs them.
+    pub jobs_followed: Counter,
+    /// Jobs taken over from a replica that stopped renewing its lease.
+    pub takeovers: Counter,
+    /// 1 when the last command reached Redis, 0 when it did not; absent without Redis.
+    pub redis_up: Gauge,
+    /// Redis commands that failed.
+    pub redis_errors: Counter,
 }
 
 impl Default for Metrics {
@@ -83,6 +93,11 @@ impl Default for Metrics {
             memory_refusals: Counter::default(),
             connections_open: Gauge::default(),
             connections_refused: Counter::default(),
+            shared_hits: Counter::default(),
+            jobs_followed: Counter::default(),
+            takeovers: Counter::default(),
+            redis_up: Gauge::default(),
+            redis_errors: Counter::default(),
             registry: Registry::default(),
         };
         registry.register("jobs_queued", "Jobs waiting for a worker", m.jobs_queued.clone());
@@ -129,11 +144,37 @@ impl Default for Metrics {
             "Connections refused because MESHFIT_MAX_CONNECTIONS were open",
             m.connections_refused.clone(),
         );
+        registry.register(
+            "shared_hits",
+            "Results read from Redis, made by another replica",
+            m.shared_hits.clone(),
+        );
+        registry.register(
+            "jobs_followed",
+            "Jobs followed here while another replica runs them",
+            m.jobs_followed.clone(),
+        );
+        registry.register(
+            "takeovers",
+            "Jobs taken over from a replica whose lease expired",
+            m.takeovers.clone(),
+        );
+        registry.register("redis_errors", "Redis commands that failed", m.redis_errors.clone());
         Self { registry, ..m }
     }
 }
 
 impl Metrics {
+    /// Adds `redis_up`, for a replica that shares through Redis: a replica without Redis has
+    /// no such gauge, rather than one that reads 0.
+    pub fn register_redis(&mut self) {
+        self.registry.register(
+            "redis_up",
+            "1 when the last Redis command succeeded, else 0",
+            self.redis_up.clone(),
+        );
+    }
+
     /// The text exposition format.
     pub fn encode(&self) -> String {
         let mut out = String::new();

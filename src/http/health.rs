@@ -14,13 +14,18 @@ pub async fn healthz() -> impl IntoResponse {
 }
 
 /// `GET /readyz`: 200 while the server takes jobs, 503 when its queue is full or it is
-/// shutting down.
+/// shutting down. When replicas share through Redis, `redis` says whether it answers; a
+/// replica without it still serves (alone), so it stays ready.
 pub async fn readyz(State(state): State<AppState>) -> impl IntoResponse {
-    if state.jobs.is_ready() {
-        (StatusCode::OK, Json(json!({"status": "ready"})))
-    } else {
-        (StatusCode::SERVICE_UNAVAILABLE, Json(json!({"status": "busy"})))
-    }
+    let (code, status) = match state.jobs.is_ready() {
+        true => (StatusCode::OK, "ready"),
+        false => (StatusCode::SERVICE_UNAVAILABLE, "busy"),
+    };
+    let body = match state.jobs.redis() {
+        None => json!({"status": status}),
+        Some(up) => json!({"status": status, "redis": if up { "up" } else { "down" }}),
+    };
+    (code, Json(body))
 }
 
 /// `GET /metrics`: Prometheus text format.
@@ -31,6 +36,9 @@ pub async fn metrics(State(state): State<AppState>) -> impl IntoResponse {
     let budget = state.jobs.budget();
     metrics.memory_budget_bytes.set(i64::try_from(budget.limit()).unwrap_or(i64::MAX));
     metrics.memory_charged_bytes.set(i64::try_from(budget.charged()).unwrap_or(i64::MAX));
+    if let Some(up) = state.jobs.redis() {
+        metrics.redis_up.set(i64::from(up));
+    }
     ([(header::CONTENT_TYPE, "application/openmetrics-text; version=1.0.0; charset=utf-8")], metrics.encode())
 }
 

@@ -6,8 +6,10 @@ use super::negotiate::{self, Wanted};
 use super::problem::ApiError;
 use super::sse;
 use crate::api::{JobRequest, JobStatus, Links, SolveRequest};
+use crate::cluster::Request;
 use crate::jobs::{
-    Client, Found, JobError, JobKeys, JobSpec, Outcome, Record, Snapshot, Status, Ticket, Waiter, job_keys,
+    Client, Found, JobError, JobKeys, JobSpec, Limits, Outcome, Record, Snapshot, Status, Ticket, Waiter,
+    Wire, Work, job_keys,
 };
 use crate::refine::StopReason;
 use crate::result::MeshResult;
@@ -16,6 +18,7 @@ use axum::extract::{Path, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, Uri, header};
 use axum::response::{IntoResponse, Response};
 use bytes::Bytes;
+use futures_util::future::BoxFuture;
 use futures_util::stream;
 use std::sync::Arc;
 use std::time::Duration;
@@ -57,44 +60,95 @@ fn names_physics(json: &[u8]) -> bool {
 /// JSON bodies up to this size are parsed on the async worker that read them.
 const INLINE_BODY_BYTES: usize = 16 << 10;
 
-/// Parses, validates and hashes a body, off the async workers when it is large.
+/// Parses and validates a body read as `kind`, and hashes it: CPU work for a large grid.
+fn parse_body(body: JobBody, kind: Kind, limits: &Limits) -> Result<(JobKeys, JobSpec), ApiError> {
+    let spec = match body {
+        JobBody::Json(json) if kind == Kind::Solution || (kind == Kind::Any && names_physics(&json)) => {
+            JobSpec::from_solve_request(parse_json::<SolveRequest>(&json)?, limits)?
+        }
+        JobBody::Json(json) => JobSpec::from_request(parse_json::<JobRequest>(&json)?, limits)?,
+        JobBody::Upload { .. } if kind == Kind::Solution => {
+            let detail = "a boundary value problem is a JSON body; grid files are for meshes";
+            return Err(ApiError::InvalidRequest(detail.into()));
+        }
+        JobBody::Upload { request, grid } => {
+            JobSpec::from_upload(parse_json::<JobRequest>(&request)?, &grid, limits)?
+        }
+    };
+    Ok((job_keys(&spec), spec))
+}
+
+/// Parses, validates and hashes a body, off the async workers when it is large; when
+/// replicas share, also gives the request as sent, for Redis to keep.
 async fn prepare(
     state: &AppState,
     headers: &HeaderMap,
     body: Body,
     kind: Kind,
-) -> Result<(JobKeys, JobSpec), ApiError> {
+) -> Result<(JobKeys, JobSpec, Option<Request>), ApiError> {
     let limits = state.limits;
+    let content_type = headers.get(header::CONTENT_TYPE).and_then(|v| v.to_str().ok()).unwrap_or_default();
+    let mut request = state.jobs.redis().is_some().then(|| Request {
+        kind: String::new(),
+        content_type: content_type.to_owned(),
+        body: body.bytes.clone(),
+    });
     let body = JobBody::from_parts(headers, body.bytes).await?;
     let inline = matches!(&body, JobBody::Json(json) if json.len() <= INLINE_BODY_BYTES);
-    let parse = move || {
-        let spec = match body {
-            JobBody::Json(json) if kind == Kind::Solution || (kind == Kind::Any && names_physics(&json)) => {
-                JobSpec::from_solve_request(parse_json::<SolveRequest>(&json)?, &limits)?
-            }
-            JobBody::Json(json) => JobSpec::from_request(parse_json::<JobRequest>(&json)?, &limits)?,
-            JobBody::Upload { .. } if kind == Kind::Solution => {
-                let detail = "a boundary value problem is a JSON body; grid files are for meshes";
-                return Err(ApiError::InvalidRequest(detail.into()));
-            }
-            JobBody::Upload { request, grid } => {
-                JobSpec::from_upload(parse_json::<JobRequest>(&request)?, &grid, &limits)?
-            }
-        };
-        Ok::<_, ApiError>((job_keys(&spec), spec))
-    };
     // A small JSON body parses in microseconds, less than a trip to the blocking pool; a grid
     // takes real CPU and goes there.
     let (keys, spec) = if inline {
-        parse()?
+        parse_body(body, kind, &limits)?
     } else {
         let _permit = state.parsers.acquire().await.map_err(|e| ApiError::Internal(e.to_string()))?;
-        crate::cpu::spawn(parse)
+        crate::cpu::spawn(move || parse_body(body, kind, &limits))
             .await
             .map_err(|e| ApiError::Internal(format!("request parsing panicked: {e}")))??
     };
     tracing::Span::current().record("job_id", keys.id.as_str());
-    Ok((keys, spec))
+    if let Some(request) = &mut request {
+        request.kind = match spec.work {
+            Work::Mesh(_) => "mesh",
+            Work::Solve(_) => "solution",
+        }
+        .to_owned();
+    }
+    Ok((keys, spec, request))
+}
+
+/// Requests and problems between replicas: a kept request is read exactly as a client's.
+pub struct Replicas {
+    limits: Limits,
+}
+
+impl Replicas {
+    /// Reads requests against `limits`, this replica's.
+    pub fn new(limits: Limits) -> Self {
+        Self { limits }
+    }
+}
+
+impl Wire for Replicas {
+    fn parse(&self, request: Request) -> BoxFuture<'static, Result<(JobKeys, JobSpec), String>> {
+        let limits = self.limits;
+        Box::pin(async move {
+            let kind = if request.kind == "solution" { Kind::Solution } else { Kind::Mesh };
+            let mut headers = HeaderMap::new();
+            if let Ok(value) = HeaderValue::from_str(&request.content_type) {
+                headers.insert(header::CONTENT_TYPE, value);
+            }
+            let body =
+                JobBody::from_parts(&headers, request.body).await.map_err(|e| e.to_json().to_string())?;
+            crate::cpu::spawn(move || parse_body(body, kind, &limits))
+                .await
+                .map_err(|e| e.to_string())?
+                .map_err(|e| e.to_json().to_string())
+        })
+    }
+
+    fn problem(&self, error: &JobError) -> serde_json::Value {
+        ApiError::from(error.clone()).to_json()
+    }
 }
 
 fn wants_event_stream(headers: &HeaderMap) -> bool {
@@ -174,9 +228,9 @@ async fn create(
     let stream = wants_event_stream(&headers);
     // A format nobody writes is refused before any work is done.
     let wanted = if stream { None } else { Some(Wanted::from_request(&uri, &headers)?) };
-    let (keys, spec) = prepare(&state, &headers, body, kind).await?;
+    let (keys, spec, request) = prepare(&state, &headers, body, kind).await?;
     let id = keys.id.clone();
-    let ticket = state.jobs.submit(keys, spec, false, client).await?;
+    let ticket = state.jobs.submit_request(keys, spec, false, client, request).await?;
     let Some(wanted) = wanted else {
         return Ok(match ticket {
             Ticket::Cached(r) | Ticket::Prefix(r) => final_stream(&id, &Outcome::Succeeded(r)),
@@ -214,9 +268,9 @@ pub async fn jobs_create(
     headers: HeaderMap,
     body: Body,
 ) -> Result<Response, ApiError> {
-    let (keys, spec) = prepare(&state, &headers, body, Kind::Any).await?;
+    let (keys, spec, request) = prepare(&state, &headers, body, Kind::Any).await?;
     let id = keys.id.clone();
-    let (code, status) = match state.jobs.submit(keys, spec, true, &client).await? {
+    let (code, status) = match state.jobs.submit_request(keys, spec, true, &client, request).await? {
         Ticket::Cached(f) | Ticket::Prefix(f) => (StatusCode::OK, status_body(&id, &Found::Cached(f))),
         Ticket::Failed(e) => {
             let record =
@@ -255,7 +309,7 @@ async fn finished_outcome(state: &AppState, id: &str, found: Found) -> Option<(O
             _ => {
                 let stopped_by_time = r.stats.as_ref().is_some_and(|s| s.stop() == StopReason::TimeLimit);
                 let result = match stopped_by_time {
-                    true => state.jobs.partial(id),
+                    true => state.jobs.partial(id).await,
                     false => state.jobs.cached(id).await,
                 };
                 (result.map_or(Outcome::Failed(JobError::Evicted), Outcome::Succeeded), r.elapsed)
@@ -313,10 +367,12 @@ pub async fn jobs_events(
         .and_then(|v| v.to_str().ok())
         .and_then(|v| v.trim().parse::<u64>().ok())
         .unwrap_or(0);
-    if let Some(waiter) = state.jobs.watch(&id) {
+    let found = find(&state, &id).await?;
+    if let Found::Job(_) = &found
+        && let Some(waiter) = state.jobs.watch(&id).await
+    {
         return Ok(job_stream(waiter, last_seen, points));
     }
-    let found = find(&state, &id).await?;
     if last_seen == FINAL_EVENT_ID {
         return Ok(StatusCode::NO_CONTENT.into_response());
     }
@@ -345,7 +401,7 @@ pub async fn jobs_cancel(
 ) -> Result<Response, ApiError> {
     let found = find(&state, &id).await?;
     if let Found::Job(job) = &found {
-        job.cancel();
+        state.jobs.cancel(job).await;
         // The worker checks the flag between insertions, so this is milliseconds.
         let _ = tokio::time::timeout(Duration::from_secs(5), job.outcome()).await;
     }

@@ -23,6 +23,7 @@ use axum::response::IntoResponse;
 use axum::response::Response;
 use axum::routing::{get, post};
 pub use extract::{BodyLimits, parse_json};
+pub use jobs::Replicas;
 use problem::ApiError;
 use std::sync::Arc;
 use std::time::{Duration, Instant};

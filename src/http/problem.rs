@@ -67,6 +67,8 @@ pub enum ApiError {
     TooManyConnections,
     /// 500 `internal`: the detail is logged, never sent.
     Internal(String),
+    /// A job's failure on another replica: the problem document that replica wrote.
+    Relayed(Value),
 }
 
 impl From<SpecError> for ApiError {
@@ -102,6 +104,7 @@ impl From<JobError> for ApiError {
             JobError::Evicted => ApiError::NotFound(
                 "the job succeeded, but its mesh is no longer cached; submit the request again".into(),
             ),
+            JobError::Relayed(doc) => ApiError::Relayed(doc),
         }
     }
 }
@@ -261,7 +264,8 @@ impl ApiError {
                 "Server has too many open connections",
                 "this server has as many open connections as it serves (MESHFIT_MAX_CONNECTIONS); retry shortly".into(),
             ),
-            ApiError::Internal(_) => (
+            // A relayed document is answered as it came (see `document`).
+            ApiError::Internal(_) | ApiError::Relayed(_) => (
                 StatusCode::INTERNAL_SERVER_ERROR,
                 "internal",
                 "Internal server error",
@@ -278,6 +282,11 @@ impl ApiError {
 
     /// The HTTP status and the problem document, from one pass over the variant.
     fn document(&self) -> (StatusCode, Value) {
+        if let ApiError::Relayed(doc) = self {
+            let status = doc.get("status").and_then(Value::as_u64).and_then(|s| u16::try_from(s).ok());
+            let status = status.and_then(|s| StatusCode::from_u16(s).ok());
+            return (status.unwrap_or(StatusCode::INTERNAL_SERVER_ERROR), doc.clone());
+        }
         let (status, slug, title, detail, ext) = self.parts();
         let mut doc = Map::new();
         doc.insert("type".into(), json!(format!("/problems/{slug}")));

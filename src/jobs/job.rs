@@ -37,6 +37,13 @@ impl Status {
             Status::Cancelled => "cancelled",
         }
     }
+
+    /// The status named `name` in the API.
+    pub fn parse(name: &str) -> Option<Self> {
+        [Status::Queued, Status::Running, Status::Succeeded, Status::Failed, Status::Cancelled]
+            .into_iter()
+            .find(|s| s.as_str() == name)
+    }
 }
 
 /// Why a job failed.
@@ -54,6 +61,9 @@ pub enum JobError {
     /// The job succeeded, but its mesh has since left the cache.
     #[error("the mesh is no longer cached")]
     Evicted,
+    /// The job failed on another replica, which sent this problem document.
+    #[error("failed on another replica: {0}")]
+    Relayed(serde_json::Value),
 }
 
 /// How a job ended.
@@ -102,9 +112,38 @@ pub struct Job {
     /// for viewers that follow the mesh as it grows; emptied when the job finishes (the
     /// result has them all).
     pub(super) points: Mutex<Vec<Vertex>>,
+    /// Whether another replica runs the job and this one follows it through Redis.
+    pub(super) follows: bool,
+    /// Set when shutdown cancels the job: its lease is given up unfinished, so that another
+    /// replica takes it over, instead of telling its clients it was cancelled.
+    pub(super) handed_back: AtomicBool,
 }
 
 impl Job {
+    /// A queued job whose events are numbered after `seq` (a job taken over from another
+    /// replica continues that replica's numbering).
+    pub(super) fn new(id: String, family: String, detached: bool, follows: bool, seq: u64) -> Self {
+        let (state, _) = watch::channel(Snapshot {
+            seq,
+            status: Status::Queued,
+            progress: None,
+            outcome: None,
+            elapsed: None,
+        });
+        Self {
+            id,
+            family,
+            state,
+            cancel: AtomicBool::new(false),
+            cancel_notify: Notify::new(),
+            detached: AtomicBool::new(detached),
+            waiters: AtomicUsize::new(0),
+            points: Mutex::new(Vec::new()),
+            follows,
+            handed_back: AtomicBool::new(false),
+        }
+    }
+
     /// The job id.
     pub fn id(&self) -> &str {
         &self.id

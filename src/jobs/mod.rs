@@ -14,15 +14,21 @@
 //! - `worker`: one job's run on the blocking pool;
 //! - `cache`, `key`, `spec`, `solution`: stored results, ids, and validated requests of meshes
 //!   and of boundary value problems.
+//! - `publish`, `follow`, `takeover`: replicas sharing through Redis ([`crate::cluster`]):
+//!   the replica holding a job's lease publishes it, the others follow it, and a job whose
+//!   replica died is run again by the first replica to take its expired lease.
 
 mod budget;
 mod cache;
+mod follow;
 mod job;
 mod key;
+mod publish;
 mod registry;
 mod share;
 mod solution;
 mod spec;
+mod takeover;
 mod worker;
 
 pub use budget::{Budget, Charge, OverBudget, default_limit as default_memory_bytes};
@@ -33,3 +39,15 @@ pub use registry::{Found, Jobs, SubmitError, Ticket, Waiter};
 pub use share::Client;
 pub use solution::{Coef, SolveSpec};
 pub use spec::{DEFAULT_MAX_VERTICES, JobSpec, Limits, MeshSpec, SpecError, Work};
+
+/// How requests and problems travel between replicas; the HTTP layer knows both.
+pub trait Wire: Send + Sync + 'static {
+    /// Reads a request another replica kept, as if a client had just sent it here.
+    fn parse(
+        &self,
+        request: crate::cluster::Request,
+    ) -> futures_util::future::BoxFuture<'static, Result<(JobKeys, JobSpec), String>>;
+
+    /// The problem document of a job that failed, as clients get it.
+    fn problem(&self, error: &JobError) -> serde_json::Value;
+}

@@ -1,16 +1,17 @@
 //! The registry: which jobs exist, who waits on them, the queue's bound and the cache in front.
 
 use super::budget::Budget;
-use super::job::{Job, JobError, Record, Snapshot, Status};
+use super::job::{Job, JobError, Record, Status};
 use super::share::{Charge, Client, Shares};
-use super::{Cache, JobKeys, JobSpec, worker};
+use super::{Cache, JobKeys, JobSpec, Wire, follow, publish, takeover, worker};
+use crate::cluster::{Cluster, Control, Request};
 use crate::metrics::Metrics;
 use crate::refine::trace::replay;
 use crate::result::MeshResult;
 use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
-use tokio::sync::{Notify, Semaphore, watch};
+use tokio::sync::Semaphore;
 
 /// A client waiting on a job. When the last one leaves a job that nobody detached, the job is
 /// cancelled: a synchronous request or stream whose client hung up.
@@ -137,6 +138,30 @@ pub(super) struct Inner {
     /// The mean time a job ran, in seconds (f64 bits; a moving average): the basis of every
     /// `Retry-After`.
     pub(super) mean_run: AtomicU64,
+    /// Redis, when replicas share results and jobs.
+    pub(super) shared: Option<Shared>,
+    /// Jobs whose state is still being told to Redis: shutdown waits for them too, so that a
+    /// job handed back gives up its lease before the process ends.
+    pub(super) publishing: AtomicUsize,
+}
+
+/// What a replica needs to share: Redis, and the HTTP layer's reading of requests and
+/// writing of problems.
+pub(super) struct Shared {
+    pub(super) cluster: Cluster,
+    pub(super) wire: Arc<dyn Wire>,
+}
+
+/// A new job's id, family and place in the cluster.
+pub(super) struct Start {
+    pub(super) id: String,
+    pub(super) family: String,
+    /// Its events are numbered after this (a job taken over continues the numbering).
+    pub(super) seq: u64,
+    /// Whether this replica holds the job's lease: it then publishes the job's state.
+    pub(super) leased: bool,
+    /// The request, to keep in Redis for a takeover.
+    pub(super) request: Option<Request>,
 }
 
 pub(super) enum Entry {
@@ -158,6 +183,12 @@ impl Inner {
         if self.families.get(family).is_none_or(|(_, known)| steps >= known) {
             self.families.insert(family.to_owned(), (id.to_owned(), steps));
         }
+    }
+
+    /// Whether this replica runs job `id` now (rather than following it, or not having it).
+    pub(super) fn runs_here(&self, id: &str) -> bool {
+        let table = self.table.lock().expect("job table poisoned");
+        matches!(table.jobs.get(id), Some(Entry::Live(job)) if !job.follows && !job.is_finished())
     }
 
     /// Jobs waiting beyond the free workers: the queue proper.
@@ -185,7 +216,110 @@ impl Inner {
         });
     }
 
-    fn attach(self: &Arc<Self>, job: &Arc<Job>, detached: bool) -> Waiter {
+    /// Answers from the table under its lock: joins a live job, repeats a failure on the
+    /// input, or finds a result cached since the caller's lookup.
+    fn join(self: &Arc<Self>, id: &str, detached: bool) -> Option<Ticket> {
+        let table = self.table.lock().expect("job table poisoned");
+        match table.jobs.get(id)? {
+            Entry::Live(job) if job.is_joinable() => {
+                self.metrics.cache_misses.inc();
+                Some(Ticket::Job(self.attach(job, detached)))
+            }
+            Entry::Done(record) => match &record.error {
+                // A failure on the input is deterministic: it is the answer again.
+                Some(e @ JobError::Refine(_)) => {
+                    self.metrics.cache_misses.inc();
+                    Some(Ticket::Failed(e.clone()))
+                }
+                // It may have been cached between the lookup and the lock.
+                _ if record.status == Status::Succeeded => {
+                    let finished = self.cache.get_memory(id)?;
+                    self.metrics.cache_hits.inc();
+                    Some(Ticket::Cached(finished))
+                }
+                // Cancelled, an internal error, or a mesh evicted from the cache: run again.
+                _ => None,
+            },
+            // A job being cancelled: start a new one.
+            Entry::Live(_) => None,
+        }
+    }
+
+    /// Starts a job here, charged to `client`, unless an identical one is live by now.
+    pub(super) fn start(
+        self: &Arc<Self>,
+        start: Start,
+        spec: JobSpec,
+        detached: bool,
+        client: &Client,
+    ) -> Result<Ticket, SubmitError> {
+        let Start { id, family, seq, leased, request } = start;
+        let mut table = self.table.lock().expect("job table poisoned");
+        // A job followed from elsewhere gives way to the run of the replica holding the lease.
+        if let Some(Entry::Live(job)) = table.jobs.get(&id)
+            && job.is_joinable()
+            && !(leased && job.follows)
+        {
+            self.metrics.cache_misses.inc();
+            return Ok(Ticket::Job(self.attach(job, detached)));
+        }
+        self.metrics.cache_misses.inc();
+        if self.closed.load(Ordering::SeqCst) {
+            return Err(SubmitError::ShuttingDown);
+        }
+        if !self.has_room() {
+            let waiting = self.queued();
+            return Err(SubmitError::QueueFull { waiting, retry_after: self.retry_after(self.workers) });
+        }
+        let charge: Charge = self.shares.charge(client).map_err(|held| SubmitError::ShareUsed {
+            held,
+            retry_after: self.retry_after(self.shares.workers),
+        })?;
+        let memory = self.budget.charge(spec.memory_bytes()).map_err(|over| {
+            self.metrics.memory_refusals.inc();
+            SubmitError::OverBudget {
+                needed: over.needed,
+                available: over.available,
+                retry_after: self.retry_after(self.workers),
+            }
+        })?;
+        self.waiting.fetch_add(1, Ordering::SeqCst);
+        self.metrics.jobs_queued.inc();
+        let job = Arc::new(Job::new(id.clone(), family, detached, false, seq));
+        let waiter = self.attach(&job, detached);
+        table.jobs.insert(id, Entry::Live(job.clone()));
+        drop(table);
+        if leased {
+            self.publishing.fetch_add(1, Ordering::SeqCst);
+            let inner = self.clone();
+            let job = job.clone();
+            tokio::spawn(async move {
+                publish::run(&inner, job, request).await;
+                inner.publishing.fetch_sub(1, Ordering::SeqCst);
+            });
+        }
+        tokio::spawn(worker::run(self.clone(), job, spec, (charge, memory)));
+        Ok(Ticket::Job(waiter))
+    }
+
+    /// Replaces a finished job's table entry with its record (waiting clients hold the job,
+    /// and its mesh, until they have read it), keeping at most [`FINISHED_KEPT`] records.
+    pub(super) fn file(&self, job: &Arc<Job>) {
+        let record = Arc::new(Record::of(&job.snapshot()));
+        let mut table = self.table.lock().expect("job table poisoned");
+        if matches!(table.jobs.get(&job.id), Some(Entry::Live(j)) if Arc::ptr_eq(j, job)) {
+            table.jobs.insert(job.id.clone(), Entry::Done(record));
+            table.finished.push_back(job.id.clone());
+        }
+        while table.finished.len() > FINISHED_KEPT {
+            let oldest = table.finished.pop_front().expect("non-empty");
+            if matches!(table.jobs.get(&oldest), Some(Entry::Done(_))) {
+                table.jobs.remove(&oldest);
+            }
+        }
+    }
+
+    pub(super) fn attach(self: &Arc<Self>, job: &Arc<Job>, detached: bool) -> Waiter {
         // Caller holds the table lock.
         job.waiters.fetch_add(1, Ordering::SeqCst);
         if detached {
@@ -223,8 +357,31 @@ impl Jobs {
                 shares: Shares::new(share, workers, queue),
                 budget,
                 mean_run: AtomicU64::new(1f64.to_bits()),
+                shared: None,
+                publishing: AtomicUsize::new(0),
             }),
         }
+    }
+
+    /// Shares results and jobs with the other replicas through `cluster`; `wire` reads the
+    /// requests of jobs taken over and writes the problems of jobs that failed. Call it
+    /// before the registry is cloned, from within the runtime.
+    ///
+    /// # Panics
+    /// When the registry has been cloned.
+    #[must_use]
+    pub fn shared(mut self, cluster: Cluster, wire: Arc<dyn Wire>) -> Self {
+        let inner = Arc::get_mut(&mut self.inner).expect("shared before the registry is cloned");
+        let messages = cluster.messages();
+        inner.shared = Some(Shared { cluster, wire });
+        tokio::spawn(follow::dispatch(Arc::downgrade(&self.inner), messages));
+        tokio::spawn(takeover::sweep(Arc::downgrade(&self.inner)));
+        self
+    }
+
+    /// Whether replicas share through Redis, and if so whether Redis answered last.
+    pub fn redis(&self) -> Option<bool> {
+        self.inner.shared.as_ref().map(|s| s.cluster.is_up())
     }
 
     /// The metrics the registry updates.
@@ -270,6 +427,23 @@ impl Jobs {
         detached: bool,
         client: &Client,
     ) -> Result<Ticket, SubmitError> {
+        self.submit_request(keys, spec, detached, client, None).await
+    }
+
+    /// As [`submit`](Self::submit); when replicas share through Redis, a job this replica
+    /// runs keeps `request` there, so that another replica can take it over, and a job
+    /// another replica runs is followed rather than run again.
+    ///
+    /// # Errors
+    /// As [`submit`](Self::submit).
+    pub async fn submit_request(
+        &self,
+        keys: JobKeys,
+        spec: JobSpec,
+        detached: bool,
+        client: &Client,
+        request: Option<Request>,
+    ) -> Result<Ticket, SubmitError> {
         let inner = &self.inner;
         let JobKeys { id, family } = keys;
         if let Some(finished) = self.cached(&id).await {
@@ -282,96 +456,91 @@ impl Jobs {
             inner.metrics.prefix_hits.inc();
             return Ok(Ticket::Prefix(result));
         }
-        let mut table = inner.table.lock().expect("job table poisoned");
-        match table.jobs.get(&id) {
-            Some(Entry::Live(job)) if job.is_joinable() => {
+        if let Some(ticket) = inner.join(&id, detached) {
+            return Ok(ticket);
+        }
+        let Some(shared) = &inner.shared else {
+            return inner.start(
+                Start { id, family, seq: 0, leased: false, request: None },
+                spec,
+                detached,
+                client,
+            );
+        };
+        // One replica runs a job: the one that takes its lease.
+        let leased = match shared.cluster.acquire(&id).await {
+            Ok(true) => true,
+            Ok(false) => {
                 inner.metrics.cache_misses.inc();
-                return Ok(Ticket::Job(inner.attach(job, detached)));
+                return Ok(Ticket::Job(follow::follow(inner, id, family)));
             }
-            Some(Entry::Done(record)) => match &record.error {
-                // A failure on the input is deterministic: it is the answer again.
-                Some(e @ JobError::Refine(_)) => {
-                    inner.metrics.cache_misses.inc();
-                    return Ok(Ticket::Failed(e.clone()));
-                }
-                _ if record.status == Status::Succeeded => {
-                    // It may have been cached between the lookup above and the lock.
-                    if let Some(finished) = inner.cache.get_memory(&id) {
-                        inner.metrics.cache_hits.inc();
-                        return Ok(Ticket::Cached(finished));
-                    }
-                }
-                // Cancelled, an internal error, or a mesh evicted from the cache: run again.
-                _ => {}
-            },
-            // A job being cancelled, or none: start a new one.
+            // Redis is away: run it here, unshared.
+            Err(_) => false,
+        };
+        let started =
+            inner.start(Start { id: id.clone(), family, seq: 0, leased, request }, spec, detached, client);
+        match &started {
+            // Stored before the client hears of it, so that any replica finds the job at once.
+            Ok(Ticket::Job(w)) if leased && !w.job.follows => publish::announce(inner, &w.job).await,
+            _ if leased => {
+                let cluster = shared.cluster.clone();
+                tokio::spawn(async move { cluster.release(&id).await });
+            }
             _ => {}
         }
-        inner.metrics.cache_misses.inc();
-        if inner.closed.load(Ordering::SeqCst) {
-            return Err(SubmitError::ShuttingDown);
-        }
-        if !inner.has_room() {
-            let waiting = inner.queued();
-            return Err(SubmitError::QueueFull { waiting, retry_after: inner.retry_after(inner.workers) });
-        }
-        let charge: Charge = inner.shares.charge(client).map_err(|held| SubmitError::ShareUsed {
-            held,
-            retry_after: inner.retry_after(inner.shares.workers),
-        })?;
-        let memory = inner.budget.charge(spec.memory_bytes()).map_err(|over| {
-            inner.metrics.memory_refusals.inc();
-            SubmitError::OverBudget {
-                needed: over.needed,
-                available: over.available,
-                retry_after: inner.retry_after(inner.workers),
-            }
-        })?;
-        inner.waiting.fetch_add(1, Ordering::SeqCst);
-        inner.metrics.jobs_queued.inc();
-        let (state, _) = watch::channel(Snapshot {
-            seq: 0,
-            status: Status::Queued,
-            progress: None,
-            outcome: None,
-            elapsed: None,
-        });
-        let job = Arc::new(Job {
-            id: id.clone(),
-            family,
-            state,
-            cancel: AtomicBool::new(false),
-            cancel_notify: Notify::new(),
-            detached: AtomicBool::new(detached),
-            waiters: AtomicUsize::new(0),
-            points: Mutex::new(Vec::new()),
-        });
-        let waiter = inner.attach(&job, detached);
-        table.jobs.insert(id, Entry::Live(job.clone()));
-        drop(table);
-        tokio::spawn(worker::run(self.inner.clone(), job, spec, (charge, memory)));
-        Ok(Ticket::Job(waiter))
+        started
     }
 
-    /// The job, finished job or cached result with this id.
+    /// The job, finished job or cached result with this id: on this replica, or, when
+    /// replicas share, on any.
     pub async fn find(&self, id: &str) -> Option<Found> {
         let found = match self.inner.table.lock().expect("job table poisoned").jobs.get(id) {
             Some(Entry::Live(job)) => Some(Found::Job(job.clone())),
             Some(Entry::Done(record)) => Some(Found::Done(record.clone())),
             None => None,
         };
-        match found {
-            Some(found) => Some(found),
-            None => self.cached(id).await.map(Found::Cached),
+        if let Some(found) = found {
+            return Some(found);
         }
+        if let Some(result) = self.cached(id).await {
+            return Some(Found::Cached(result));
+        }
+        let cluster = &self.inner.shared.as_ref()?.cluster;
+        let done = match cluster.record(id).await.ok()? {
+            Some(record) => follow::record(&record),
+            // A job whose replica has taken its lease but not yet stored its record.
+            None if cluster.is_leased(id).await.ok()? => None,
+            None => return None,
+        };
+        Some(match done {
+            Some(done) => Found::Done(Arc::new(done)),
+            None => Found::Job(follow::follow(&self.inner, id.to_owned(), id.to_owned()).job.clone()),
+        })
     }
 
-    /// Registers a client waiting on job `id` while it runs (server-sent events).
-    pub fn watch(&self, id: &str) -> Option<Waiter> {
-        let table = self.inner.table.lock().expect("job table poisoned");
-        match table.jobs.get(id) {
-            Some(Entry::Live(job)) => Some(self.inner.attach(job, false)),
-            _ => None,
+    /// Registers a client waiting on job `id` while it runs (server-sent events), here or,
+    /// when replicas share, on another replica.
+    pub async fn watch(&self, id: &str) -> Option<Waiter> {
+        {
+            let table = self.inner.table.lock().expect("job table poisoned");
+            match table.jobs.get(id) {
+                Some(Entry::Live(job)) => return Some(self.inner.attach(job, false)),
+                Some(Entry::Done(_)) => return None,
+                None => {}
+            }
+        }
+        let record = self.inner.shared.as_ref()?.cluster.record(id).await.ok()??;
+        let running = follow::record(&record).is_none();
+        running.then(|| follow::follow(&self.inner, id.to_owned(), id.to_owned()))
+    }
+
+    /// Asks job `job` to stop, wherever it runs.
+    pub async fn cancel(&self, job: &Job) {
+        match (&self.inner.shared, job.follows) {
+            (Some(shared), true) => {
+                let _ = shared.cluster.control(&job.id, Control::Cancel).await;
+            }
+            _ => job.cancel(),
         }
     }
 
@@ -399,10 +568,13 @@ impl Jobs {
         .flatten()
     }
 
-    /// The result a time limit stopped for job `id`, if still held (never a new request's
-    /// answer; see [`Cache::insert_partial`]).
-    pub fn partial(&self, id: &str) -> Option<Arc<MeshResult>> {
-        self.inner.cache.get_partial(id)
+    /// The result a time limit stopped for job `id`, if still held here or, when replicas
+    /// share, in Redis (never a new request's answer; see [`Cache::insert_partial`]).
+    pub async fn partial(&self, id: &str) -> Option<Arc<MeshResult>> {
+        match self.inner.cache.get_partial(id) {
+            Some(result) => Some(result),
+            None => follow::fetch(&self.inner, id, true).await,
+        }
     }
 
     /// The cached mesh with this id, if any.
@@ -411,11 +583,14 @@ impl Jobs {
         if let Some(f) = cache.get_memory(id) {
             return Some(f);
         }
-        if !cache.has_disk() {
-            return None;
+        if cache.has_disk() {
+            let (cache, id) = (cache.clone(), id.to_owned());
+            let found = tokio::task::spawn_blocking(move || cache.get(&id).map(|(f, _)| f)).await;
+            if let Ok(Some(found)) = found {
+                return Some(found);
+            }
         }
-        let (cache, id) = (cache.clone(), id.to_owned());
-        tokio::task::spawn_blocking(move || cache.get(&id).map(|(f, _)| f)).await.ok().flatten()
+        follow::fetch(&self.inner, id, false).await
     }
 
     /// Refuses new jobs from now on.
@@ -423,19 +598,27 @@ impl Jobs {
         self.inner.closed.store(true, Ordering::SeqCst);
     }
 
-    /// Cancels every job not yet finished.
+    /// Cancels every job not yet finished; when replicas share, hands them back for another
+    /// replica to take over instead (a job followed from another replica runs on).
     pub fn cancel_all(&self) {
         for entry in self.inner.table.lock().expect("job table poisoned").jobs.values() {
-            if let Entry::Live(job) = entry {
+            if let Entry::Live(job) = entry
+                && !job.follows
+            {
+                job.handed_back.store(true, Ordering::SeqCst);
                 job.cancel();
             }
         }
     }
 
-    /// Whether any job is queued or running.
+    /// Whether any job is queued or running, or still being told to Redis.
     pub fn is_busy(&self) -> bool {
+        if self.inner.publishing.load(Ordering::SeqCst) > 0 {
+            return true;
+        }
         let table = self.inner.table.lock().expect("job table poisoned");
-        table.jobs.values().any(|e| matches!(e, Entry::Live(_)))
+        // A job followed from another replica is that replica's to finish.
+        table.jobs.values().any(|e| matches!(e, Entry::Live(job) if !job.follows))
     }
 }
 

@@ -2,8 +2,8 @@
 //! blocking pool, and files the outcome.
 
 use super::budget;
-use super::job::{Job, JobError, Outcome, Record, Status};
-use super::registry::{Entry, FINISHED_KEPT, Inner};
+use super::job::{Job, JobError, Outcome, Status};
+use super::registry::Inner;
 use super::share::Charge;
 use super::{JobSpec, Work};
 use crate::api::ProgressEvent;
@@ -62,20 +62,7 @@ pub(super) async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec, charges
     tracing::info!(job = %job.id, state, "job finished");
     job.finish(outcome, elapsed);
     drop((charge, memory));
-    // Waiting clients hold the job (and its mesh) until they have read it; the table keeps
-    // only the record.
-    let record = Arc::new(Record::of(&job.snapshot()));
-    let mut table = inner.table.lock().expect("job table poisoned");
-    if matches!(table.jobs.get(&job.id), Some(Entry::Live(j)) if Arc::ptr_eq(j, &job)) {
-        table.jobs.insert(job.id.clone(), Entry::Done(record));
-        table.finished.push_back(job.id.clone());
-    }
-    while table.finished.len() > FINISHED_KEPT {
-        let oldest = table.finished.pop_front().expect("non-empty");
-        if matches!(table.jobs.get(&oldest), Some(Entry::Done(_))) {
-            table.jobs.remove(&oldest);
-        }
-    }
+    inner.file(&job);
 }
 
 /// Reports progress into the job's watch channel (a mesh's new vertices first, for viewers)

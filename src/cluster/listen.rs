@@ -1,0 +1,114 @@
+//! The one subscription of a replica: records and control messages from every replica, handed
+//! out through a broadcast channel; reconnects by itself.
+
+use super::{CONTROL, Control, EVENTS, Inner, Record};
+use futures_util::StreamExt;
+use std::sync::Weak;
+use std::time::Duration;
+
+/// A message from a replica.
+#[derive(Debug, Clone)]
+pub enum Message {
+    /// Job `id` changed.
+    Record(String, Box<Record>),
+    /// The replica running job `id` is asked to act.
+    Control(String, Control),
+    /// The subscription was (re)established: messages may have been missed before it.
+    Subscribed,
+}
+
+/// The payload of a record on `meshfit:events`: the id, a space, the record's JSON.
+pub(super) fn event(id: &str, json: &str) -> String {
+    format!("{id} {json}")
+}
+
+/// The payload of a control message.
+pub(super) fn control(id: &str, what: Control) -> String {
+    let verb = match what {
+        Control::Cancel => "cancel",
+        Control::Detach => "detach",
+    };
+    format!("{verb} {id}")
+}
+
+fn parse(channel: &str, payload: &str) -> Option<Message> {
+    let (head, rest) = payload.split_once(' ')?;
+    match channel {
+        EVENTS => Some(Message::Record(head.to_owned(), Box::new(serde_json::from_str(rest).ok()?))),
+        CONTROL => {
+            let what = match head {
+                "cancel" => Control::Cancel,
+                "detach" => Control::Detach,
+                _ => return None,
+            };
+            Some(Message::Control(rest.to_owned(), what))
+        }
+        _ => None,
+    }
+}
+
+/// Subscribes, forwards messages until the connection drops, and starts again, until the
+/// replica's cluster handle is gone.
+pub(super) async fn run(client: redis::Client, inner: Weak<Inner>) {
+    let mut delay = Duration::from_millis(100);
+    loop {
+        let subscribed = async {
+            let mut pubsub = client.get_async_pubsub().await?;
+            pubsub.subscribe(&[EVENTS, CONTROL]).await?;
+            Ok::<_, redis::RedisError>(pubsub)
+        };
+        let attempt = tokio::time::timeout(Duration::from_secs(2), subscribed).await;
+        let Some(inner) = inner.upgrade() else { return };
+        match attempt {
+            Ok(Ok(pubsub)) => {
+                delay = Duration::from_millis(100);
+                let _ = inner.note(Ok(()));
+                let _ = inner.messages.send(Message::Subscribed);
+                let messages = inner.messages.clone();
+                drop(inner);
+                let mut stream = pubsub.into_on_message();
+                while let Some(msg) = stream.next().await {
+                    let Ok(payload) = msg.get_payload::<String>() else { continue };
+                    if let Some(message) = parse(msg.get_channel_name(), &payload) {
+                        // No receiver is fine: no job is followed right now.
+                        let _ = messages.send(message);
+                    }
+                }
+            }
+            Ok(Err(e)) => drop(inner.note::<()>(Err(e))),
+            Err(_) => drop(inner.note::<()>(Err(redis::RedisError::from(std::io::Error::from(
+                std::io::ErrorKind::TimedOut,
+            ))))),
+        }
+        tokio::time::sleep(delay).await;
+        delay = (delay * 2).min(Duration::from_secs(2));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn messages_read_back_as_sent_and_anything_else_is_ignored() {
+        let record = Record {
+            status: "running".into(),
+            seq: 7,
+            progress: None,
+            stats: None,
+            problem: None,
+            elapsed_ms: None,
+            replica: "a".into(),
+        };
+        let json = serde_json::to_string(&record).unwrap();
+        let Some(Message::Record(id, got)) = parse(EVENTS, &event("abc", &json)) else { panic!() };
+        assert_eq!((id.as_str(), *got), ("abc", record));
+        for what in [Control::Cancel, Control::Detach] {
+            let Some(Message::Control(id, got)) = parse(CONTROL, &control("abc", what)) else { panic!() };
+            assert_eq!((id.as_str(), got), ("abc", what));
+        }
+        assert!(parse(CONTROL, "explode abc").is_none());
+        assert!(parse(EVENTS, "abc {not json").is_none());
+        assert!(parse("other", &control("abc", Control::Cancel)).is_none());
+    }
+}

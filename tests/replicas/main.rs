@@ -1,0 +1,179 @@
+//! Replicas sharing through Redis: real `redis-server` and meshfit processes on loopback
+//! ports, spoken to over HTTP. Skipped when `redis-server` is not installed, unless
+//! `REDIS_TESTS=required` (as in CI).
+
+mod harness;
+
+use harness::{Redis, Replica, events, redis_available};
+use serde_json::{Value, json};
+
+const ENGINE_RUNS: &str = "meshfit_engine_runs_total";
+
+/// A job that runs for seconds: long enough to act on it while it runs.
+fn long(vertices: u64) -> Value {
+    json!({"function": "sin(40*x)*cos(40*y)", "criterion": "variation", "max_vertices": vertices})
+}
+
+async fn submit(replica: &Replica, body: &Value) -> String {
+    let response = replica.post("/v1/jobs", body).await;
+    assert_eq!(response.status(), 202, "a new job is accepted");
+    let status: Value = response.json().await.unwrap();
+    status["id"].as_str().unwrap().to_owned()
+}
+
+async fn mesh(replica: &Replica, id: &str) -> (String, bytes::Bytes) {
+    let response = replica.get(&format!("/v1/jobs/{id}/mesh")).await;
+    assert_eq!(response.status(), 200, "the mesh is served on {}", replica.addr);
+    let etag = response.headers()["etag"].to_str().unwrap().to_owned();
+    (etag, response.bytes().await.unwrap())
+}
+
+#[tokio::test]
+async fn a_job_submitted_on_one_replica_is_followed_and_fetched_on_another() {
+    if !redis_available() {
+        return;
+    }
+    let redis = Redis::start().await;
+    let (a, b) = (Replica::start("a", &redis).await, Replica::start("b", &redis).await);
+    let id = submit(&a, &json!({"function": "exp(-9*(x*x+y*y))", "max_vertices": 60_000})).await;
+    // B has never seen the request: it follows the job through Redis to its final event.
+    let response = b.get(&format!("/v1/jobs/{id}/events")).await;
+    assert_eq!(response.status(), 200);
+    let stream = events(response).await;
+    let (last_event, last_data) = stream.last().expect("a final event");
+    assert_eq!(last_event, "result");
+    let streamed: Value = serde_json::from_str(last_data).unwrap();
+    assert_eq!(streamed["id"], id.as_str());
+
+    let (tag_a, bytes_a) = mesh(&a, &id).await;
+    let (tag_b, bytes_b) = mesh(&b, &id).await;
+    assert_eq!((tag_a, bytes_a.len()), (tag_b, bytes_b.len()));
+    assert!(bytes_a == bytes_b, "the same bytes from either replica");
+    assert_eq!(serde_json::from_slice::<Value>(&bytes_b).unwrap(), streamed, "the event is the mesh");
+    assert_eq!(b.status(&id).await["status"], "succeeded");
+    assert_eq!((a.metric(ENGINE_RUNS).await, b.metric(ENGINE_RUNS).await), (1.0, 0.0));
+    assert_eq!(b.metric("meshfit_shared_hits_total").await, 1.0, "B read the result from Redis once");
+}
+
+#[tokio::test]
+async fn identical_requests_on_two_replicas_run_once() {
+    if !redis_available() {
+        return;
+    }
+    let redis = Redis::start().await;
+    let (a, b) = (Replica::start("a", &redis).await, Replica::start("b", &redis).await);
+    let body = json!({"function": "x*y + sin(7*x)", "max_vertices": 200_000});
+    let (ra, rb) = tokio::join!(a.post("/v1/meshes", &body), b.post("/v1/meshes", &body));
+    assert_eq!((ra.status().as_u16(), rb.status().as_u16()), (200, 200));
+    let (ba, bb) = (ra.bytes().await.unwrap(), rb.bytes().await.unwrap());
+    assert!(ba == bb, "both clients get the same mesh");
+    let runs = a.metric(ENGINE_RUNS).await + b.metric(ENGINE_RUNS).await;
+    assert_eq!(runs, 1.0, "one engine run between the two replicas");
+    let followed =
+        a.metric("meshfit_jobs_followed_total").await + b.metric("meshfit_jobs_followed_total").await;
+    assert_eq!(followed, 1.0, "the other replica followed it");
+}
+
+#[tokio::test]
+async fn a_job_whose_replica_is_killed_is_taken_over_and_its_follower_sees_it_finish() {
+    if !redis_available() {
+        return;
+    }
+    let redis = Redis::start().await;
+    let (mut a, b) = (Replica::start("a", &redis).await, Replica::start("b", &redis).await);
+    let id = submit(&a, &long(1_000_000)).await;
+    b.wait_status(&id, |s| s == "running").await;
+    let stream = tokio::spawn({
+        let request = b.client.get(b.url(&format!("/v1/jobs/{id}/events")));
+        async move { events(request.send().await.unwrap()).await }
+    });
+    a.kill();
+    let stream = stream.await.unwrap();
+    let (last_event, last_data) = stream.last().expect("a final event");
+    assert_eq!(last_event, "result", "the follower sees the job finish: {last_data:.300}");
+    let result: Value = serde_json::from_str(last_data).unwrap();
+    assert_eq!(result["stats"]["vertices"], 1_000_000);
+    assert_eq!(b.metric("meshfit_takeovers_total").await, 1.0);
+    assert_eq!(b.metric(ENGINE_RUNS).await, 1.0);
+    let (_, bytes) = mesh(&b, &id).await;
+    assert_eq!(serde_json::from_slice::<Value>(&bytes).unwrap(), result);
+}
+
+#[tokio::test]
+async fn a_replica_shutting_down_hands_its_job_to_another_before_its_lease_expires() {
+    if !redis_available() {
+        return;
+    }
+    let redis = Redis::start().await;
+    // A lease longer than the client waits: only a job handed back is taken over in time.
+    let lease = [("MESHFIT_REDIS_LEASE_MS", "600000")];
+    let mut a = Replica::start_with("a", &redis, &lease).await;
+    let b = Replica::start_with("b", &redis, &lease).await;
+    let id = submit(&a, &long(1_000_000)).await;
+    b.wait_status(&id, |s| s == "running").await;
+    let stream = tokio::spawn({
+        let request = b.client.get(b.url(&format!("/v1/jobs/{id}/events")));
+        async move { events(request.send().await.unwrap()).await }
+    });
+    assert!(a.terminate(), "A shuts down cleanly");
+    let stream = stream.await.unwrap();
+    let (last_event, last_data) = stream.last().expect("a final event");
+    assert_eq!(last_event, "result", "{last_data:.300}");
+    assert_eq!(b.metric("meshfit_takeovers_total").await, 1.0);
+    assert_eq!(b.status(&id).await["status"], "succeeded");
+}
+
+#[tokio::test]
+async fn delete_on_any_replica_cancels_the_job_where_it_runs() {
+    if !redis_available() {
+        return;
+    }
+    let redis = Redis::start().await;
+    let (a, b) = (Replica::start("a", &redis).await, Replica::start("b", &redis).await);
+    let id = submit(&a, &long(3_000_000)).await;
+    b.wait_status(&id, |s| s == "running").await;
+    let response = b.client.delete(b.url(&format!("/v1/jobs/{id}"))).send().await.unwrap();
+    assert_eq!(response.status(), 200);
+    let status: Value = response.json().await.unwrap();
+    assert_eq!(status["status"], "cancelled", "B answers once A has stopped: {status}");
+    assert_eq!(a.status(&id).await["status"], "cancelled");
+    assert_eq!(a.metric("meshfit_jobs_finished_total{state=\"cancelled\"}").await, 1.0);
+    let response = b.get(&format!("/v1/jobs/{id}/mesh")).await;
+    assert_eq!(response.status(), 409, "a cancelled job has no mesh");
+}
+
+#[tokio::test]
+async fn replicas_keep_serving_while_redis_is_down_and_share_again_when_it_returns() {
+    if !redis_available() {
+        return;
+    }
+    let mut redis = Redis::start().await;
+    let (a, b) = (Replica::start("a", &redis).await, Replica::start("b", &redis).await);
+    a.wait_redis("up").await;
+    let before = submit(&a, &json!({"function": "x+y*y", "max_vertices": 5_000})).await;
+    a.wait_status(&before, |s| s == "succeeded").await;
+    let (_, stored) = mesh(&a, &before).await;
+
+    redis.stop();
+    for replica in [&a, &b] {
+        replica.wait_redis("down").await;
+        assert_eq!(replica.get("/readyz").await.status(), 200, "a replica without Redis still serves");
+        assert_eq!(replica.metric("meshfit_redis_up").await, 0.0);
+    }
+    // What A had stored is still served, and new work is done alone.
+    assert!(mesh(&a, &before).await.1 == stored, "nothing stored is lost");
+    let alone = json!({"function": "cos(3*x)*y", "max_vertices": 5_000});
+    let (ra, rb) = tokio::join!(a.post("/v1/meshes", &alone), b.post("/v1/meshes", &alone));
+    assert_eq!((ra.status().as_u16(), rb.status().as_u16()), (200, 200));
+    assert!(ra.bytes().await.unwrap() == rb.bytes().await.unwrap());
+
+    redis.restart().await;
+    for replica in [&a, &b] {
+        replica.wait_redis("up").await;
+        assert_eq!(replica.metric("meshfit_redis_up").await, 1.0);
+    }
+    let after = submit(&a, &json!({"function": "x*x-y", "max_vertices": 5_000})).await;
+    b.wait_status(&after, |s| s == "succeeded").await;
+    assert!(mesh(&a, &after).await.1 == mesh(&b, &after).await.1, "shared again");
+    assert_eq!(b.metric(ENGINE_RUNS).await, 1.0, "B ran only the job of the outage");
+}
