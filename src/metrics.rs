@@ -13,7 +13,7 @@ use prometheus_client::registry::Registry;
 /// Labels of finished jobs.
 #[derive(Clone, Debug, Hash, PartialEq, Eq, EncodeLabelSet)]
 pub struct StateLabel {
-    /// succeeded, failed or cancelled.
+    /// succeeded, failed, cancelled, or handed_back (to another replica, at shutdown).
     pub state: &'static str,
 }
 

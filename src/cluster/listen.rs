@@ -76,9 +76,7 @@ pub(super) async fn run(client: redis::Client, inner: Weak<Inner>) {
                 }
             }
             Ok(Err(e)) => drop(inner.note::<()>(Err(e))),
-            Err(_) => drop(inner.note::<()>(Err(redis::RedisError::from(std::io::Error::from(
-                std::io::ErrorKind::TimedOut,
-            ))))),
+            Err(_) => drop(inner.unreachable(std::io::Error::from(std::io::ErrorKind::TimedOut).into())),
         }
         tokio::time::sleep(delay).await;
         delay = (delay * 2).min(Duration::from_secs(2));
@@ -98,7 +96,7 @@ mod tests {
             stats: None,
             problem: None,
             elapsed_ms: None,
-            replica: "a".into(),
+            run: "a#0".into(),
         };
         let json = serde_json::to_string(&record).unwrap();
         let Some(Message::Record(id, got)) = parse(EVENTS, &event("abc", &json)) else { panic!() };

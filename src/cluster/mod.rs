@@ -13,13 +13,16 @@
 //! | `meshfit:result:{id}` | a finished result, compact and checksummed | `MESHFIT_REDIS_TTL_MS` |
 //! | `meshfit:partial:{id}` | a result a time limit stopped (never a new request's answer) | same |
 //! | `meshfit:job:{id}` | the job's [`Record`] as JSON | same |
-//! | `meshfit:lease:{id}` | the replica running the job | `MESHFIT_REDIS_LEASE_MS`, renewed |
+//! | `meshfit:lease:{id}` | the token of the run holding it: replica and run number | `MESHFIT_REDIS_LEASE_MS`, renewed |
 //! | `meshfit:request:{id}` | the request body, so another replica can take the job over | same as results |
 //! | `meshfit:pending` | ids of jobs not finished, with a stored request | |
-//! | `meshfit:cancel:{id}` | set by `DELETE` on any replica | same as results |
+//! | `meshfit:cancel:{id}`, `meshfit:detach:{id}` | asked of the run by a replica that follows it | three leases |
 //!
-//! Records go out on the channel `meshfit:events` as they change; `meshfit:control` carries
-//! `cancel {id}` and `detach {id}` to the replica that runs the job.
+//! Only the run holding the lease writes the job's record (a script checks the token), so a
+//! run that lost its lease cannot overwrite its successor's. Records go out on the channel
+//! `meshfit:events` as they are written; `meshfit:control` carries `cancel {id}` and
+//! `detach {id}` to the replica that runs the job, and the keys of the same names keep the
+//! request for the run's next renewal in case the message is missed.
 
 mod listen;
 mod record;
@@ -30,7 +33,7 @@ pub use record::Record;
 use redis::AsyncCommands;
 use redis::aio::ConnectionManager;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Duration;
 use tokio::sync::broadcast;
 
@@ -69,6 +72,15 @@ pub enum Control {
     Detach,
 }
 
+/// What taking a lease found.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Claim {
+    /// This run holds it now.
+    Won,
+    /// Another run holds it: this token's.
+    Held(String),
+}
+
 /// Why a Redis operation did not complete: the replica then acts on its own.
 #[derive(Debug, thiserror::Error)]
 #[error("redis: {0}")]
@@ -87,6 +99,8 @@ struct Inner {
     settings: Settings,
     /// This replica's name in leases: host, process and start time.
     replica: String,
+    /// Numbers this replica's runs, for their tokens.
+    runs: AtomicU64,
     /// Whether the last command reached Redis.
     up: AtomicBool,
     errors: prometheus_client::metrics::counter::Counter,
@@ -101,13 +115,27 @@ fn key(kind: &str, id: &str) -> String {
     format!("meshfit:{kind}:{id}")
 }
 
-/// Extends a lease if this replica holds it.
+/// Takes a lease nobody holds for token ARGV[1] and, for a fresh submission (ARGV[3] = 1),
+/// drops requests to cancel or detach an earlier run; else answers the holder's token.
+const ACQUIRE: &str = r"local held = redis.call('get', KEYS[1])
+if held then return held end
+redis.call('set', KEYS[1], ARGV[1], 'PX', ARGV[2])
+if ARGV[3] == '1' then redis.call('del', KEYS[2], KEYS[3]) end
+return false";
+
+/// Extends a lease if this run holds it.
 const RENEW: &str = r"if redis.call('get', KEYS[1]) == ARGV[1] then
   return redis.call('pexpire', KEYS[1], ARGV[2]) else return 0 end";
 
-/// Deletes a lease if this replica holds it.
+/// Deletes a lease if this run holds it.
 const RELEASE: &str = r"if redis.call('get', KEYS[1]) == ARGV[1] then
   return redis.call('del', KEYS[1]) else return 0 end";
+
+/// Stores and publishes a record if this run holds the lease.
+const PUT_RECORD: &str = r"if redis.call('get', KEYS[2]) ~= ARGV[1] then return 0 end
+redis.call('set', KEYS[1], ARGV[2], 'PX', ARGV[3])
+redis.call('publish', ARGV[4], ARGV[5])
+return 1";
 
 impl Cluster {
     /// A client of the Redis at `settings.url`; connects lazily, so a replica starts (and
@@ -122,7 +150,9 @@ impl Cluster {
         let client = redis::Client::open(settings.url.as_str())?;
         let config = redis::aio::ConnectionManagerConfig::new()
             .set_connection_timeout(Some(Duration::from_secs(1)))
-            .set_response_timeout(Some(Duration::from_secs(5)))
+            // Long enough for a result of MESHFIT_REDIS_MAX_BYTES; a Redis that stops answering
+            // is found by the ping, which has a timeout of its own.
+            .set_response_timeout(Some(Duration::from_secs(30)))
             .set_number_of_retries(2)
             .set_max_delay(Duration::from_millis(500));
         let conn = ConnectionManager::new_lazy_with_config(client.clone(), config)?;
@@ -130,7 +160,15 @@ impl Cluster {
         let started = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
         let replica = format!("{host}/{}/{}", std::process::id(), started.as_micros());
         let (messages, _) = broadcast::channel(1024);
-        let inner = Arc::new(Inner { conn, settings, replica, up: AtomicBool::new(false), errors, messages });
+        let inner = Arc::new(Inner {
+            conn,
+            settings,
+            replica,
+            runs: AtomicU64::new(0),
+            up: AtomicBool::new(false),
+            errors,
+            messages,
+        });
         tokio::spawn(listen::run(client, Arc::downgrade(&inner)));
         Ok(Self { inner })
     }
@@ -143,6 +181,16 @@ impl Cluster {
     /// This replica's name, as its leases hold it.
     pub fn replica(&self) -> &str {
         &self.inner.replica
+    }
+
+    /// A token for a new run of a job on this replica.
+    pub fn token(&self) -> String {
+        format!("{}#{}", self.inner.replica, self.inner.runs.fetch_add(1, Ordering::Relaxed))
+    }
+
+    /// Whether `token` names a run of this replica.
+    pub fn is_mine(&self, token: &str) -> bool {
+        token.strip_prefix(&self.inner.replica).is_some_and(|rest| rest.starts_with('#'))
     }
 
     /// Whether the last command reached Redis.
@@ -174,13 +222,18 @@ impl Cluster {
         self.inner.settings.ttl.as_millis() as u64
     }
 
-    /// Checks that Redis answers (whether or not it did last time).
+    /// Checks that Redis answers within a second (whether or not it did last time).
     ///
     /// # Errors
     /// When it does not.
     pub async fn ping(&self) -> Result<()> {
-        let pong = redis::cmd("PING").query_async::<String>(&mut self.inner.conn.clone()).await;
-        self.note(pong).map(drop)
+        let mut conn = self.inner.conn.clone();
+        let ping = redis::cmd("PING");
+        let pong = ping.query_async::<String>(&mut conn);
+        match tokio::time::timeout(Duration::from_secs(1), pong).await {
+            Ok(pong) => self.note(pong).map(drop),
+            Err(_) => Err(self.inner.unreachable(std::io::Error::from(std::io::ErrorKind::TimedOut).into())),
+        }
     }
 
     /// The stored result `id` in compact form (`partial`: one a time limit stopped).
@@ -207,75 +260,80 @@ impl Cluster {
         self.note(set).map(|()| true)
     }
 
-    /// Takes the lease on job `id` if nobody holds it; says whether this replica now does.
+    /// Takes the lease on job `id` for run `token` if nobody holds it. A `fresh` submission
+    /// also drops what clients asked of an earlier run (a cancel must not stop a new one).
     ///
     /// # Errors
     /// When Redis does not answer.
-    pub async fn acquire(&self, id: &str) -> Result<bool> {
+    pub async fn acquire(&self, id: &str, token: &str, fresh: bool) -> Result<Claim> {
         let lease = self.inner.settings.lease.as_millis() as u64;
-        let set = redis::cmd("SET")
-            .arg(key("lease", id))
-            .arg(&self.inner.replica)
-            .arg("NX")
-            .arg("PX")
+        let held = redis::Script::new(ACQUIRE)
+            .key(key("lease", id))
+            .key(key("cancel", id))
+            .key(key("detach", id))
+            .arg(token)
             .arg(lease)
-            .query_async::<Option<String>>(&mut self.conn()?)
+            .arg(u8::from(fresh))
+            .invoke_async::<Option<String>>(&mut self.conn()?)
             .await;
-        self.note(set).map(|ok| ok.is_some())
+        Ok(self.note(held)?.map_or(Claim::Won, Claim::Held))
     }
 
-    /// Extends this replica's lease on `id`; false when it no longer holds it.
+    /// Extends run `token`'s lease on `id`; false when it no longer holds it.
     ///
     /// # Errors
     /// When Redis does not answer.
-    pub async fn renew(&self, id: &str) -> Result<bool> {
+    pub async fn renew(&self, id: &str, token: &str) -> Result<bool> {
         let lease = self.inner.settings.lease.as_millis() as u64;
         let renewed = redis::Script::new(RENEW)
             .key(key("lease", id))
-            .arg(&self.inner.replica)
+            .arg(token)
             .arg(lease)
             .invoke_async::<i64>(&mut self.conn()?)
             .await;
         self.note(renewed).map(|n| n == 1)
     }
 
-    /// Gives up this replica's lease on `id`, so another may take the job at once.
+    /// Gives up run `token`'s lease on `id`, so another may take the job at once.
     ///
     /// # Errors
     /// When Redis does not answer.
-    pub async fn release(&self, id: &str) -> Result<()> {
+    pub async fn release(&self, id: &str, token: &str) -> Result<()> {
         let released = redis::Script::new(RELEASE)
             .key(key("lease", id))
-            .arg(&self.inner.replica)
+            .arg(token)
             .invoke_async::<i64>(&mut self.conn()?)
             .await;
         self.note(released).map(drop)
     }
 
-    /// Whether some replica holds the lease on `id`.
+    /// The token of the run holding the lease on `id`, if any.
     ///
     /// # Errors
     /// When Redis does not answer.
-    pub async fn is_leased(&self, id: &str) -> Result<bool> {
-        let exists = self.conn()?.exists(key("lease", id)).await;
-        self.note(exists)
+    pub async fn holder(&self, id: &str) -> Result<Option<String>> {
+        let held = self.conn()?.get(key("lease", id)).await;
+        self.note(held)
     }
 
-    /// Stores job `id`'s record and sends it to every replica.
+    /// Stores job `id`'s record and sends it to every replica, if run `token` holds the lease;
+    /// says whether it did.
     ///
     /// # Errors
     /// When Redis does not answer.
-    pub async fn put_record(&self, id: &str, record: &Record) -> Result<()> {
+    pub async fn put_record(&self, id: &str, token: &str, record: &Record) -> Result<bool> {
         let json = serde_json::to_string(record).expect("a record serializes");
-        let message = listen::event(id, &json);
-        let done = redis::pipe()
-            .pset_ex(key("job", id), &json, self.ttl_ms())
-            .ignore()
-            .publish(EVENTS, message)
-            .ignore()
-            .query_async::<()>(&mut self.conn()?)
+        let written = redis::Script::new(PUT_RECORD)
+            .key(key("job", id))
+            .key(key("lease", id))
+            .arg(token)
+            .arg(&json)
+            .arg(self.ttl_ms())
+            .arg(EVENTS)
+            .arg(listen::event(id, &json))
+            .invoke_async::<i64>(&mut self.conn()?)
             .await;
-        self.note(done)
+        self.note(written).map(|n| n == 1)
     }
 
     /// Job `id`'s record, if any replica stored one (a record that does not parse, from
@@ -345,7 +403,17 @@ impl Cluster {
         self.note(members)
     }
 
-    /// Takes job `id` off the pending list and drops its request: it finished.
+    /// Whether job `id` is on the pending list (a replica will take it over if its own dies).
+    ///
+    /// # Errors
+    /// When Redis does not answer.
+    pub async fn is_pending(&self, id: &str) -> Result<bool> {
+        let member = self.conn()?.sismember(PENDING, id).await;
+        self.note(member)
+    }
+
+    /// Takes job `id` off the pending list and drops its request and what clients asked of
+    /// the run: it finished.
     ///
     /// # Errors
     /// When Redis does not answer.
@@ -353,41 +421,53 @@ impl Cluster {
         let done = redis::pipe()
             .srem(PENDING, id)
             .ignore()
-            .del(key("request", id))
+            .del(&[key("request", id), key("cancel", id), key("detach", id)])
             .ignore()
             .query_async::<()>(&mut self.conn()?)
             .await;
         self.note(done)
     }
 
-    /// Asks the replica running job `id` to act. A cancellation is also kept as a key, which
-    /// that replica checks at each renewal: a message can be missed, a key cannot.
+    /// Asks the run of job `id` to act: a message now, and a key it reads at its next
+    /// renewal (a message can be missed, a key cannot), kept for three leases: past that the
+    /// run has either read it or been taken over by a run that reads it.
     ///
     /// # Errors
     /// When Redis does not answer.
     pub async fn control(&self, id: &str, what: Control) -> Result<()> {
-        let mut pipe = redis::pipe();
-        if what == Control::Cancel {
-            pipe.pset_ex(key("cancel", id), 1, self.ttl_ms()).ignore();
-        }
-        pipe.publish(CONTROL, listen::control(id, what)).ignore();
-        let done = pipe.query_async::<()>(&mut self.conn()?).await;
+        let name = match what {
+            Control::Cancel => key("cancel", id),
+            Control::Detach => key("detach", id),
+        };
+        let keep = 3 * self.inner.settings.lease.as_millis() as u64;
+        let done = redis::pipe()
+            .pset_ex(name, 1, keep)
+            .ignore()
+            .publish(CONTROL, listen::control(id, what))
+            .ignore()
+            .query_async::<()>(&mut self.conn()?)
+            .await;
         self.note(done)
     }
 
-    /// Whether a client asked for job `id` to be cancelled.
+    /// Whether a client asked for job `id` to be cancelled, and to be detached.
     ///
     /// # Errors
     /// When Redis does not answer.
-    pub async fn is_cancelled(&self, id: &str) -> Result<bool> {
-        let exists = self.conn()?.exists(key("cancel", id)).await;
-        self.note(exists)
+    pub async fn asked(&self, id: &str) -> Result<(bool, bool)> {
+        let asked = redis::pipe()
+            .exists(key("cancel", id))
+            .exists(key("detach", id))
+            .query_async::<(bool, bool)>(&mut self.conn()?)
+            .await;
+        self.note(asked)
     }
 }
 
 impl Inner {
     /// Notes a command's outcome: Redis is up after an answer, down after a failure to reach
-    /// it. An error Redis itself answered (out of memory, say) leaves it up: it is there.
+    /// it. An error Redis itself answered (out of memory, say) leaves it up: it is there; so
+    /// does a slow answer to a large transfer (only the ping's timeout says Redis is gone).
     fn note<T>(&self, result: redis::RedisResult<T>) -> Result<T> {
         match result {
             Ok(value) => {
@@ -396,20 +476,28 @@ impl Inner {
                 }
                 Ok(value)
             }
-            Err(e) => {
-                self.errors.inc();
-                let unreachable = e.is_io_error()
-                    || e.is_timeout()
+            Err(e)
+                if (e.is_io_error() && !e.is_timeout())
                     || e.is_connection_dropped()
                     || e.is_connection_refusal()
-                    || e.is_unrecoverable_error();
-                if unreachable && self.up.swap(false, Ordering::Relaxed) {
-                    tracing::warn!(error = %e, "redis unreachable; serving from this replica alone");
-                } else if !unreachable {
-                    tracing::warn!(error = %e, "redis refused a command");
-                }
+                    || e.is_unrecoverable_error() =>
+            {
+                Err(self.unreachable(e))
+            }
+            Err(e) => {
+                self.errors.inc();
+                tracing::warn!(error = %e, "redis command failed");
                 Err(Unavailable(e))
             }
         }
+    }
+
+    /// Notes that Redis cannot be reached: commands fail at once until it answers again.
+    fn unreachable(&self, e: redis::RedisError) -> Unavailable {
+        self.errors.inc();
+        if self.up.swap(false, Ordering::Relaxed) {
+            tracing::warn!(error = %e, "redis unreachable; serving from this replica alone");
+        }
+        Unavailable(e)
     }
 }

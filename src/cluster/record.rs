@@ -19,8 +19,8 @@ pub struct Record {
     pub problem: Option<serde_json::Value>,
     /// How long the engine ran, once finished.
     pub elapsed_ms: Option<f64>,
-    /// The replica that stored it.
-    pub replica: String,
+    /// The token of the run that stored it (see [`super::Cluster::token`]).
+    pub run: String,
 }
 
 impl Record {

@@ -299,6 +299,7 @@ pub async fn jobs_show(State(state): State<AppState>, Path(id): Path<String>) ->
 async fn finished_outcome(state: &AppState, id: &str, found: Found) -> Option<(Outcome, Option<Duration>)> {
     match found {
         Found::Cached(r) => Some((Outcome::Succeeded(r), None)),
+        Found::Remote(_) => None,
         Found::Job(job) => {
             let s = job.snapshot();
             s.outcome.map(|o| (o, s.elapsed))
@@ -368,7 +369,7 @@ pub async fn jobs_events(
         .and_then(|v| v.trim().parse::<u64>().ok())
         .unwrap_or(0);
     let found = find(&state, &id).await?;
-    if let Found::Job(_) = &found
+    if let Found::Job(_) | Found::Remote(_) = &found
         && let Some(waiter) = state.jobs.watch(&id).await
     {
         return Ok(job_stream(waiter, last_seen, points));
@@ -394,23 +395,35 @@ fn wants_points(uri: &Uri) -> Result<bool, ApiError> {
     Ok(query.vertices.unwrap_or(false))
 }
 
-/// `DELETE /v1/jobs/{id}`: cancels the job and answers with its final status.
+/// `DELETE /v1/jobs/{id}`: cancels the job, wherever it runs, and answers with its status
+/// once it has stopped.
 pub async fn jobs_cancel(
     State(state): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
     let found = find(&state, &id).await?;
-    if let Found::Job(job) = &found {
-        state.jobs.cancel(job).await;
-        // The worker checks the flag between insertions, so this is milliseconds.
-        let _ = tokio::time::timeout(Duration::from_secs(5), job.outcome()).await;
-    }
-    Ok(axum::Json(status_body(&id, &found)).into_response())
+    // Waiting on the job (here, or a mirror of it) until it has stopped.
+    let waiter = match found {
+        Found::Job(_) | Found::Remote(_) => state.jobs.watch(&id).await,
+        _ => None,
+    };
+    let Some(waiter) = waiter else {
+        return Ok(axum::Json(status_body(&id, &found)).into_response());
+    };
+    let job = waiter.job().clone();
+    state.jobs.cancel(&job).await.map_err(|_| ApiError::Unreachable)?;
+    // The worker checks the flag between insertions, so this is milliseconds (and a renewal
+    // on another replica).
+    let _ = tokio::time::timeout(Duration::from_secs(5), job.outcome()).await;
+    Ok(axum::Json(status_body(&id, &Found::Job(job))).into_response())
 }
 
-/// The final event of job `id`: its result, or the problem that ended it.
+/// The final event of job `id`: its result, or the problem that ended it; none for a job
+/// handed to another replica at shutdown, so that the client reconnects (with its last
+/// event's id) and follows the job there.
 fn final_event(id: &str, outcome: &Outcome) -> Box<dyn Iterator<Item = Bytes> + Send> {
     match outcome {
+        Outcome::Failed(JobError::HandedBack) => Box::new(std::iter::empty()),
         Outcome::Succeeded(r) => Box::new(sse::result(FINAL_EVENT_ID, id, r)),
         Outcome::Failed(e) => {
             Box::new(std::iter::once(sse::error(FINAL_EVENT_ID, &ApiError::from(e.clone()).to_json())))

@@ -69,6 +69,9 @@ pub enum ApiError {
     Internal(String),
     /// A job's failure on another replica: the problem document that replica wrote.
     Relayed(Value),
+    /// 503 `redis-unavailable`, with `Retry-After`: the job runs on another replica and Redis,
+    /// through which replicas reach each other, does not answer.
+    Unreachable,
 }
 
 impl From<SpecError> for ApiError {
@@ -105,6 +108,7 @@ impl From<JobError> for ApiError {
                 "the job succeeded, but its mesh is no longer cached; submit the request again".into(),
             ),
             JobError::Relayed(doc) => ApiError::Relayed(doc),
+            JobError::HandedBack => ApiError::ShuttingDown,
         }
     }
 }
@@ -264,6 +268,12 @@ impl ApiError {
                 "Server has too many open connections",
                 "this server has as many open connections as it serves (MESHFIT_MAX_CONNECTIONS); retry shortly".into(),
             ),
+            ApiError::Unreachable => (
+                StatusCode::SERVICE_UNAVAILABLE,
+                "redis-unavailable",
+                "The job's replica cannot be reached",
+                "the job runs on another replica and Redis, through which replicas reach each other, does not answer now; retry shortly".into(),
+            ),
             // A relayed document is answered as it came (see `document`).
             ApiError::Internal(_) | ApiError::Relayed(_) => (
                 StatusCode::INTERNAL_SERVER_ERROR,
@@ -314,7 +324,7 @@ impl IntoResponse for ApiError {
             | ApiError::OverBudget(_, _, seconds) => {
                 headers.insert(header::RETRY_AFTER, HeaderValue::from(seconds));
             }
-            ApiError::ShuttingDown | ApiError::TooManyConnections => {
+            ApiError::ShuttingDown | ApiError::TooManyConnections | ApiError::Unreachable => {
                 headers.insert(header::RETRY_AFTER, HeaderValue::from_static("1"));
             }
             ApiError::Unauthorized { .. } => {

@@ -1,14 +1,16 @@
 //! Following a job another replica runs: a local mirror [`Job`] whose state comes from Redis,
 //! so that clients here wait on it, stream it and fetch its result as if it ran here.
 //!
-//! The mirror is kept current twice over: by the records every replica receives on
-//! `meshfit:events` ([`dispatch`]), and by reading the stored record at each sweep
-//! ([`keep_current`]), which catches what a dropped subscription missed and is the one place
-//! a mirror finishes.
+//! One task per mirror ([`keep_current`]) reads the job's stored record and lease holder at
+//! each sweep, and at once when a record of the job arrives on `meshfit:events`
+//! ([`dispatch`] only wakes it): one place decides what a record means. It follows the run
+//! holding the lease, so that a final record of an earlier run (cancelled, say) is not taken
+//! for this one's.
 
 use super::job::{Job, JobError, Outcome, Record, Status};
 use super::registry::{Entry, Inner, Waiter};
-use crate::cluster::{self, Control, Message};
+use super::takeover::sweep_every;
+use crate::cluster::{self, Cluster, Control, Message};
 use crate::refine::StopReason;
 use crate::result::{MeshResult, compact};
 use std::sync::atomic::Ordering;
@@ -16,8 +18,9 @@ use std::sync::{Arc, Weak};
 use std::time::Duration;
 use tokio::sync::broadcast;
 
-/// How many looks in a row may find no record, no lease and no result before a followed job
-/// is given up as lost (its replica died before it kept the request).
+/// How many looks in a row may find the job run nowhere (no lease, not pending for a
+/// takeover, no result) before a followed job is given up as lost: its replica died before it
+/// could be taken over, or refused the run it had taken the lease for.
 const LOST_AFTER: u32 = 3;
 
 /// Attaches a client to this replica's mirror of job `id`, which another replica runs,
@@ -30,6 +33,7 @@ pub(super) fn follow(inner: &Arc<Inner>, id: String, family: String) -> Waiter {
         return inner.attach(job, false);
     }
     // Detached: a client leaving here never cancels the job; `DELETE` does, through Redis.
+    // Its family is unknown here; a mirror notes no runs for replays.
     let job = Arc::new(Job::new(id.clone(), family, true, true, 0));
     let waiter = inner.attach(&job, false);
     table.jobs.insert(id, Entry::Live(job.clone()));
@@ -41,24 +45,59 @@ pub(super) fn follow(inner: &Arc<Inner>, id: String, family: String) -> Waiter {
 
 /// The record of a job that has finished, as clients see it; `None` while it runs.
 pub(super) fn record(r: &cluster::Record) -> Option<Record> {
-    if !r.is_final() {
-        return None;
-    }
-    let status = Status::parse(&r.status)?;
-    let error = r.problem.clone().map(JobError::Relayed);
-    Some(Record {
-        status,
-        progress: r.progress,
-        stats: r.stats.clone(),
-        error,
-        elapsed: r.elapsed_ms.map(|ms| Duration::from_secs_f64(ms / 1e3)),
-    })
+    r.is_final().then(|| running(r))
 }
 
-/// Result `id` from Redis, checked, and kept here from now on; `None` without Redis or
-/// without the result.
-pub(super) async fn fetch(inner: &Arc<Inner>, id: &str, partial: bool) -> Option<Arc<MeshResult>> {
-    let bytes = inner.shared.as_ref()?.cluster.result(id, partial).await.ok()??;
+/// A stored record as clients see it.
+pub(super) fn running(r: &cluster::Record) -> Record {
+    Record {
+        status: Status::parse(&r.status).unwrap_or(Status::Queued),
+        progress: r.progress,
+        stats: r.stats.clone(),
+        error: r.problem.clone().map(JobError::Relayed),
+        elapsed: r.elapsed_ms.map(|ms| Duration::from_secs_f64(ms / 1e3)),
+    }
+}
+
+/// What a look for a result found.
+pub(super) enum Fetched {
+    /// The result, now also kept here.
+    Found(Arc<MeshResult>),
+    /// Redis answered: it has no such result.
+    Missing,
+    /// No Redis, or it did not answer: nothing is known.
+    Unreachable,
+}
+
+impl Fetched {
+    /// The result, if found.
+    pub(super) fn found(self) -> Option<Arc<MeshResult>> {
+        match self {
+            Fetched::Found(result) => Some(result),
+            _ => None,
+        }
+    }
+}
+
+/// Result `id` from this replica's memory, or else from Redis, checked, and kept here from
+/// now on. One look per id at a time: the clients of a result just made elsewhere arrive
+/// together, and each copy of a large mesh is megabytes.
+pub(super) async fn fetch(inner: &Arc<Inner>, id: &str, partial: bool) -> Fetched {
+    let Some(shared) = inner.shared.as_ref() else { return Fetched::Unreachable };
+    let turn = shared.fetching.get_with_by_ref(id, Default::default);
+    let _turn = turn.lock().await;
+    let here = match partial {
+        true => inner.cache.get_partial(id),
+        false => inner.cache.get_memory(id),
+    };
+    if let Some(result) = here {
+        return Fetched::Found(result);
+    }
+    let bytes = match shared.cluster.result(id, partial).await {
+        Ok(Some(bytes)) => bytes,
+        Ok(None) => return Fetched::Missing,
+        Err(_) => return Fetched::Unreachable,
+    };
     let (cache, key) = (inner.cache.clone(), id.to_owned());
     // Checking and decoding a large result, and writing it to the cache directory, is
     // blocking work.
@@ -73,13 +112,13 @@ pub(super) async fn fetch(inner: &Arc<Inner>, id: &str, partial: bool) -> Option
     match read.await {
         Ok(Ok(result)) => {
             inner.metrics.shared_hits.inc();
-            Some(result)
+            Fetched::Found(result)
         }
         Ok(Err(why)) => {
             tracing::warn!(id, %why, "discarding a result from redis that does not check");
-            None
+            Fetched::Missing
         }
-        Err(_) => None,
+        Err(_) => Fetched::Unreachable,
     }
 }
 
@@ -95,24 +134,17 @@ fn apply(job: &Job, r: &cluster::Record) {
     });
 }
 
-/// The outcome of a finished job's record: its result fetched from Redis, or its problem.
-async fn outcome(inner: &Arc<Inner>, id: &str, r: &cluster::Record) -> Outcome {
-    match Status::parse(&r.status) {
+/// The outcome of a finished job's record: its result, or its problem; `None` while the
+/// result cannot be looked for (Redis away), to look again later.
+async fn outcome(inner: &Arc<Inner>, id: &str, r: &cluster::Record) -> Option<Outcome> {
+    Some(match Status::parse(&r.status) {
         Some(Status::Succeeded) => {
             let partial = r.stats.as_ref().is_some_and(|s| s.stop() == StopReason::TimeLimit);
-            // This replica may have run it itself, having taken it over.
-            let here = match partial {
-                true => inner.cache.get_partial(id),
-                false => inner.cache.get_memory(id),
-            };
-            let found = match here {
-                Some(result) => Some(result),
-                None => fetch(inner, id, partial).await,
-            };
-            match found {
-                Some(result) => Outcome::Succeeded(result),
+            match fetch(inner, id, partial).await {
+                Fetched::Found(result) => Outcome::Succeeded(result),
                 // Larger than MESHFIT_REDIS_MAX_BYTES, or expired: only its replica has it.
-                None => Outcome::Failed(JobError::Evicted),
+                Fetched::Missing => Outcome::Failed(JobError::Evicted),
+                Fetched::Unreachable => return None,
             }
         }
         Some(Status::Cancelled) => Outcome::Cancelled,
@@ -120,57 +152,96 @@ async fn outcome(inner: &Arc<Inner>, id: &str, r: &cluster::Record) -> Outcome {
             || JobError::Internal(format!("job {id} failed on another replica without a problem")),
             JobError::Relayed,
         )),
+    })
+}
+
+/// What one look at a followed job found.
+enum Look {
+    /// It finished.
+    Finished(Outcome, Option<Duration>),
+    /// It is queued or running somewhere, or will be taken over.
+    Alive,
+    /// No run holds it, none will take it over, and it left no result.
+    Nowhere,
+    /// Redis did not answer.
+    Unknown,
+}
+
+/// Looks at job `job` in Redis, following run `run` (updated to the lease's holder).
+async fn look(inner: &Arc<Inner>, cluster: &Cluster, job: &Job, run: &mut Option<String>) -> Look {
+    let Ok(holder) = cluster.holder(&job.id).await else { return Look::Unknown };
+    if let Some(holder) = &holder {
+        *run = Some(holder.clone());
+    }
+    let Ok(record) = cluster.record(&job.id).await else { return Look::Unknown };
+    // A run leaves its final record before its lease, so a final record of the run followed
+    // is its end; one of an earlier run is not.
+    let ours = |r: &cluster::Record| run.as_ref().is_none_or(|run| *run == r.run);
+    match record {
+        Some(r) if ours(&r) && r.is_final() => match outcome(inner, &job.id, &r).await {
+            Some(outcome) => {
+                Look::Finished(outcome, r.elapsed_ms.map(|ms| Duration::from_secs_f64(ms / 1e3)))
+            }
+            None => Look::Unknown,
+        },
+        _ if holder.is_some() => {
+            if let Some(r) = record.filter(ours) {
+                apply(job, &r);
+            }
+            Look::Alive
+        }
+        // Nobody holds the lease: a sweep takes the job over if it is pending, or it finished
+        // and its result is here.
+        _ => match cluster.is_pending(&job.id).await {
+            Ok(true) => Look::Alive,
+            Ok(false) => match fetch(inner, &job.id, false).await {
+                Fetched::Found(result) => Look::Finished(Outcome::Succeeded(result), None),
+                Fetched::Missing => Look::Nowhere,
+                Fetched::Unreachable => Look::Unknown,
+            },
+            Err(_) => Look::Unknown,
+        },
     }
 }
 
-/// Keeps mirror `job` current until it finishes, or until nobody has waited on it for two
-/// looks, then files it like a job run here.
+/// Keeps mirror `job` current until it finishes, then files it like a job run here; or,
+/// once nobody has waited on it for two looks, drops it.
 async fn keep_current(inner: Arc<Inner>, job: Arc<Job>) {
     let Some(shared) = &inner.shared else { return };
     let cluster = &shared.cluster;
     // A client waits here: the job's own replica must not cancel it when its clients leave.
     let _ = cluster.control(&job.id, Control::Detach).await;
-    let every = super::takeover::sweep_every(cluster.settings().lease);
-    let (mut idle, mut lost) = (0, 0);
+    let every = sweep_every(cluster.settings().lease);
+    let (mut run, mut idle, mut lost) = (None, 0, 0);
     loop {
-        match cluster.record(&job.id).await {
-            Ok(Some(r)) if r.is_final() => {
-                let outcome = outcome(&inner, &job.id, &r).await;
-                job.finish(outcome, r.elapsed_ms.map(|ms| Duration::from_secs_f64(ms / 1e3)));
+        match look(&inner, cluster, &job, &mut run).await {
+            Look::Finished(outcome, elapsed) => {
+                job.finish(outcome, elapsed);
                 break;
             }
-            Ok(Some(r)) => {
-                lost = 0;
-                apply(&job, &r);
-            }
-            Ok(None) => match (cluster.is_leased(&job.id).await, fetch(&inner, &job.id, false).await) {
-                (_, Some(result)) => {
-                    job.finish(Outcome::Succeeded(result), None);
+            Look::Alive => lost = 0,
+            Look::Nowhere => {
+                lost += 1;
+                if lost >= LOST_AFTER {
+                    let why = format!("job {} is run by no replica; submit it again", job.id);
+                    job.finish(Outcome::Failed(JobError::Internal(why)), None);
                     break;
                 }
-                (Ok(false), None) => {
-                    lost += 1;
-                    if lost >= LOST_AFTER {
-                        let why = format!("job {} is no longer known to any replica", job.id);
-                        job.finish(Outcome::Failed(JobError::Internal(why)), None);
-                        break;
-                    }
-                }
-                // Queued on a replica that has not stored its record yet, or Redis is away.
-                _ => {}
-            },
+            }
             // Redis is away: the clients wait for it to come back, or for their own timeout.
-            Err(_) => {}
+            Look::Unknown => {}
         }
         idle = if job.waiters.load(Ordering::SeqCst) == 0 { idle + 1 } else { 0 };
         if idle >= 2 {
+            // Clients attach under the table lock: checked again under it, none can be lost.
             let mut table = inner.table.lock().expect("job table poisoned");
-            if matches!(table.jobs.get(&job.id), Some(Entry::Live(j)) if Arc::ptr_eq(j, &job)) {
-                table.jobs.remove(&job.id);
+            if job.waiters.load(Ordering::SeqCst) == 0 {
+                if matches!(table.jobs.get(&job.id), Some(Entry::Live(j)) if Arc::ptr_eq(j, &job)) {
+                    table.jobs.remove(&job.id);
+                }
+                return;
             }
-            return;
         }
-        // A final record wakes this loop at once (see `dispatch`).
         tokio::select! {
             () = tokio::time::sleep(every) => {}
             () = job.cancel_notify.notified() => {}
@@ -179,41 +250,29 @@ async fn keep_current(inner: Arc<Inner>, job: Arc<Job>) {
     inner.file(&job);
 }
 
-/// Hands every message to the job it concerns on this replica: records to mirrors, requests
-/// to cancel or detach to jobs run here. Ends with the registry.
+/// Hands every message to the job it concerns on this replica: a record wakes the mirror's
+/// task, a request to cancel or detach goes to the job run here. Ends with the registry.
 pub(super) async fn dispatch(inner: Weak<Inner>, mut messages: broadcast::Receiver<Message>) {
     loop {
         let message = match messages.recv().await {
             Ok(m) => m,
-            // Missed records are read back by `keep_current`.
+            // Missed records are read back at the next sweep; missed requests from the keys.
             Err(broadcast::error::RecvError::Lagged(_)) => continue,
             Err(broadcast::error::RecvError::Closed) => return,
         };
         let Some(inner) = inner.upgrade() else { return };
-        let (id, job) = match &message {
-            Message::Record(id, _) | Message::Control(id, _) => {
-                let table = inner.table.lock().expect("job table poisoned");
-                match table.jobs.get(id) {
-                    Some(Entry::Live(job)) => (id, job.clone()),
-                    _ => continue,
-                }
-            }
-            Message::Subscribed => continue,
-        };
+        let (Message::Record(id, _) | Message::Control(id, _)) = &message else { continue };
+        let table = inner.table.lock().expect("job table poisoned");
+        let Some(Entry::Live(job)) = table.jobs.get(id) else { continue };
         match message {
-            Message::Record(_, r) if job.follows => match r.is_final() {
-                // Fetching the result is for `keep_current`, which finishes the mirror.
-                true => job.cancel_notify.notify_one(),
-                false => apply(&job, &r),
-            },
+            Message::Record(..) if job.follows => job.cancel_notify.notify_one(),
             Message::Control(_, Control::Cancel) if !job.follows => {
                 tracing::info!(job = %id, "cancelled from another replica");
                 job.cancel();
             }
+            // Under the lock, like every change of `detached` (see `Waiter`'s drop).
             Message::Control(_, Control::Detach) if !job.follows => {
-                // Under the lock, like every change of `detached` (see `Waiter`'s drop).
-                let _table = inner.table.lock().expect("job table poisoned");
-                job.detached.store(true, Ordering::SeqCst);
+                job.detached.store(true, Ordering::SeqCst)
             }
             _ => {}
         }

@@ -61,6 +61,10 @@ pub enum JobError {
     /// The job succeeded, but its mesh has since left the cache.
     #[error("the mesh is no longer cached")]
     Evicted,
+    /// Shutdown stopped the job here and handed it to another replica: its clients should ask
+    /// again (any replica will follow it there).
+    #[error("handed to another replica at shutdown")]
+    HandedBack,
     /// The job failed on another replica, which sent this problem document.
     #[error("failed on another replica: {0}")]
     Relayed(serde_json::Value),
@@ -236,6 +240,12 @@ impl Record {
             _ => (None, None),
         };
         Self { status: snapshot.status, progress: snapshot.progress, stats, error, elapsed: snapshot.elapsed }
+    }
+
+    /// The view of a job whose run has taken its lease on another replica and not yet told
+    /// anything more.
+    pub fn queued() -> Self {
+        Self { status: Status::Queued, progress: None, stats: None, error: None, elapsed: None }
     }
 
     /// The view of a result found in the cache with no job record (e.g. after a restart).

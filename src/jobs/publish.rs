@@ -1,13 +1,13 @@
-//! The replica running a shared job tells the others about it: keeps its request for a
-//! takeover, stores its record as it changes (at most every [`PUBLISH_EVERY`]), renews its
-//! lease, and at the end stores the result before the final record, so that a replica that
-//! reads the record can fetch the result.
+//! The run holding a shared job's lease tells the other replicas about it: keeps its request
+//! for a takeover, stores its record as it changes (at most every [`PUBLISH_EVERY`]), renews
+//! its lease and reads what followers ask of it, and at the end stores the result before the
+//! final record, so that a replica that reads the record can fetch the result.
 
-use super::job::{Job, Outcome, Snapshot, Status};
-use super::registry::Inner;
-use crate::cluster::{self, Request};
+use super::job::{Job, JobError, Outcome, Snapshot, Status};
+use super::registry::{Inner, Lease};
+use crate::cluster::{self, Claim, Cluster, Request};
 use crate::refine::StopReason;
-use crate::result::compact;
+use crate::result::{MeshResult, Summary, compact};
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::Duration;
@@ -16,30 +16,38 @@ use tokio::time::Instant;
 /// Records go out at most this often while a job runs; the final one at once.
 const PUBLISH_EVERY: Duration = Duration::from_millis(100);
 
-/// Publishes job `job`, whose lease this replica holds, until it finishes.
-pub(super) async fn run(inner: &Arc<Inner>, job: Arc<Job>, request: Option<Request>) {
+/// Publishes job `job` for run `lease` until it finishes.
+pub(super) async fn run(inner: &Arc<Inner>, job: Arc<Job>, lease: Lease, request: Option<Request>) {
     let Some(shared) = &inner.shared else { return };
-    let cluster = &shared.cluster;
+    let (cluster, token) = (&shared.cluster, lease.token.as_str());
     if let Some(request) = request
         && !matches!(cluster.put_request(&job.id, &request).await, Ok(true))
     {
-        tracing::debug!(job = %job.id, "request not kept in redis: no other replica can take this job over");
+        tracing::info!(job = %job.id, "request not kept in redis: no other replica can take this job over");
     }
     let mut rx = job.subscribe();
-    let mut renew = tokio::time::interval(cluster.settings().lease / 3);
-    renew.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     let mut sent: Option<(u64, Status)> = None;
     let mut last = None::<Instant>;
+    let mut announced = lease.announced;
+    let mut renew = tokio::time::interval(cluster.settings().lease / 3);
+    renew.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    renew.tick().await;
     loop {
         let snapshot = rx.borrow_and_update().clone();
         if snapshot.outcome.is_some() {
-            return finish(inner, &job, &snapshot).await;
+            if let Some(announced) = announced.take() {
+                let _ = announced.send(());
+            }
+            return finish(inner, cluster, &job, token, &snapshot).await;
         }
         let fresh = sent != Some((snapshot.seq, snapshot.status));
         let due = last.map(|t| t + PUBLISH_EVERY).filter(|_| fresh);
         if fresh && due.is_none_or(|due| Instant::now() >= due) {
-            let _ = cluster.put_record(&job.id, &wire(&snapshot, None, cluster.replica())).await;
+            let _ = cluster.put_record(&job.id, token, &wire(&snapshot, None, token)).await;
             (sent, last) = (Some((snapshot.seq, snapshot.status)), Some(Instant::now()));
+            if let Some(announced) = announced.take() {
+                let _ = announced.send(());
+            }
             continue;
         }
         let wait = async {
@@ -51,64 +59,104 @@ pub(super) async fn run(inner: &Arc<Inner>, job: Arc<Job>, request: Option<Reque
         tokio::select! {
             changed = rx.changed() => if changed.is_err() { return },
             () = wait => {}
-            _ = renew.tick() => {
-                if let Ok(false) = cluster.renew(&job.id).await {
-                    // Redis was away past the lease, and another replica may run it too:
-                    // both make the same bytes, so this run goes on.
-                    tracing::warn!(job = %job.id, "lease lost");
-                }
-                if let Ok(true) = cluster.is_cancelled(&job.id).await {
-                    job.cancel();
-                }
-            }
+            _ = renew.tick() => keep(inner, cluster, &job, token).await,
         }
     }
 }
 
-/// Stores job `job`'s record as it is now.
-pub(super) async fn announce(inner: &Inner, job: &Job) {
-    if let Some(shared) = &inner.shared {
-        let record = wire(&job.snapshot(), None, shared.cluster.replica());
-        let _ = shared.cluster.put_record(&job.id, &record).await;
+/// Renews run `token`'s lease, taking it again if it lapsed while Redis was away, and acts on
+/// what followers asked of the run.
+async fn keep(inner: &Inner, cluster: &Cluster, job: &Job, token: &str) {
+    if let Ok(false) = cluster.renew(&job.id, token).await
+        && let Ok(Claim::Held(_)) = cluster.acquire(&job.id, token, false).await
+    {
+        // Another replica took the job over meanwhile: both runs make the same bytes, and
+        // only the holder's records are written, so this one goes on quietly.
+        tracing::warn!(job = %job.id, "lease lost to another replica");
+    }
+    if let Ok((cancel, detach)) = cluster.asked(&job.id).await {
+        if cancel {
+            job.cancel();
+        }
+        if detach {
+            let _table = inner.table.lock().expect("job table poisoned");
+            job.detached.store(true, Ordering::SeqCst);
+        }
     }
 }
 
 /// Stores the result and the final record, takes the job off the pending list and gives up
 /// the lease; a job handed back at shutdown only gives up its lease, for a takeover.
-async fn finish(inner: &Arc<Inner>, job: &Job, snapshot: &Snapshot) {
+async fn finish(inner: &Arc<Inner>, cluster: &Cluster, job: &Job, token: &str, snapshot: &Snapshot) {
     let Some(shared) = &inner.shared else { return };
-    let cluster = &shared.cluster;
     let problem = match snapshot.outcome.as_ref().expect("finished") {
-        Outcome::Cancelled if job.handed_back.load(Ordering::SeqCst) => {
+        Outcome::Failed(JobError::HandedBack) => {
             tracing::info!(job = %job.id, "handed back for another replica to take over");
-            let _ = cluster.release(&job.id).await;
+            let _ = cluster.release(&job.id, token).await;
             return;
         }
         Outcome::Succeeded(result) => {
-            let partial = result.stats.stop() == StopReason::TimeLimit;
-            let (result, id) = (result.clone(), job.id.clone());
-            let bytes = crate::cpu::spawn(move || {
-                let mut bytes = Vec::with_capacity(compact::size(&result, &id) as usize);
-                compact::write(&result, &id, &mut bytes).map(|_| bytes)
-            })
-            .await;
-            if let Ok(Ok(bytes)) = bytes
-                && !matches!(cluster.put_result(&job.id, partial, &bytes).await, Ok(true))
-            {
-                tracing::info!(job = %job.id, bytes = bytes.len(), "result not stored in redis");
-            }
+            store(cluster, &job.id, result).await;
             None
         }
         Outcome::Failed(e) => Some(shared.wire.problem(e)),
         Outcome::Cancelled => None,
     };
-    let _ = cluster.put_record(&job.id, &wire(snapshot, problem, cluster.replica())).await;
-    let _ = cluster.forget(&job.id).await;
-    let _ = cluster.release(&job.id).await;
+    close(cluster, &job.id, token, &wire(snapshot, problem, token)).await;
+}
+
+/// Stores result `id` in Redis, in compact form.
+async fn store(cluster: &Cluster, id: &str, result: &Arc<MeshResult>) {
+    let partial = result.stats.stop() == StopReason::TimeLimit;
+    let (result, key) = (result.clone(), id.to_owned());
+    let bytes = crate::cpu::spawn(move || {
+        let mut bytes = Vec::with_capacity(compact::size(&result, &key) as usize);
+        compact::write(&result, &key, &mut bytes).map(|_| bytes)
+    })
+    .await;
+    if let Ok(Ok(bytes)) = bytes
+        && !matches!(cluster.put_result(id, partial, &bytes).await, Ok(true))
+    {
+        tracing::info!(job = id, bytes = bytes.len(), "result not stored in redis");
+    }
+}
+
+/// Ends run `token` of job `id` with its final `record`: stored and sent, the job off the
+/// pending list, the lease given up.
+pub(super) async fn close(cluster: &Cluster, id: &str, token: &str, record: &cluster::Record) {
+    let _ = cluster.put_record(id, token, record).await;
+    let _ = cluster.forget(id).await;
+    let _ = cluster.release(id, token).await;
+}
+
+/// The final record of a job whose result was found already stored, numbered after `seq`.
+pub(super) fn succeeded(stats: &Summary, seq: u64, token: &str) -> cluster::Record {
+    cluster::Record {
+        status: Status::Succeeded.as_str().to_owned(),
+        seq: seq + 1,
+        progress: None,
+        stats: Some(stats.clone()),
+        problem: None,
+        elapsed_ms: None,
+        run: token.to_owned(),
+    }
+}
+
+/// The final record of a job that failed with `problem`, numbered after `seq`.
+pub(super) fn failed(problem: serde_json::Value, seq: u64, token: &str) -> cluster::Record {
+    cluster::Record {
+        status: Status::Failed.as_str().to_owned(),
+        seq: seq + 1,
+        progress: None,
+        stats: None,
+        problem: Some(problem),
+        elapsed_ms: None,
+        run: token.to_owned(),
+    }
 }
 
 /// A snapshot as replicas exchange it.
-fn wire(s: &Snapshot, problem: Option<serde_json::Value>, replica: &str) -> cluster::Record {
+fn wire(s: &Snapshot, problem: Option<serde_json::Value>, token: &str) -> cluster::Record {
     let stats = match &s.outcome {
         Some(Outcome::Succeeded(result)) => Some(result.stats.clone()),
         _ => None,
@@ -120,6 +168,6 @@ fn wire(s: &Snapshot, problem: Option<serde_json::Value>, replica: &str) -> clus
         stats,
         problem,
         elapsed_ms: s.elapsed.map(|d| d.as_secs_f64() * 1e3),
-        replica: replica.to_owned(),
+        run: token.to_owned(),
     }
 }

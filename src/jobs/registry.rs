@@ -1,10 +1,11 @@
 //! The registry: which jobs exist, who waits on them, the queue's bound and the cache in front.
 
 use super::budget::Budget;
+use super::follow::Fetched;
 use super::job::{Job, JobError, Record, Status};
 use super::share::{Charge, Client, Shares};
 use super::{Cache, JobKeys, JobSpec, Wire, follow, publish, takeover, worker};
-use crate::cluster::{Cluster, Control, Request};
+use crate::cluster::{Claim, Cluster, Control, Request};
 use crate::metrics::Metrics;
 use crate::refine::trace::replay;
 use crate::result::MeshResult;
@@ -94,6 +95,8 @@ pub enum Found {
     Done(Arc<Record>),
     /// A result from the cache with no job record (e.g. after a restart).
     Cached(Arc<MeshResult>),
+    /// A job queued or running on another replica, as its last stored record says.
+    Remote(Arc<Record>),
 }
 
 impl Found {
@@ -101,7 +104,7 @@ impl Found {
     pub fn record(&self) -> Record {
         match self {
             Found::Job(job) => Record::of(&job.snapshot()),
-            Found::Done(record) => (**record).clone(),
+            Found::Done(record) | Found::Remote(record) => (**record).clone(),
             Found::Cached(result) => Record::cached(result),
         }
     }
@@ -109,6 +112,21 @@ impl Found {
 
 /// How many finished job records are kept for status queries (results live in the cache).
 pub(super) const FINISHED_KEPT: usize = 10_000;
+
+/// Whether run `token` of job `id` has stored its final record (and is about to let go of
+/// its lease).
+async fn has_ended(cluster: &Cluster, id: &str, token: &str) -> bool {
+    matches!(cluster.record(id).await, Ok(Some(r)) if r.run == token && r.is_final())
+}
+
+/// How long a submission waits for a run that holds the job's lease and will not run it for
+/// this request: one of this replica being started by a concurrent identical request (to
+/// join), or one that has ended, after a cancel, and not yet let go of its lease.
+const OWN_RUN_WAIT: std::time::Duration = std::time::Duration::from_millis(25);
+const OWN_RUN_WAITS: u32 = 80;
+
+/// How many results being read from Redis keep their turn (see [`follow::fetch`]).
+const FETCHES_KEPT: u64 = 10_000;
 
 /// How many families remember their furthest run.
 const FAMILIES_KEPT: u64 = 100_000;
@@ -150,6 +168,8 @@ pub(super) struct Inner {
 pub(super) struct Shared {
     pub(super) cluster: Cluster,
     pub(super) wire: Arc<dyn Wire>,
+    /// A turn per result being read from Redis (see [`follow::fetch`]).
+    pub(super) fetching: moka::sync::Cache<String, Arc<tokio::sync::Mutex<()>>>,
 }
 
 /// A new job's id, family and place in the cluster.
@@ -158,10 +178,42 @@ pub(super) struct Start {
     pub(super) family: String,
     /// Its events are numbered after this (a job taken over continues the numbering).
     pub(super) seq: u64,
-    /// Whether this replica holds the job's lease: it then publishes the job's state.
-    pub(super) leased: bool,
+    /// The lease this replica holds for the job, if replicas share: the run then publishes
+    /// the job's state.
+    pub(super) lease: Option<Lease>,
     /// The request, to keep in Redis for a takeover.
     pub(super) request: Option<Request>,
+}
+
+/// A run's lease on a job.
+pub(super) struct Lease {
+    /// The run's token, as the lease holds it.
+    pub(super) token: String,
+    /// Told once the run's first record is stored.
+    pub(super) announced: Option<tokio::sync::oneshot::Sender<()>>,
+}
+
+/// Gives a lease back unless disarmed: a submission abandoned between taking a lease and
+/// starting its run (its client hung up, or the run was refused) leaves no lease behind.
+struct LeaseGuard {
+    cluster: Cluster,
+    id: String,
+    token: Option<String>,
+}
+
+impl LeaseGuard {
+    fn disarm(&mut self) {
+        self.token = None;
+    }
+}
+
+impl Drop for LeaseGuard {
+    fn drop(&mut self) {
+        if let (Some(token), Ok(runtime)) = (self.token.take(), tokio::runtime::Handle::try_current()) {
+            let (cluster, id) = (self.cluster.clone(), std::mem::take(&mut self.id));
+            runtime.spawn(async move { cluster.release(&id, &token).await });
+        }
+    }
 }
 
 pub(super) enum Entry {
@@ -245,23 +297,24 @@ impl Inner {
         }
     }
 
-    /// Starts a job here, charged to `client`, unless an identical one is live by now.
+    /// Starts a job here, charged to `client`, unless an identical one is live by now; says
+    /// whether it started one (which then owns `start.lease`).
     pub(super) fn start(
         self: &Arc<Self>,
         start: Start,
         spec: JobSpec,
         detached: bool,
         client: &Client,
-    ) -> Result<Ticket, SubmitError> {
-        let Start { id, family, seq, leased, request } = start;
+    ) -> Result<(Ticket, bool), SubmitError> {
+        let Start { id, family, seq, lease, request } = start;
         let mut table = self.table.lock().expect("job table poisoned");
         // A job followed from elsewhere gives way to the run of the replica holding the lease.
         if let Some(Entry::Live(job)) = table.jobs.get(&id)
             && job.is_joinable()
-            && !(leased && job.follows)
+            && !(lease.is_some() && job.follows)
         {
             self.metrics.cache_misses.inc();
-            return Ok(Ticket::Job(self.attach(job, detached)));
+            return Ok((Ticket::Job(self.attach(job, detached)), false));
         }
         self.metrics.cache_misses.inc();
         if self.closed.load(Ordering::SeqCst) {
@@ -289,17 +342,17 @@ impl Inner {
         let waiter = self.attach(&job, detached);
         table.jobs.insert(id, Entry::Live(job.clone()));
         drop(table);
-        if leased {
+        if let Some(lease) = lease {
             self.publishing.fetch_add(1, Ordering::SeqCst);
             let inner = self.clone();
             let job = job.clone();
             tokio::spawn(async move {
-                publish::run(&inner, job, request).await;
+                publish::run(&inner, job, lease, request).await;
                 inner.publishing.fetch_sub(1, Ordering::SeqCst);
             });
         }
         tokio::spawn(worker::run(self.clone(), job, spec, (charge, memory)));
-        Ok(Ticket::Job(waiter))
+        Ok((Ticket::Job(waiter), true))
     }
 
     /// Replaces a finished job's table entry with its record (waiting clients hold the job,
@@ -373,7 +426,8 @@ impl Jobs {
     pub fn shared(mut self, cluster: Cluster, wire: Arc<dyn Wire>) -> Self {
         let inner = Arc::get_mut(&mut self.inner).expect("shared before the registry is cloned");
         let messages = cluster.messages();
-        inner.shared = Some(Shared { cluster, wire });
+        let fetching = moka::sync::Cache::new(FETCHES_KEPT);
+        inner.shared = Some(Shared { cluster, wire, fetching });
         tokio::spawn(follow::dispatch(Arc::downgrade(&self.inner), messages));
         tokio::spawn(takeover::sweep(Arc::downgrade(&self.inner)));
         self
@@ -460,35 +514,60 @@ impl Jobs {
             return Ok(ticket);
         }
         let Some(shared) = &inner.shared else {
-            return inner.start(
-                Start { id, family, seq: 0, leased: false, request: None },
-                spec,
-                detached,
-                client,
-            );
+            let start = Start { id, family, seq: 0, lease: None, request: None };
+            return inner.start(start, spec, detached, client).map(|(ticket, _)| ticket);
         };
-        // One replica runs a job: the one that takes its lease.
-        let leased = match shared.cluster.acquire(&id).await {
-            Ok(true) => true,
-            Ok(false) => {
-                inner.metrics.cache_misses.inc();
-                return Ok(Ticket::Job(follow::follow(inner, id, family)));
+        let cluster = &shared.cluster;
+        // One replica runs a job: the one whose run takes its lease.
+        let token = cluster.token();
+        let mut waits = 0;
+        let won = loop {
+            match cluster.acquire(&id, &token, true).await {
+                Ok(Claim::Won) => break true,
+                // A run of this replica: one a concurrent identical request is starting (join
+                // it), or one ending after a cancel (let it end, then run again).
+                Ok(Claim::Held(holder)) if cluster.is_mine(&holder) && waits < OWN_RUN_WAITS => {
+                    if let Some(ticket) = inner.join(&id, detached) {
+                        return Ok(ticket);
+                    }
+                    waits += 1;
+                    tokio::time::sleep(OWN_RUN_WAIT).await;
+                }
+                // A run that has ended (cancelled, say) and not yet let go: wait for its lease.
+                Ok(Claim::Held(holder))
+                    if waits < OWN_RUN_WAITS && has_ended(cluster, &id, &holder).await =>
+                {
+                    waits += 1;
+                    tokio::time::sleep(OWN_RUN_WAIT).await;
+                }
+                Ok(Claim::Held(_)) => {
+                    inner.metrics.cache_misses.inc();
+                    return Ok(Ticket::Job(follow::follow(inner, id, family)));
+                }
+                // Redis is away: run it here, unshared.
+                Err(_) => break false,
             }
-            // Redis is away: run it here, unshared.
-            Err(_) => false,
         };
-        let started =
-            inner.start(Start { id: id.clone(), family, seq: 0, leased, request }, spec, detached, client);
-        match &started {
-            // Stored before the client hears of it, so that any replica finds the job at once.
-            Ok(Ticket::Job(w)) if leased && !w.job.follows => publish::announce(inner, &w.job).await,
-            _ if leased => {
-                let cluster = shared.cluster.clone();
-                tokio::spawn(async move { cluster.release(&id).await });
-            }
-            _ => {}
+        if !won {
+            let start = Start { id, family, seq: 0, lease: None, request: None };
+            return inner.start(start, spec, detached, client).map(|(ticket, _)| ticket);
         }
-        started
+        let mut guard = LeaseGuard { cluster: cluster.clone(), id: id.clone(), token: Some(token.clone()) };
+        // Finished elsewhere between the lookup above and the lease.
+        if let Fetched::Found(result) = follow::fetch(inner, &id, false).await {
+            inner.metrics.cache_hits.inc();
+            return Ok(Ticket::Cached(result));
+        }
+        let (announced, first_record) = tokio::sync::oneshot::channel();
+        let lease = Lease { token, announced: Some(announced) };
+        let start = Start { id, family, seq: 0, lease: Some(lease), request };
+        let (ticket, started) = inner.start(start, spec, detached, client)?;
+        if started {
+            guard.disarm();
+            // Stored before the client hears of the job, so that any replica finds it at once.
+            let _ = first_record.await;
+        }
+        Ok(ticket)
     }
 
     /// The job, finished job or cached result with this id: on this replica, or, when
@@ -499,22 +578,29 @@ impl Jobs {
             Some(Entry::Done(record)) => Some(Found::Done(record.clone())),
             None => None,
         };
-        if let Some(found) = found {
-            return Some(found);
+        match &found {
+            // A job that failed or was cancelled here may have run again elsewhere since.
+            Some(Found::Done(record))
+                if record.status != Status::Succeeded && self.inner.shared.is_some() => {}
+            Some(_) => return found,
+            None => {}
         }
         if let Some(result) = self.cached(id).await {
             return Some(Found::Cached(result));
         }
-        let cluster = &self.inner.shared.as_ref()?.cluster;
-        let done = match cluster.record(id).await.ok()? {
-            Some(record) => follow::record(&record),
-            // A job whose replica has taken its lease but not yet stored its record.
-            None if cluster.is_leased(id).await.ok()? => None,
-            None => return None,
+        let Some(shared) = &self.inner.shared else { return found };
+        let cluster = &shared.cluster;
+        let record = match cluster.record(id).await.ok().flatten() {
+            Some(record) => record,
+            // A job whose run has taken its lease and not yet stored its record.
+            None if matches!(cluster.holder(id).await, Ok(Some(_))) => {
+                return Some(Found::Remote(Arc::new(Record::queued())));
+            }
+            None => return found,
         };
-        Some(match done {
+        Some(match follow::record(&record) {
             Some(done) => Found::Done(Arc::new(done)),
-            None => Found::Job(follow::follow(&self.inner, id.to_owned(), id.to_owned()).job.clone()),
+            None => Found::Remote(Arc::new(follow::running(&record))),
         })
     }
 
@@ -529,18 +615,25 @@ impl Jobs {
                 None => {}
             }
         }
-        let record = self.inner.shared.as_ref()?.cluster.record(id).await.ok()??;
-        let running = follow::record(&record).is_none();
+        let cluster = &self.inner.shared.as_ref()?.cluster;
+        let running = match cluster.record(id).await.ok()? {
+            Some(record) => !record.is_final(),
+            None => cluster.holder(id).await.ok()?.is_some(),
+        };
         running.then(|| follow::follow(&self.inner, id.to_owned(), id.to_owned()))
     }
 
     /// Asks job `job` to stop, wherever it runs.
-    pub async fn cancel(&self, job: &Job) {
+    ///
+    /// # Errors
+    /// When another replica runs it and Redis cannot be reached to tell it.
+    pub async fn cancel(&self, job: &Job) -> Result<(), crate::cluster::Unavailable> {
         match (&self.inner.shared, job.follows) {
-            (Some(shared), true) => {
-                let _ = shared.cluster.control(&job.id, Control::Cancel).await;
+            (Some(shared), true) => shared.cluster.control(&job.id, Control::Cancel).await,
+            _ => {
+                job.cancel();
+                Ok(())
             }
-            _ => job.cancel(),
         }
     }
 
@@ -573,7 +666,7 @@ impl Jobs {
     pub async fn partial(&self, id: &str) -> Option<Arc<MeshResult>> {
         match self.inner.cache.get_partial(id) {
             Some(result) => Some(result),
-            None => follow::fetch(&self.inner, id, true).await,
+            None => follow::fetch(&self.inner, id, true).await.found(),
         }
     }
 
@@ -590,7 +683,7 @@ impl Jobs {
                 return Some(found);
             }
         }
-        follow::fetch(&self.inner, id, false).await
+        follow::fetch(&self.inner, id, false).await.found()
     }
 
     /// Refuses new jobs from now on.
@@ -599,13 +692,13 @@ impl Jobs {
     }
 
     /// Cancels every job not yet finished; when replicas share, hands them back for another
-    /// replica to take over instead (a job followed from another replica runs on).
+    /// replica to take over instead (a job followed from another replica runs on there).
     pub fn cancel_all(&self) {
         for entry in self.inner.table.lock().expect("job table poisoned").jobs.values() {
             if let Entry::Live(job) = entry
                 && !job.follows
             {
-                job.handed_back.store(true, Ordering::SeqCst);
+                job.handed_back.store(self.inner.shared.is_some(), Ordering::SeqCst);
                 job.cancel();
             }
         }

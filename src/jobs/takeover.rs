@@ -1,16 +1,25 @@
 //! Taking over jobs whose replica died: every half lease (at least every second), each
 //! replica looks at the pending jobs, and the first to take the lease of one nobody holds
-//! runs it again from its kept request. Results are deterministic, so the clients following it get the same bytes the
-//! dead replica would have stored.
+//! runs it again from its kept request. Results are deterministic, so the clients following
+//! it get the same bytes the dead replica would have stored.
 
-use super::registry::{Inner, Start, Ticket};
+use super::JobError;
+use super::follow::{self, Fetched};
+use super::publish;
+use super::registry::{Inner, Lease, Start};
 use super::share::Client;
-use crate::cluster::Cluster;
+use crate::cluster::{Claim, Cluster};
 use std::sync::{Arc, Weak};
 use std::time::Duration;
 
-/// Looks for orphaned jobs until the registry is gone or closed. Also pings Redis, so that
-/// `/readyz` and `/metrics` say whether it answers even when no request needs it.
+/// How often pending jobs are looked at: every half lease, and at least every second, so that
+/// a job handed back at shutdown is taken over at once whatever the lease.
+pub(super) fn sweep_every(lease: Duration) -> Duration {
+    (lease / 2).clamp(Duration::from_millis(20), Duration::from_secs(1))
+}
+
+/// Looks for orphaned jobs until the registry is gone or closed. Also pings Redis first, so
+/// that `/readyz` and `/metrics` say whether it answers even when no request needs it.
 pub(super) async fn sweep(inner: Weak<Inner>) {
     let mut first = true;
     loop {
@@ -33,54 +42,74 @@ pub(super) async fn sweep(inner: Weak<Inner>) {
         }
         let Ok(ids) = cluster.pending().await else { continue };
         for id in ids {
-            if inner.runs_here(&id) || !matches!(cluster.is_leased(&id).await, Ok(false)) {
+            if inner.runs_here(&id) || !matches!(cluster.holder(&id).await, Ok(None)) {
                 continue;
             }
-            let record = cluster.record(&id).await.ok().flatten();
-            if record.as_ref().is_some_and(|r| r.is_final()) {
-                let _ = cluster.forget(&id).await;
-                continue;
-            }
-            if matches!(cluster.acquire(&id).await, Ok(true)) {
-                take_over(&inner, &cluster, &id, record.map_or(0, |r| r.seq)).await;
+            let token = cluster.token();
+            if let Ok(Claim::Won) = cluster.acquire(&id, &token, false).await {
+                take_over(&inner, &cluster, &id, token).await;
             }
         }
     }
 }
 
-/// How often pending jobs are looked at: every half lease, and at least every second, so that
-/// a job handed back at shutdown is taken over at once whatever the lease.
-pub(super) fn sweep_every(lease: Duration) -> Duration {
-    (lease / 2).clamp(Duration::from_millis(20), Duration::from_secs(1))
-}
-
-/// Runs job `id`, whose lease this replica has just taken, from its kept request.
-async fn take_over(inner: &Arc<Inner>, cluster: &Cluster, id: &str, seq: u64) {
+/// Ends or runs again job `id`, whose lease run `token` has just taken: ends it if it finished
+/// after all (its replica died between storing the result and the final record) or cannot be
+/// run here, else starts it from its kept request.
+async fn take_over(inner: &Arc<Inner>, cluster: &Cluster, id: &str, token: String) {
     let Some(shared) = &inner.shared else { return };
+    let Ok(record) = cluster.record(id).await else {
+        let _ = cluster.release(id, &token).await;
+        return;
+    };
+    let seq = record.as_ref().map_or(0, |r| r.seq);
+    if record.as_ref().is_some_and(|r| r.is_final()) {
+        let _ = cluster.forget(id).await;
+        let _ = cluster.release(id, &token).await;
+        return;
+    }
+    match follow::fetch(inner, id, false).await {
+        Fetched::Found(result) => {
+            publish::close(cluster, id, &token, &publish::succeeded(&result.stats, seq, &token)).await;
+            return;
+        }
+        Fetched::Missing => {}
+        // Redis went away meanwhile: the next sweep, here or elsewhere, tries again.
+        Fetched::Unreachable => {
+            let _ = cluster.release(id, &token).await;
+            return;
+        }
+    }
     let parsed = match cluster.request(id).await {
         Ok(Some(request)) => shared.wire.parse(request).await,
         Ok(None) => Err("its request is no longer kept".to_owned()),
-        Err(e) => Err(e.to_string()),
+        Err(_) => {
+            let _ = cluster.release(id, &token).await;
+            return;
+        }
     };
     let (keys, spec) = match parsed {
         Ok((keys, spec)) if keys.id == id => (keys, spec),
         outcome => {
+            // Replicas with other limits, say: tell the followers rather than leave them waiting.
             let why = outcome.err().unwrap_or_else(|| "its request gives another id here".into());
-            tracing::warn!(job = id, %why, "cannot take the job over; dropping it");
-            let _ = cluster.forget(id).await;
-            let _ = cluster.release(id).await;
+            tracing::warn!(job = id, %why, "cannot take the job over");
+            let problem = shared.wire.problem(&JobError::Internal(format!("could not be taken over: {why}")));
+            publish::close(cluster, id, &token, &publish::failed(problem, seq, &token)).await;
             return;
         }
     };
-    let start = Start { id: keys.id, family: keys.family, seq, leased: true, request: None };
+    let lease = Lease { token: token.clone(), announced: None };
+    let start = Start { id: keys.id, family: keys.family, seq, lease: Some(lease), request: None };
     match inner.start(start, spec, true, &Client::from("replica:takeover".to_owned())) {
-        Ok(Ticket::Job(_)) => {
+        Ok((_, true)) => {
             inner.metrics.takeovers.inc();
             tracing::info!(job = id, "took over a job whose replica stopped renewing its lease");
         }
-        // Busy here: another replica, or this one at the next sweep, takes it.
+        // Busy here (or already run here): another replica, or this one at the next sweep,
+        // takes it.
         _ => {
-            let _ = cluster.release(id).await;
+            let _ = cluster.release(id, &token).await;
         }
     }
 }

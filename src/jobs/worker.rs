@@ -53,8 +53,14 @@ pub(super) async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec, charges
         _ => (Outcome::Cancelled, None),
     };
     let (outcome, elapsed) = outcome;
+    // Stopped by shutdown with another replica to take it: its clients should ask again.
+    let outcome = match outcome {
+        Outcome::Cancelled if job.handed_back.load(Ordering::SeqCst) => Outcome::Failed(JobError::HandedBack),
+        outcome => outcome,
+    };
     let state = match &outcome {
         Outcome::Succeeded(_) => "succeeded",
+        Outcome::Failed(JobError::HandedBack) => "handed_back",
         Outcome::Failed(_) => "failed",
         Outcome::Cancelled => "cancelled",
     };

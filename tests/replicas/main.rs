@@ -53,6 +53,18 @@ async fn a_job_submitted_on_one_replica_is_followed_and_fetched_on_another() {
     assert_eq!(b.status(&id).await["status"], "succeeded");
     assert_eq!((a.metric(ENGINE_RUNS).await, b.metric(ENGINE_RUNS).await), (1.0, 0.0));
     assert_eq!(b.metric("meshfit_shared_hits_total").await, 1.0, "B read the result from Redis once");
+
+    // A third replica asked by many clients at once reads the result from Redis once too.
+    let c = Replica::start("c", &redis).await;
+    let path = format!("/v1/jobs/{id}/mesh");
+    let asks = (0..8).map(|_| c.client.get(c.url(&path)).send());
+    for response in futures_util::future::join_all(asks).await {
+        let response = response.unwrap();
+        assert_eq!(response.status(), 200);
+        assert!(response.bytes().await.unwrap() == bytes_a);
+    }
+    assert_eq!(c.metric("meshfit_shared_hits_total").await, 1.0, "one read for eight clients");
+    assert_eq!(c.metric(ENGINE_RUNS).await, 0.0);
 }
 
 #[tokio::test]
@@ -111,12 +123,18 @@ async fn a_replica_shutting_down_hands_its_job_to_another_before_its_lease_expir
     let b = Replica::start_with("b", &redis, &lease).await;
     let id = submit(&a, &long(1_000_000)).await;
     b.wait_status(&id, |s| s == "running").await;
-    let stream = tokio::spawn({
-        let request = b.client.get(b.url(&format!("/v1/jobs/{id}/events")));
-        async move { events(request.send().await.unwrap()).await }
-    });
+    let follow = |replica: &Replica| {
+        let request = replica.client.get(replica.url(&format!("/v1/jobs/{id}/events")));
+        tokio::spawn(async move { events(request.send().await.unwrap()).await })
+    };
+    let (on_a, on_b) = (follow(&a), follow(&b));
+    a.wait_status(&id, |s| s == "running").await;
     assert!(a.terminate(), "A shuts down cleanly");
-    let stream = stream.await.unwrap();
+    // A's own client is not told the job was cancelled: its stream ends without a final
+    // event, so that it reconnects and follows the job on another replica.
+    let on_a = on_a.await.unwrap();
+    assert!(on_a.iter().all(|(event, _)| event == "progress"), "{:?}", on_a.last());
+    let stream = on_b.await.unwrap();
     let (last_event, last_data) = stream.last().expect("a final event");
     assert_eq!(last_event, "result", "{last_data:.300}");
     assert_eq!(b.metric("meshfit_takeovers_total").await, 1.0);
@@ -124,13 +142,14 @@ async fn a_replica_shutting_down_hands_its_job_to_another_before_its_lease_expir
 }
 
 #[tokio::test]
-async fn delete_on_any_replica_cancels_the_job_where_it_runs() {
+async fn delete_on_any_replica_cancels_the_job_where_it_runs_and_a_new_request_runs_it_again() {
     if !redis_available() {
         return;
     }
     let redis = Redis::start().await;
     let (a, b) = (Replica::start("a", &redis).await, Replica::start("b", &redis).await);
-    let id = submit(&a, &long(3_000_000)).await;
+    let body = long(1_000_000);
+    let id = submit(&a, &body).await;
     b.wait_status(&id, |s| s == "running").await;
     let response = b.client.delete(b.url(&format!("/v1/jobs/{id}"))).send().await.unwrap();
     assert_eq!(response.status(), 200);
@@ -140,6 +159,14 @@ async fn delete_on_any_replica_cancels_the_job_where_it_runs() {
     assert_eq!(a.metric("meshfit_jobs_finished_total{state=\"cancelled\"}").await, 1.0);
     let response = b.get(&format!("/v1/jobs/{id}/mesh")).await;
     assert_eq!(response.status(), 409, "a cancelled job has no mesh");
+
+    // The cancel was for that run: the same request runs again, to the end.
+    let response = b.post("/v1/meshes", &body).await;
+    assert_eq!(response.status(), 200, "{}", response.text().await.unwrap());
+    assert_eq!(b.metric(ENGINE_RUNS).await, 1.0);
+    // B answered its client as the run ended; A hears of it once B has stored the result.
+    a.wait_status(&id, |s| s == "succeeded").await;
+    assert!(mesh(&a, &id).await.1 == mesh(&b, &id).await.1);
 }
 
 #[tokio::test]
