@@ -285,7 +285,12 @@ pub async fn jobs_create(
 
 async fn find(state: &AppState, id: &str) -> Result<Found, ApiError> {
     tracing::Span::current().record("job_id", id);
-    state.jobs.find(id).await.ok_or_else(|| ApiError::NotFound(format!("no job with id {id}")))
+    match state.jobs.find(id).await {
+        Some(found) => Ok(found),
+        // Another replica may run it: only Redis would say.
+        None if state.jobs.redis() == Some(false) => Err(ApiError::Unreachable),
+        None => Err(ApiError::NotFound(format!("no job with id {id}"))),
+    }
 }
 
 /// `GET /v1/jobs/{id}`.

@@ -69,8 +69,8 @@ pub enum ApiError {
     Internal(String),
     /// A job's failure on another replica: the problem document that replica wrote.
     Relayed(Value),
-    /// 503 `redis-unavailable`, with `Retry-After`: the job runs on another replica and Redis,
-    /// through which replicas reach each other, does not answer.
+    /// 503 `redis-unavailable`, with `Retry-After`: the job runs on another replica, or may,
+    /// and Redis, through which replicas reach each other, does not answer.
     Unreachable,
 }
 
@@ -272,7 +272,7 @@ impl ApiError {
                 StatusCode::SERVICE_UNAVAILABLE,
                 "redis-unavailable",
                 "The job's replica cannot be reached",
-                "the job runs on another replica and Redis, through which replicas reach each other, does not answer now; retry shortly".into(),
+                "the job is not known here and may run on another replica, or runs on another replica, and Redis, through which replicas reach each other, does not answer now; retry shortly".into(),
             ),
             // A relayed document is answered as it came (see `document`).
             ApiError::Internal(_) | ApiError::Relayed(_) => (

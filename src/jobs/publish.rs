@@ -85,28 +85,38 @@ async fn keep(inner: &Inner, cluster: &Cluster, job: &Job, token: &str) {
     }
 }
 
+/// How long a finished run keeps trying to tell Redis of its end while Redis is away.
+const DELIVER_FOR: Duration = Duration::from_secs(600);
+
 /// Stores the result and the final record, takes the job off the pending list and gives up
-/// the lease; a job handed back at shutdown only gives up its lease, for a takeover.
+/// the lease; a job handed back at shutdown only gives up its lease, for a takeover. While
+/// Redis is away this is tried again at each sweep, so that a job that finished during an
+/// outage is known to every replica once Redis is back.
 async fn finish(inner: &Arc<Inner>, cluster: &Cluster, job: &Job, token: &str, snapshot: &Snapshot) {
     let Some(shared) = &inner.shared else { return };
-    let problem = match snapshot.outcome.as_ref().expect("finished") {
+    let (problem, result) = match snapshot.outcome.as_ref().expect("finished") {
         Outcome::Failed(JobError::HandedBack) => {
             tracing::info!(job = %job.id, "handed back for another replica to take over");
             let _ = cluster.release(&job.id, token).await;
             return;
         }
-        Outcome::Succeeded(result) => {
-            store(cluster, &job.id, result).await;
-            None
-        }
-        Outcome::Failed(e) => Some(shared.wire.problem(e)),
-        Outcome::Cancelled => None,
+        Outcome::Succeeded(result) => (None, encode(&job.id, result).await),
+        Outcome::Failed(e) => (Some(shared.wire.problem(e)), None),
+        Outcome::Cancelled => (None, None),
     };
-    close(cluster, &job.id, token, &wire(snapshot, problem, token)).await;
+    let record = wire(snapshot, problem, token);
+    let give_up = Instant::now() + DELIVER_FOR;
+    while !deliver(cluster, &job.id, token, result.as_ref(), &record).await {
+        if inner.closed.load(Ordering::SeqCst) || Instant::now() >= give_up {
+            tracing::warn!(job = %job.id, "redis away: other replicas will not know this job finished");
+            return;
+        }
+        tokio::time::sleep(super::takeover::sweep_every(cluster.settings().lease)).await;
+    }
 }
 
-/// Stores result `id` in Redis, in compact form.
-async fn store(cluster: &Cluster, id: &str, result: &Arc<MeshResult>) {
+/// A result in compact form, and whether a time limit stopped its run.
+async fn encode(id: &str, result: &Arc<MeshResult>) -> Option<(Vec<u8>, bool)> {
     let partial = result.stats.stop() == StopReason::TimeLimit;
     let (result, key) = (result.clone(), id.to_owned());
     let bytes = crate::cpu::spawn(move || {
@@ -114,11 +124,42 @@ async fn store(cluster: &Cluster, id: &str, result: &Arc<MeshResult>) {
         compact::write(&result, &key, &mut bytes).map(|_| bytes)
     })
     .await;
-    if let Ok(Ok(bytes)) = bytes
-        && !matches!(cluster.put_result(id, partial, &bytes).await, Ok(true))
-    {
-        tracing::info!(job = id, bytes = bytes.len(), "result not stored in redis");
+    Some((bytes.ok()?.ok()?, partial))
+}
+
+/// Tells Redis that run `token` of job `id` ended: its result, then its final record. Says
+/// whether that is done (or can never be: another run holds the job now), false while Redis
+/// is away.
+async fn deliver(
+    cluster: &Cluster,
+    id: &str,
+    token: &str,
+    result: Option<&(Vec<u8>, bool)>,
+    record: &cluster::Record,
+) -> bool {
+    // The lease may be gone: it lapsed while Redis was away, or Redis restarted empty.
+    match cluster.renew(id, token).await {
+        Ok(true) => {}
+        Ok(false) => match cluster.acquire(id, token, false).await {
+            Ok(Claim::Won) => {}
+            Ok(Claim::Held(_)) => return true,
+            Err(_) => return false,
+        },
+        Err(_) => return false,
     }
+    if let Some((bytes, partial)) = result {
+        match cluster.put_result(id, *partial, bytes).await {
+            Ok(true) => {}
+            Ok(false) => tracing::info!(job = id, bytes = bytes.len(), "result not stored in redis"),
+            Err(_) => return false,
+        }
+    }
+    if cluster.put_record(id, token, record).await.is_err() {
+        return false;
+    }
+    let _ = cluster.forget(id).await;
+    let _ = cluster.release(id, token).await;
+    true
 }
 
 /// Ends run `token` of job `id` with its final `record`: stored and sent, the job off the

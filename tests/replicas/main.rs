@@ -14,6 +14,18 @@ fn long(vertices: u64) -> Value {
     json!({"function": "sin(40*x)*cos(40*y)", "criterion": "variation", "max_vertices": vertices})
 }
 
+/// Redis and two replicas with `settings`, or `None` (the test is skipped) without
+/// `redis-server`.
+async fn pair(settings: &[(&str, &str)]) -> Option<(Redis, Replica, Replica)> {
+    if !redis_available() {
+        return None;
+    }
+    let redis = Redis::start().await;
+    let a = Replica::start_with("a", &redis, settings).await;
+    let b = Replica::start_with("b", &redis, settings).await;
+    Some((redis, a, b))
+}
+
 async fn submit(replica: &Replica, body: &Value) -> String {
     let response = replica.post("/v1/jobs", body).await;
     assert_eq!(response.status(), 202, "a new job is accepted");
@@ -30,11 +42,7 @@ async fn mesh(replica: &Replica, id: &str) -> (String, bytes::Bytes) {
 
 #[tokio::test]
 async fn a_job_submitted_on_one_replica_is_followed_and_fetched_on_another() {
-    if !redis_available() {
-        return;
-    }
-    let redis = Redis::start().await;
-    let (a, b) = (Replica::start("a", &redis).await, Replica::start("b", &redis).await);
+    let Some((redis, a, b)) = pair(&[]).await else { return };
     let id = submit(&a, &json!({"function": "exp(-9*(x*x+y*y))", "max_vertices": 60_000})).await;
     // B has never seen the request: it follows the job through Redis to its final event.
     let response = b.get(&format!("/v1/jobs/{id}/events")).await;
@@ -69,11 +77,7 @@ async fn a_job_submitted_on_one_replica_is_followed_and_fetched_on_another() {
 
 #[tokio::test]
 async fn identical_requests_on_two_replicas_run_once() {
-    if !redis_available() {
-        return;
-    }
-    let redis = Redis::start().await;
-    let (a, b) = (Replica::start("a", &redis).await, Replica::start("b", &redis).await);
+    let Some((_redis, a, b)) = pair(&[]).await else { return };
     let body = json!({"function": "x*y + sin(7*x)", "max_vertices": 200_000});
     let (ra, rb) = tokio::join!(a.post("/v1/meshes", &body), b.post("/v1/meshes", &body));
     assert_eq!((ra.status().as_u16(), rb.status().as_u16()), (200, 200));
@@ -88,11 +92,7 @@ async fn identical_requests_on_two_replicas_run_once() {
 
 #[tokio::test]
 async fn a_job_whose_replica_is_killed_is_taken_over_and_its_follower_sees_it_finish() {
-    if !redis_available() {
-        return;
-    }
-    let redis = Redis::start().await;
-    let (mut a, b) = (Replica::start("a", &redis).await, Replica::start("b", &redis).await);
+    let Some((_redis, mut a, b)) = pair(&[]).await else { return };
     let id = submit(&a, &long(1_000_000)).await;
     b.wait_status(&id, |s| s == "running").await;
     let stream = tokio::spawn({
@@ -113,14 +113,8 @@ async fn a_job_whose_replica_is_killed_is_taken_over_and_its_follower_sees_it_fi
 
 #[tokio::test]
 async fn a_replica_shutting_down_hands_its_job_to_another_before_its_lease_expires() {
-    if !redis_available() {
-        return;
-    }
-    let redis = Redis::start().await;
     // A lease longer than the client waits: only a job handed back is taken over in time.
-    let lease = [("MESHFIT_REDIS_LEASE_MS", "600000")];
-    let mut a = Replica::start_with("a", &redis, &lease).await;
-    let b = Replica::start_with("b", &redis, &lease).await;
+    let Some((_redis, mut a, b)) = pair(&[("MESHFIT_REDIS_LEASE_MS", "600000")]).await else { return };
     let id = submit(&a, &long(1_000_000)).await;
     b.wait_status(&id, |s| s == "running").await;
     let follow = |replica: &Replica| {
@@ -143,11 +137,7 @@ async fn a_replica_shutting_down_hands_its_job_to_another_before_its_lease_expir
 
 #[tokio::test]
 async fn delete_on_any_replica_cancels_the_job_where_it_runs_and_a_new_request_runs_it_again() {
-    if !redis_available() {
-        return;
-    }
-    let redis = Redis::start().await;
-    let (a, b) = (Replica::start("a", &redis).await, Replica::start("b", &redis).await);
+    let Some((_redis, a, b)) = pair(&[]).await else { return };
     let body = long(1_000_000);
     let id = submit(&a, &body).await;
     b.wait_status(&id, |s| s == "running").await;
@@ -171,22 +161,26 @@ async fn delete_on_any_replica_cancels_the_job_where_it_runs_and_a_new_request_r
 
 #[tokio::test]
 async fn replicas_keep_serving_while_redis_is_down_and_share_again_when_it_returns() {
-    if !redis_available() {
-        return;
-    }
-    let mut redis = Redis::start().await;
-    let (a, b) = (Replica::start("a", &redis).await, Replica::start("b", &redis).await);
+    let Some((mut redis, a, b)) = pair(&[]).await else { return };
     a.wait_redis("up").await;
     let before = submit(&a, &json!({"function": "x+y*y", "max_vertices": 5_000})).await;
     a.wait_status(&before, |s| s == "succeeded").await;
     let (_, stored) = mesh(&a, &before).await;
+    let running = submit(&a, &long(1_000_000)).await;
+    b.wait_status(&running, |s| s == "running").await;
 
+    // Redis goes away in the middle of A's run.
     redis.stop();
     for replica in [&a, &b] {
         replica.wait_redis("down").await;
         assert_eq!(replica.get("/readyz").await.status(), 200, "a replica without Redis still serves");
         assert_eq!(replica.metric("meshfit_redis_up").await, 0.0);
     }
+    // A runs its job to the end; B, which cannot know, says to retry rather than "no such job".
+    a.wait_status(&running, |s| s == "succeeded").await;
+    let unknown = b.get(&format!("/v1/jobs/{running}")).await;
+    assert_eq!(unknown.status(), 503);
+    assert_eq!(unknown.json::<Value>().await.unwrap()["type"], "/problems/redis-unavailable");
     // What A had stored is still served, and new work is done alone.
     assert!(mesh(&a, &before).await.1 == stored, "nothing stored is lost");
     let alone = json!({"function": "cos(3*x)*y", "max_vertices": 5_000});
@@ -199,6 +193,10 @@ async fn replicas_keep_serving_while_redis_is_down_and_share_again_when_it_retur
         replica.wait_redis("up").await;
         assert_eq!(replica.metric("meshfit_redis_up").await, 1.0);
     }
+    // The job that ended during the outage is told to Redis once it is back (it restarted
+    // empty): B serves it without running it.
+    b.wait_status(&running, |s| s == "succeeded").await;
+    assert!(mesh(&a, &running).await.1 == mesh(&b, &running).await.1);
     let after = submit(&a, &json!({"function": "x*x-y", "max_vertices": 5_000})).await;
     b.wait_status(&after, |s| s == "succeeded").await;
     assert!(mesh(&a, &after).await.1 == mesh(&b, &after).await.1, "shared again");
