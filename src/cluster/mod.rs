@@ -116,11 +116,12 @@ fn key(kind: &str, id: &str) -> String {
 }
 
 /// Takes a lease nobody holds for token ARGV[1] and, for a fresh submission (ARGV[3] = 1),
-/// drops requests to cancel or detach an earlier run; else answers the holder's token.
+/// drops the record of an earlier run and what was asked of it; else answers the holder's
+/// token.
 const ACQUIRE: &str = r"local held = redis.call('get', KEYS[1])
 if held then return held end
 redis.call('set', KEYS[1], ARGV[1], 'PX', ARGV[2])
-if ARGV[3] == '1' then redis.call('del', KEYS[2], KEYS[3]) end
+if ARGV[3] == '1' then redis.call('del', KEYS[2], KEYS[3], KEYS[4]) end
 return false";
 
 /// Extends a lease if this run holds it.
@@ -130,6 +131,13 @@ const RENEW: &str = r"if redis.call('get', KEYS[1]) == ARGV[1] then
 /// Deletes a lease if this run holds it.
 const RELEASE: &str = r"if redis.call('get', KEYS[1]) == ARGV[1] then
   return redis.call('del', KEYS[1]) else return 0 end";
+
+/// Stores and publishes a record if no run holds the lease (ARGV[1] empty: a follower
+/// ending a job no replica runs).
+const PUT_RECORD_IF_FREE: &str = r"if redis.call('exists', KEYS[2]) == 1 then return 0 end
+redis.call('set', KEYS[1], ARGV[2], 'PX', ARGV[3])
+redis.call('publish', ARGV[4], ARGV[5])
+return 1";
 
 /// Stores and publishes a record if this run holds the lease.
 const PUT_RECORD: &str = r"if redis.call('get', KEYS[2]) ~= ARGV[1] then return 0 end
@@ -261,7 +269,8 @@ impl Cluster {
     }
 
     /// Takes the lease on job `id` for run `token` if nobody holds it. A `fresh` submission
-    /// also drops what clients asked of an earlier run (a cancel must not stop a new one).
+    /// also drops the record of an earlier run (its end is not this run's) and what clients
+    /// asked of it (a cancel must not stop a new run).
     ///
     /// # Errors
     /// When Redis does not answer.
@@ -271,6 +280,7 @@ impl Cluster {
             .key(key("lease", id))
             .key(key("cancel", id))
             .key(key("detach", id))
+            .key(key("job", id))
             .arg(token)
             .arg(lease)
             .arg(u8::from(fresh))
@@ -327,6 +337,26 @@ impl Cluster {
             .key(key("job", id))
             .key(key("lease", id))
             .arg(token)
+            .arg(&json)
+            .arg(self.ttl_ms())
+            .arg(EVENTS)
+            .arg(listen::event(id, &json))
+            .invoke_async::<i64>(&mut self.conn()?)
+            .await;
+        self.note(written).map(|n| n == 1)
+    }
+
+    /// Stores job `id`'s final record for a job no run holds: one a follower found run
+    /// nowhere, so that every replica says it ended; says whether it did.
+    ///
+    /// # Errors
+    /// When Redis does not answer.
+    pub async fn put_record_if_free(&self, id: &str, record: &Record) -> Result<bool> {
+        let json = serde_json::to_string(record).expect("a record serializes");
+        let written = redis::Script::new(PUT_RECORD_IF_FREE)
+            .key(key("job", id))
+            .key(key("lease", id))
+            .arg("")
             .arg(&json)
             .arg(self.ttl_ms())
             .arg(EVENTS)

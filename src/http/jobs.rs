@@ -382,10 +382,13 @@ pub async fn jobs_events(
     if last_seen == FINAL_EVENT_ID {
         return Ok(StatusCode::NO_CONTENT.into_response());
     }
-    match finished_outcome(&state, &id, found).await {
+    if let Some((outcome, _)) = finished_outcome(&state, &id, found).await {
+        return Ok(final_stream(&id, &outcome));
+    }
+    // Finished between the two looks (its record is there now), or Redis stopped answering.
+    match finished_outcome(&state, &id, find(&state, &id).await?).await {
         Some((outcome, _)) => Ok(final_stream(&id, &outcome)),
-        // Finished between the two looks: the record is there now.
-        None => Err(ApiError::Internal("job vanished between lookups".into())),
+        None => Err(ApiError::Unreachable),
     }
 }
 
@@ -401,7 +404,7 @@ fn wants_points(uri: &Uri) -> Result<bool, ApiError> {
 }
 
 /// `DELETE /v1/jobs/{id}`: cancels the job, wherever it runs, and answers with its status
-/// once it has stopped.
+/// once it has stopped (or after 5 s, as it is then).
 pub async fn jobs_cancel(
     State(state): State<AppState>,
     Path(id): Path<String>,
@@ -413,6 +416,10 @@ pub async fn jobs_cancel(
         _ => None,
     };
     let Some(waiter) = waiter else {
+        // Another replica runs it, and it could not be reached to be told.
+        if let Found::Remote(_) = found {
+            return Err(ApiError::Unreachable);
+        }
         return Ok(axum::Json(status_body(&id, &found)).into_response());
     };
     let job = waiter.job().clone();

@@ -23,23 +23,27 @@ use tokio::sync::broadcast;
 /// could be taken over, or refused the run it had taken the lease for.
 const LOST_AFTER: u32 = 3;
 
-/// Attaches a client to this replica's mirror of job `id`, which another replica runs,
-/// making the mirror (and the task that keeps it current) if there is none.
-pub(super) fn follow(inner: &Arc<Inner>, id: String, family: String) -> Waiter {
+/// Attaches a client to this replica's mirror of job `id`, which another replica runs (run
+/// `run`, if known), making the mirror (and the task that keeps it current) if there is none.
+pub(super) fn follow(inner: &Arc<Inner>, id: String, family: String, run: Option<String>) -> Waiter {
     let mut table = inner.table.lock().expect("job table poisoned");
-    if let Some(Entry::Live(job)) = table.jobs.get(&id)
-        && job.is_joinable()
-    {
-        return inner.attach(job, false);
-    }
+    let live = match table.jobs.get(&id) {
+        Some(Entry::Live(job)) if job.is_joinable() => return inner.attach(job, false),
+        Some(Entry::Live(_)) => true,
+        _ => false,
+    };
     // Detached: a client leaving here never cancels the job; `DELETE` does, through Redis.
     // Its family is unknown here; a mirror notes no runs for replays.
     let job = Arc::new(Job::new(id.clone(), family, true, true, 0));
     let waiter = inner.attach(&job, false);
-    table.jobs.insert(id, Entry::Live(job.clone()));
+    // A run of this replica still ending keeps its place in the table, where shutdown and
+    // the sweep look for it; the mirror lives on for its clients alone.
+    if !live {
+        table.jobs.insert(id, Entry::Live(job.clone()));
+    }
     drop(table);
     inner.metrics.jobs_followed.inc();
-    tokio::spawn(keep_current(inner.clone(), job));
+    tokio::spawn(keep_current(inner.clone(), job, run));
     waiter
 }
 
@@ -206,14 +210,17 @@ async fn look(inner: &Arc<Inner>, cluster: &Cluster, job: &Job, run: &mut Option
 
 /// Keeps mirror `job` current until it finishes, then files it like a job run here; or,
 /// once nobody has waited on it for two looks, drops it.
-async fn keep_current(inner: Arc<Inner>, job: Arc<Job>) {
+async fn keep_current(inner: Arc<Inner>, job: Arc<Job>, mut run: Option<String>) {
     let Some(shared) = &inner.shared else { return };
     let cluster = &shared.cluster;
-    // A client waits here: the job's own replica must not cancel it when its clients leave.
-    let _ = cluster.control(&job.id, Control::Detach).await;
     let every = sweep_every(cluster.settings().lease);
-    let (mut run, mut idle, mut lost) = (None, 0, 0);
+    let (mut told, mut idle, mut lost) = (None, 0, 0);
     loop {
+        // A client waits here: the run must not be cancelled when its own clients leave.
+        // Told again to each new run (a fresh run drops what was asked of an earlier one).
+        if run.is_some() && told != run && cluster.control(&job.id, Control::Detach).await.is_ok() {
+            told.clone_from(&run);
+        }
         match look(&inner, cluster, &job, &mut run).await {
             Look::Finished(outcome, elapsed) => {
                 job.finish(outcome, elapsed);
@@ -224,7 +231,11 @@ async fn keep_current(inner: Arc<Inner>, job: Arc<Job>) {
                 lost += 1;
                 if lost >= LOST_AFTER {
                     let why = format!("job {} is run by no replica; submit it again", job.id);
-                    job.finish(Outcome::Failed(JobError::Internal(why)), None);
+                    let error = JobError::Internal(why);
+                    // Ended for every replica, unless a run has taken the job meanwhile.
+                    let record = super::publish::failed(shared.wire.problem(&error), job.snapshot().seq, "");
+                    let _ = cluster.put_record_if_free(&job.id, &record).await;
+                    job.finish(Outcome::Failed(error), None);
                     break;
                 }
             }

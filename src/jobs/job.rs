@@ -77,7 +77,8 @@ pub enum Outcome {
     Succeeded(Arc<MeshResult>),
     /// With an error.
     Failed(JobError),
-    /// Cancelled by a client, by every waiting client leaving, or by shutdown.
+    /// Cancelled by a client, by every waiting client leaving, or by shutdown (of a replica
+    /// with no other to hand the job to: see [`JobError::HandedBack`]).
     Cancelled,
 }
 
@@ -121,6 +122,8 @@ pub struct Job {
     /// Set when shutdown cancels the job: its lease is given up unfinished, so that another
     /// replica takes it over, instead of telling its clients it was cancelled.
     pub(super) handed_back: AtomicBool,
+    /// Whether its request is kept in Redis, so that another replica can take it over.
+    pub(super) kept: AtomicBool,
 }
 
 impl Job {
@@ -145,6 +148,7 @@ impl Job {
             points: Mutex::new(Vec::new()),
             follows,
             handed_back: AtomicBool::new(false),
+            kept: AtomicBool::new(false),
         }
     }
 

@@ -20,24 +20,35 @@ const PUBLISH_EVERY: Duration = Duration::from_millis(100);
 pub(super) async fn run(inner: &Arc<Inner>, job: Arc<Job>, lease: Lease, request: Option<Request>) {
     let Some(shared) = &inner.shared else { return };
     let (cluster, token) = (&shared.cluster, lease.token.as_str());
-    if let Some(request) = request
-        && !matches!(cluster.put_request(&job.id, &request).await, Ok(true))
-    {
-        tracing::info!(job = %job.id, "request not kept in redis: no other replica can take this job over");
-    }
     let mut rx = job.subscribe();
-    let mut sent: Option<(u64, Status)> = None;
-    let mut last = None::<Instant>;
-    let mut announced = lease.announced;
+    // The first record first: the submission's client waits for it, and a large request
+    // would keep it waiting.
+    // (A job that has ended already gets its final record from `finish` alone.)
+    let first = rx.borrow_and_update().clone();
+    if first.outcome.is_none() {
+        let _ = cluster.put_record(&job.id, token, &wire(&first, None, token)).await;
+    }
+    let mut sent = Some((first.seq, first.status));
+    let mut last = Some(Instant::now());
+    if let Some(announced) = lease.announced {
+        let _ = announced.send(());
+    }
+    match request {
+        Some(request) => match cluster.put_request(&job.id, &request).await {
+            Ok(true) => job.kept.store(true, Ordering::SeqCst),
+            _ => {
+                tracing::info!(job = %job.id, "request not kept in redis: no other replica can take this job over")
+            }
+        },
+        // A job taken over: its request is kept already.
+        None => job.kept.store(true, Ordering::SeqCst),
+    }
     let mut renew = tokio::time::interval(cluster.settings().lease / 3);
     renew.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     renew.tick().await;
     loop {
         let snapshot = rx.borrow_and_update().clone();
         if snapshot.outcome.is_some() {
-            if let Some(announced) = announced.take() {
-                let _ = announced.send(());
-            }
             return finish(inner, cluster, &job, token, &snapshot).await;
         }
         let fresh = sent != Some((snapshot.seq, snapshot.status));
@@ -45,9 +56,6 @@ pub(super) async fn run(inner: &Arc<Inner>, job: Arc<Job>, lease: Lease, request
         if fresh && due.is_none_or(|due| Instant::now() >= due) {
             let _ = cluster.put_record(&job.id, token, &wire(&snapshot, None, token)).await;
             (sent, last) = (Some((snapshot.seq, snapshot.status)), Some(Instant::now()));
-            if let Some(announced) = announced.take() {
-                let _ = announced.send(());
-            }
             continue;
         }
         let wait = async {
@@ -154,8 +162,11 @@ async fn deliver(
             Err(_) => return false,
         }
     }
-    if cluster.put_record(id, token, record).await.is_err() {
-        return false;
+    match cluster.put_record(id, token, record).await {
+        Ok(true) => {}
+        // Another run holds the job now: what it keeps is its own.
+        Ok(false) => return true,
+        Err(_) => return false,
     }
     let _ = cluster.forget(id).await;
     let _ = cluster.release(id, token).await;
@@ -165,8 +176,10 @@ async fn deliver(
 /// Ends run `token` of job `id` with its final `record`: stored and sent, the job off the
 /// pending list, the lease given up.
 pub(super) async fn close(cluster: &Cluster, id: &str, token: &str, record: &cluster::Record) {
-    let _ = cluster.put_record(id, token, record).await;
-    let _ = cluster.forget(id).await;
+    // Only while this run holds the lease: another run's pending entry and keys are its own.
+    if let Ok(true) = cluster.put_record(id, token, record).await {
+        let _ = cluster.forget(id).await;
+    }
     let _ = cluster.release(id, token).await;
 }
 

@@ -12,6 +12,7 @@ use crate::result::MeshResult;
 use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
+use std::time::Duration;
 use tokio::sync::Semaphore;
 
 /// A client waiting on a job. When the last one leaves a job that nobody detached, the job is
@@ -114,16 +115,17 @@ impl Found {
 pub(super) const FINISHED_KEPT: usize = 10_000;
 
 /// Whether run `token` of job `id` has stored its final record (and is about to let go of
-/// its lease).
+/// its lease), or was asked to stop: a new request must not be given its end.
 async fn has_ended(cluster: &Cluster, id: &str, token: &str) -> bool {
-    matches!(cluster.record(id).await, Ok(Some(r)) if r.run == token && r.is_final())
+    let ended = matches!(cluster.record(id).await, Ok(Some(r)) if r.run == token && r.is_final());
+    ended || matches!(cluster.asked(id).await, Ok((true, _)))
 }
 
-/// How long a submission waits for a run that holds the job's lease and will not run it for
-/// this request: one of this replica being started by a concurrent identical request (to
-/// join), or one that has ended, after a cancel, and not yet let go of its lease.
-const OWN_RUN_WAIT: std::time::Duration = std::time::Duration::from_millis(25);
-const OWN_RUN_WAITS: u32 = 80;
+/// How often a submission looks again at a run that holds the job's lease and will not run
+/// it for this request: one of this replica being started by a concurrent identical request
+/// (to join), or one that has ended, or was asked to, and not yet let go of its lease (for at
+/// most a lease, then the submission is refused with `Retry-After`).
+const OWN_RUN_WAIT: Duration = Duration::from_millis(25);
 
 /// How many results being read from Redis keep their turn (see [`follow::fetch`]).
 const FETCHES_KEPT: u64 = 10_000;
@@ -518,41 +520,44 @@ impl Jobs {
             return inner.start(start, spec, detached, client).map(|(ticket, _)| ticket);
         };
         let cluster = &shared.cluster;
-        // One replica runs a job: the one whose run takes its lease.
+        // One replica runs a job: the one whose run takes its lease. Guarded from before the
+        // first try: a client hanging up while the lease is being taken leaves none behind.
         let token = cluster.token();
-        let mut waits = 0;
+        let mut guard = LeaseGuard { cluster: cluster.clone(), id: id.clone(), token: Some(token.clone()) };
+        // An ended run lets go of its lease within a lease, even if its release was lost.
+        let patience =
+            (cluster.settings().lease + Duration::from_secs(1)).as_millis() / OWN_RUN_WAIT.as_millis();
+        let mut waits: u128 = 0;
         let won = loop {
-            match cluster.acquire(&id, &token, true).await {
+            let held = match cluster.acquire(&id, &token, true).await {
                 Ok(Claim::Won) => break true,
-                // A run of this replica: one a concurrent identical request is starting (join
-                // it), or one ending after a cancel (let it end, then run again).
-                Ok(Claim::Held(holder)) if cluster.is_mine(&holder) && waits < OWN_RUN_WAITS => {
-                    if let Some(ticket) = inner.join(&id, detached) {
-                        return Ok(ticket);
-                    }
-                    waits += 1;
-                    tokio::time::sleep(OWN_RUN_WAIT).await;
-                }
-                // A run that has ended (cancelled, say) and not yet let go: wait for its lease.
-                Ok(Claim::Held(holder))
-                    if waits < OWN_RUN_WAITS && has_ended(cluster, &id, &holder).await =>
-                {
-                    waits += 1;
-                    tokio::time::sleep(OWN_RUN_WAIT).await;
-                }
-                Ok(Claim::Held(_)) => {
-                    inner.metrics.cache_misses.inc();
-                    return Ok(Ticket::Job(follow::follow(inner, id, family)));
-                }
+                Ok(Claim::Held(holder)) => holder,
                 // Redis is away: run it here, unshared.
                 Err(_) => break false,
+            };
+            waits += 1;
+            if cluster.is_mine(&held) {
+                // A run of this replica: one a concurrent identical request is starting (join
+                // it), or one ending after a cancel (let it end, then run again). Never a
+                // mirror of it.
+                if let Some(ticket) = inner.join(&id, detached) {
+                    return Ok(ticket);
+                }
+            } else if !(waits < patience && has_ended(cluster, &id, &held).await) {
+                inner.metrics.cache_misses.inc();
+                return Ok(Ticket::Job(follow::follow(inner, id, family, Some(held))));
             }
+            // A run that has ended, or was asked to, and not yet let go: wait for its lease.
+            if waits >= patience {
+                let retry_after = inner.retry_after(inner.workers);
+                return Err(SubmitError::QueueFull { waiting: inner.queued(), retry_after });
+            }
+            tokio::time::sleep(OWN_RUN_WAIT).await;
         };
         if !won {
             let start = Start { id, family, seq: 0, lease: None, request: None };
             return inner.start(start, spec, detached, client).map(|(ticket, _)| ticket);
         }
-        let mut guard = LeaseGuard { cluster: cluster.clone(), id: id.clone(), token: Some(token.clone()) };
         // Finished elsewhere between the lookup above and the lease.
         if let Fetched::Found(result) = follow::fetch(inner, &id, false).await {
             inner.metrics.cache_hits.inc();
@@ -599,6 +604,10 @@ impl Jobs {
             None => return found,
         };
         Some(match follow::record(&record) {
+            // The end of an earlier run, while a new one holds the lease.
+            Some(_) if matches!(cluster.holder(id).await, Ok(Some(h)) if h != record.run) => {
+                Found::Remote(Arc::new(Record::queued()))
+            }
             Some(done) => Found::Done(Arc::new(done)),
             None => Found::Remote(Arc::new(follow::running(&record))),
         })
@@ -607,20 +616,25 @@ impl Jobs {
     /// Registers a client waiting on job `id` while it runs (server-sent events), here or,
     /// when replicas share, on another replica.
     pub async fn watch(&self, id: &str) -> Option<Waiter> {
-        {
+        let shared = {
             let table = self.inner.table.lock().expect("job table poisoned");
-            match table.jobs.get(id) {
-                Some(Entry::Live(job)) => return Some(self.inner.attach(job, false)),
-                Some(Entry::Done(_)) => return None,
-                None => {}
+            match (table.jobs.get(id), &self.inner.shared) {
+                (Some(Entry::Live(job)), _) => return Some(self.inner.attach(job, false)),
+                // A job that failed or was cancelled here may run again elsewhere.
+                (Some(Entry::Done(r)), Some(shared)) if r.status != Status::Succeeded => shared,
+                (None, Some(shared)) => shared,
+                _ => return None,
             }
-        }
-        let cluster = &self.inner.shared.as_ref()?.cluster;
-        let running = match cluster.record(id).await.ok()? {
-            Some(record) => !record.is_final(),
-            None => cluster.holder(id).await.ok()?.is_some(),
         };
-        running.then(|| follow::follow(&self.inner, id.to_owned(), id.to_owned()))
+        let (holder, record) = (shared.cluster.holder(id).await.ok()?, shared.cluster.record(id).await.ok()?);
+        let running = match (&holder, &record) {
+            // A run holds the lease and has not stored its end.
+            (Some(h), record) => record.as_ref().is_none_or(|r| !(r.run == *h && r.is_final())),
+            // None does, and its record is not an end: a takeover is due, or it is lost (the
+            // mirror finds out which).
+            (None, record) => record.as_ref().is_some_and(|r| !r.is_final()),
+        };
+        running.then(|| follow::follow(&self.inner, id.to_owned(), id.to_owned(), holder))
     }
 
     /// Asks job `job` to stop, wherever it runs.
@@ -698,7 +712,9 @@ impl Jobs {
             if let Entry::Live(job) = entry
                 && !job.follows
             {
-                job.handed_back.store(self.inner.shared.is_some(), Ordering::SeqCst);
+                // Only a job another replica can take over, and not one a client cancelled.
+                let kept = job.kept.load(Ordering::SeqCst) && !job.cancel.load(Ordering::Relaxed);
+                job.handed_back.store(kept, Ordering::SeqCst);
                 job.cancel();
             }
         }
