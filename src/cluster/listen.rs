@@ -13,8 +13,6 @@ pub enum Message {
     Record(String, Box<Record>),
     /// The replica running job `id` is asked to act.
     Control(String, Control),
-    /// The subscription was (re)established: messages may have been missed before it.
-    Subscribed,
 }
 
 /// The payload of a record on `meshfit:events`: the id, a space, the record's JSON.
@@ -62,8 +60,9 @@ pub(super) async fn run(client: redis::Client, inner: Weak<Inner>) {
         match attempt {
             Ok(Ok(pubsub)) => {
                 delay = Duration::from_millis(100);
+                // Subscribed: Redis answers (messages missed meanwhile are read back at the
+                // next sweep).
                 let _ = inner.note(Ok(()));
-                let _ = inner.messages.send(Message::Subscribed);
                 let messages = inner.messages.clone();
                 drop(inner);
                 let mut stream = pubsub.into_on_message();

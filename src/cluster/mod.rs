@@ -115,35 +115,49 @@ fn key(kind: &str, id: &str) -> String {
     format!("meshfit:{kind}:{id}")
 }
 
+/// A script, hashed once: redis-rs sends its SHA-1 (EVALSHA) and the body only when Redis
+/// does not know it yet.
+type Lua = std::sync::LazyLock<redis::Script>;
+
 /// Takes a lease nobody holds for token ARGV[1] and, for a fresh submission (ARGV[3] = 1),
 /// drops the record of an earlier run and what was asked of it; else answers the holder's
 /// token.
-const ACQUIRE: &str = r"local held = redis.call('get', KEYS[1])
+static ACQUIRE: Lua = Lua::new(|| {
+    redis::Script::new(
+        r"local held = redis.call('get', KEYS[1])
 if held then return held end
 redis.call('set', KEYS[1], ARGV[1], 'PX', ARGV[2])
 if ARGV[3] == '1' then redis.call('del', KEYS[2], KEYS[3], KEYS[4]) end
-return false";
+return false",
+    )
+});
 
 /// Extends a lease if this run holds it.
-const RENEW: &str = r"if redis.call('get', KEYS[1]) == ARGV[1] then
-  return redis.call('pexpire', KEYS[1], ARGV[2]) else return 0 end";
+static RENEW: Lua = Lua::new(|| {
+    redis::Script::new(
+        r"if redis.call('get', KEYS[1]) == ARGV[1] then
+  return redis.call('pexpire', KEYS[1], ARGV[2]) else return 0 end",
+    )
+});
 
 /// Deletes a lease if this run holds it.
-const RELEASE: &str = r"if redis.call('get', KEYS[1]) == ARGV[1] then
-  return redis.call('del', KEYS[1]) else return 0 end";
+static RELEASE: Lua = Lua::new(|| {
+    redis::Script::new(
+        r"if redis.call('get', KEYS[1]) == ARGV[1] then
+  return redis.call('del', KEYS[1]) else return 0 end",
+    )
+});
 
-/// Stores and publishes a record if no run holds the lease (ARGV[1] empty: a follower
-/// ending a job no replica runs).
-const PUT_RECORD_IF_FREE: &str = r"if redis.call('exists', KEYS[2]) == 1 then return 0 end
+/// Stores and publishes a record if run ARGV[1] holds the lease, or, with ARGV[1] empty, if
+/// no run does.
+static PUT_RECORD: Lua = Lua::new(|| {
+    redis::Script::new(
+        r"if (redis.call('get', KEYS[2]) or '') ~= ARGV[1] then return 0 end
 redis.call('set', KEYS[1], ARGV[2], 'PX', ARGV[3])
 redis.call('publish', ARGV[4], ARGV[5])
-return 1";
-
-/// Stores and publishes a record if this run holds the lease.
-const PUT_RECORD: &str = r"if redis.call('get', KEYS[2]) ~= ARGV[1] then return 0 end
-redis.call('set', KEYS[1], ARGV[2], 'PX', ARGV[3])
-redis.call('publish', ARGV[4], ARGV[5])
-return 1";
+return 1",
+    )
+});
 
 impl Cluster {
     /// A client of the Redis at `settings.url`; connects lazily, so a replica starts (and
@@ -276,7 +290,7 @@ impl Cluster {
     /// When Redis does not answer.
     pub async fn acquire(&self, id: &str, token: &str, fresh: bool) -> Result<Claim> {
         let lease = self.inner.settings.lease.as_millis() as u64;
-        let held = redis::Script::new(ACQUIRE)
+        let held = ACQUIRE
             .key(key("lease", id))
             .key(key("cancel", id))
             .key(key("detach", id))
@@ -295,12 +309,8 @@ impl Cluster {
     /// When Redis does not answer.
     pub async fn renew(&self, id: &str, token: &str) -> Result<bool> {
         let lease = self.inner.settings.lease.as_millis() as u64;
-        let renewed = redis::Script::new(RENEW)
-            .key(key("lease", id))
-            .arg(token)
-            .arg(lease)
-            .invoke_async::<i64>(&mut self.conn()?)
-            .await;
+        let renewed =
+            RENEW.key(key("lease", id)).arg(token).arg(lease).invoke_async::<i64>(&mut self.conn()?).await;
         self.note(renewed).map(|n| n == 1)
     }
 
@@ -309,11 +319,7 @@ impl Cluster {
     /// # Errors
     /// When Redis does not answer.
     pub async fn release(&self, id: &str, token: &str) -> Result<()> {
-        let released = redis::Script::new(RELEASE)
-            .key(key("lease", id))
-            .arg(token)
-            .invoke_async::<i64>(&mut self.conn()?)
-            .await;
+        let released = RELEASE.key(key("lease", id)).arg(token).invoke_async::<i64>(&mut self.conn()?).await;
         self.note(released).map(drop)
     }
 
@@ -326,37 +332,18 @@ impl Cluster {
         self.note(held)
     }
 
-    /// Stores job `id`'s record and sends it to every replica, if run `token` holds the lease;
-    /// says whether it did.
+    /// Stores job `id`'s record and sends it to every replica, if run `token` holds the lease,
+    /// or, for `None`, if no run does (a follower ending a job it found run nowhere); says
+    /// whether it did.
     ///
     /// # Errors
     /// When Redis does not answer.
-    pub async fn put_record(&self, id: &str, token: &str, record: &Record) -> Result<bool> {
+    pub async fn put_record(&self, id: &str, token: Option<&str>, record: &Record) -> Result<bool> {
         let json = serde_json::to_string(record).expect("a record serializes");
-        let written = redis::Script::new(PUT_RECORD)
+        let written = PUT_RECORD
             .key(key("job", id))
             .key(key("lease", id))
-            .arg(token)
-            .arg(&json)
-            .arg(self.ttl_ms())
-            .arg(EVENTS)
-            .arg(listen::event(id, &json))
-            .invoke_async::<i64>(&mut self.conn()?)
-            .await;
-        self.note(written).map(|n| n == 1)
-    }
-
-    /// Stores job `id`'s final record for a job no run holds: one a follower found run
-    /// nowhere, so that every replica says it ended; says whether it did.
-    ///
-    /// # Errors
-    /// When Redis does not answer.
-    pub async fn put_record_if_free(&self, id: &str, record: &Record) -> Result<bool> {
-        let json = serde_json::to_string(record).expect("a record serializes");
-        let written = redis::Script::new(PUT_RECORD_IF_FREE)
-            .key(key("job", id))
-            .key(key("lease", id))
-            .arg("")
+            .arg(token.unwrap_or_default())
             .arg(&json)
             .arg(self.ttl_ms())
             .arg(EVENTS)

@@ -87,12 +87,8 @@ async fn prepare(
     kind: Kind,
 ) -> Result<(JobKeys, JobSpec, Option<Request>), ApiError> {
     let limits = state.limits;
-    let content_type = headers.get(header::CONTENT_TYPE).and_then(|v| v.to_str().ok()).unwrap_or_default();
-    let mut request = state.jobs.redis().is_some().then(|| Request {
-        kind: String::new(),
-        content_type: content_type.to_owned(),
-        body: body.bytes.clone(),
-    });
+    // The bytes are shared, not copied.
+    let kept = state.jobs.redis().is_some().then(|| body.bytes.clone());
     let body = JobBody::from_parts(headers, body.bytes).await?;
     let inline = matches!(&body, JobBody::Json(json) if json.len() <= INLINE_BODY_BYTES);
     // A small JSON body parses in microseconds, less than a trip to the blocking pool; a grid
@@ -106,13 +102,15 @@ async fn prepare(
             .map_err(|e| ApiError::Internal(format!("request parsing panicked: {e}")))??
     };
     tracing::Span::current().record("job_id", keys.id.as_str());
-    if let Some(request) = &mut request {
-        request.kind = match spec.work {
-            Work::Mesh(_) => "mesh",
-            Work::Solve(_) => "solution",
-        }
-        .to_owned();
-    }
+    let request = kept.map(|body| Request {
+        kind: if let Work::Solve(_) = spec.work { "solution" } else { "mesh" }.to_owned(),
+        content_type: headers
+            .get(header::CONTENT_TYPE)
+            .and_then(|v| v.to_str().ok())
+            .unwrap_or_default()
+            .to_owned(),
+        body,
+    });
     Ok((keys, spec, request))
 }
 

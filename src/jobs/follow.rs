@@ -49,11 +49,11 @@ pub(super) fn follow(inner: &Arc<Inner>, id: String, family: String, run: Option
 
 /// The record of a job that has finished, as clients see it; `None` while it runs.
 pub(super) fn record(r: &cluster::Record) -> Option<Record> {
-    r.is_final().then(|| running(r))
+    r.is_final().then(|| view(r))
 }
 
 /// A stored record as clients see it.
-pub(super) fn running(r: &cluster::Record) -> Record {
+pub(super) fn view(r: &cluster::Record) -> Record {
     Record {
         status: Status::parse(&r.status).unwrap_or(Status::Queued),
         progress: r.progress,
@@ -233,8 +233,9 @@ async fn keep_current(inner: Arc<Inner>, job: Arc<Job>, mut run: Option<String>)
                     let why = format!("job {} is run by no replica; submit it again", job.id);
                     let error = JobError::Internal(why);
                     // Ended for every replica, unless a run has taken the job meanwhile.
-                    let record = super::publish::failed(shared.wire.problem(&error), job.snapshot().seq, "");
-                    let _ = cluster.put_record_if_free(&job.id, &record).await;
+                    let problem = Some(shared.wire.problem(&error));
+                    let record = super::publish::ended(Status::Failed, None, problem, job.snapshot().seq, "");
+                    let _ = cluster.put_record(&job.id, None, &record).await;
                     job.finish(Outcome::Failed(error), None);
                     break;
                 }
@@ -272,7 +273,7 @@ pub(super) async fn dispatch(inner: Weak<Inner>, mut messages: broadcast::Receiv
             Err(broadcast::error::RecvError::Closed) => return,
         };
         let Some(inner) = inner.upgrade() else { return };
-        let (Message::Record(id, _) | Message::Control(id, _)) = &message else { continue };
+        let (Message::Record(id, _) | Message::Control(id, _)) = &message;
         let table = inner.table.lock().expect("job table poisoned");
         let Some(Entry::Live(job)) = table.jobs.get(id) else { continue };
         match message {

@@ -26,7 +26,7 @@ pub(super) async fn run(inner: &Arc<Inner>, job: Arc<Job>, lease: Lease, request
     // (A job that has ended already gets its final record from `finish` alone.)
     let first = rx.borrow_and_update().clone();
     if first.outcome.is_none() {
-        let _ = cluster.put_record(&job.id, token, &wire(&first, None, token)).await;
+        let _ = cluster.put_record(&job.id, Some(token), &wire(&first, None, token)).await;
     }
     let mut sent = Some((first.seq, first.status));
     let mut last = Some(Instant::now());
@@ -54,7 +54,7 @@ pub(super) async fn run(inner: &Arc<Inner>, job: Arc<Job>, lease: Lease, request
         let fresh = sent != Some((snapshot.seq, snapshot.status));
         let due = last.map(|t| t + PUBLISH_EVERY).filter(|_| fresh);
         if fresh && due.is_none_or(|due| Instant::now() >= due) {
-            let _ = cluster.put_record(&job.id, token, &wire(&snapshot, None, token)).await;
+            let _ = cluster.put_record(&job.id, Some(token), &wire(&snapshot, None, token)).await;
             (sent, last) = (Some((snapshot.seq, snapshot.status)), Some(Instant::now()));
             continue;
         }
@@ -162,7 +162,7 @@ async fn deliver(
             Err(_) => return false,
         }
     }
-    match cluster.put_record(id, token, record).await {
+    match cluster.put_record(id, Some(token), record).await {
         Ok(true) => {}
         // Another run holds the job now: what it keeps is its own.
         Ok(false) => return true,
@@ -177,33 +177,27 @@ async fn deliver(
 /// pending list, the lease given up.
 pub(super) async fn close(cluster: &Cluster, id: &str, token: &str, record: &cluster::Record) {
     // Only while this run holds the lease: another run's pending entry and keys are its own.
-    if let Ok(true) = cluster.put_record(id, token, record).await {
+    if let Ok(true) = cluster.put_record(id, Some(token), record).await {
         let _ = cluster.forget(id).await;
     }
     let _ = cluster.release(id, token).await;
 }
 
-/// The final record of a job whose result was found already stored, numbered after `seq`.
-pub(super) fn succeeded(stats: &Summary, seq: u64, token: &str) -> cluster::Record {
+/// The final record of a run that ended `status`, numbered after `seq`, written by another
+/// than the run itself (a takeover that found it ended, a follower that found it lost).
+pub(super) fn ended(
+    status: Status,
+    stats: Option<Summary>,
+    problem: Option<serde_json::Value>,
+    seq: u64,
+    token: &str,
+) -> cluster::Record {
     cluster::Record {
-        status: Status::Succeeded.as_str().to_owned(),
+        status: status.as_str().to_owned(),
         seq: seq + 1,
         progress: None,
-        stats: Some(stats.clone()),
-        problem: None,
-        elapsed_ms: None,
-        run: token.to_owned(),
-    }
-}
-
-/// The final record of a job that failed with `problem`, numbered after `seq`.
-pub(super) fn failed(problem: serde_json::Value, seq: u64, token: &str) -> cluster::Record {
-    cluster::Record {
-        status: Status::Failed.as_str().to_owned(),
-        seq: seq + 1,
-        progress: None,
-        stats: None,
-        problem: Some(problem),
+        stats,
+        problem,
         elapsed_ms: None,
         run: token.to_owned(),
     }

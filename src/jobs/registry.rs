@@ -609,7 +609,7 @@ impl Jobs {
                 Found::Remote(Arc::new(Record::queued()))
             }
             Some(done) => Found::Done(Arc::new(done)),
-            None => Found::Remote(Arc::new(follow::running(&record))),
+            None => Found::Remote(Arc::new(follow::view(&record))),
         })
     }
 

@@ -5,6 +5,7 @@
 
 use super::JobError;
 use super::follow::{self, Fetched};
+use super::job::Status;
 use super::publish;
 use super::registry::{Inner, Lease, Start};
 use super::share::Client;
@@ -21,34 +22,34 @@ pub(super) fn sweep_every(lease: Duration) -> Duration {
 /// Looks for orphaned jobs until the registry is gone or closed. Also pings Redis first, so
 /// that `/readyz` and `/metrics` say whether it answers even when no request needs it.
 pub(super) async fn sweep(inner: Weak<Inner>) {
-    let mut first = true;
     loop {
-        if !std::mem::take(&mut first) {
-            let every = {
-                let Some(inner) = inner.upgrade() else { return };
-                let Some(shared) = &inner.shared else { return };
-                sweep_every(shared.cluster.settings().lease)
-            };
-            tokio::time::sleep(every).await;
-        }
-        let Some(inner) = inner.upgrade() else { return };
-        if inner.closed.load(std::sync::atomic::Ordering::SeqCst) {
-            return;
-        }
-        let Some(shared) = &inner.shared else { return };
-        let cluster = shared.cluster.clone();
-        if cluster.ping().await.is_err() {
+        // Held only while sweeping: the registry may go between sweeps.
+        let every = {
+            let Some(inner) = inner.upgrade() else { return };
+            let Some(shared) = &inner.shared else { return };
+            if inner.closed.load(std::sync::atomic::Ordering::SeqCst) {
+                return;
+            }
+            sweep_once(&inner, &shared.cluster).await;
+            sweep_every(shared.cluster.settings().lease)
+        };
+        tokio::time::sleep(every).await;
+    }
+}
+
+/// One look at the pending jobs, after a ping.
+async fn sweep_once(inner: &Arc<Inner>, cluster: &Cluster) {
+    if cluster.ping().await.is_err() {
+        return;
+    }
+    let Ok(ids) = cluster.pending().await else { return };
+    for id in ids {
+        if inner.runs_here(&id) || !matches!(cluster.holder(&id).await, Ok(None)) {
             continue;
         }
-        let Ok(ids) = cluster.pending().await else { continue };
-        for id in ids {
-            if inner.runs_here(&id) || !matches!(cluster.holder(&id).await, Ok(None)) {
-                continue;
-            }
-            let token = cluster.token();
-            if let Ok(Claim::Won) = cluster.acquire(&id, &token, false).await {
-                take_over(&inner, &cluster, &id, token).await;
-            }
+        let token = cluster.token();
+        if let Ok(Claim::Won) = cluster.acquire(&id, &token, false).await {
+            take_over(inner, cluster, &id, token).await;
         }
     }
 }
@@ -70,7 +71,8 @@ async fn take_over(inner: &Arc<Inner>, cluster: &Cluster, id: &str, token: Strin
     }
     match follow::fetch(inner, id, false).await {
         Fetched::Found(result) => {
-            publish::close(cluster, id, &token, &publish::succeeded(&result.stats, seq, &token)).await;
+            let record = publish::ended(Status::Succeeded, Some(result.stats.clone()), None, seq, &token);
+            publish::close(cluster, id, &token, &record).await;
             return;
         }
         Fetched::Missing => {}
@@ -95,7 +97,13 @@ async fn take_over(inner: &Arc<Inner>, cluster: &Cluster, id: &str, token: Strin
             let why = outcome.err().unwrap_or_else(|| "its request gives another id here".into());
             tracing::warn!(job = id, %why, "cannot take the job over");
             let problem = shared.wire.problem(&JobError::Internal(format!("could not be taken over: {why}")));
-            publish::close(cluster, id, &token, &publish::failed(problem, seq, &token)).await;
+            publish::close(
+                cluster,
+                id,
+                &token,
+                &publish::ended(Status::Failed, None, Some(problem), seq, &token),
+            )
+            .await;
             return;
         }
     };

@@ -117,12 +117,11 @@ async fn a_replica_shutting_down_hands_its_job_to_another_before_its_lease_expir
     let Some((_redis, mut a, b)) = pair(&[("MESHFIT_REDIS_LEASE_MS", "600000")]).await else { return };
     let id = submit(&a, &long(1_000_000)).await;
     b.wait_status(&id, |s| s == "running").await;
-    let follow = |replica: &Replica| {
-        let request = replica.client.get(replica.url(&format!("/v1/jobs/{id}/events")));
-        tokio::spawn(async move { events(request.send().await.unwrap()).await })
+    // Both streams are open (their heads answered) before A is told to stop.
+    let open = async |replica: &Replica| {
+        replica.client.get(replica.url(&format!("/v1/jobs/{id}/events"))).send().await.unwrap()
     };
-    let (on_a, on_b) = (follow(&a), follow(&b));
-    a.wait_status(&id, |s| s == "running").await;
+    let (on_a, on_b) = (tokio::spawn(events(open(&a).await)), tokio::spawn(events(open(&b).await)));
     assert!(a.terminate(), "A shuts down cleanly");
     // A's own client is not told the job was cancelled: its stream ends without a final
     // event, so that it reconnects and follows the job on another replica.
