@@ -709,12 +709,14 @@ impl Jobs {
     /// replica to take over instead (a job followed from another replica runs on there).
     pub fn cancel_all(&self) {
         for entry in self.inner.table.lock().expect("job table poisoned").jobs.values() {
+            // Decided once per job: the drain loop calls this again and again, and a job
+            // already cancelled (by a client, or by an earlier call) keeps what was decided.
             if let Entry::Live(job) = entry
                 && !job.follows
+                && !job.cancel.load(Ordering::Relaxed)
             {
-                // Only a job another replica can take over, and not one a client cancelled.
-                let kept = job.kept.load(Ordering::SeqCst) && !job.cancel.load(Ordering::Relaxed);
-                job.handed_back.store(kept, Ordering::SeqCst);
+                // Only a job another replica can take over.
+                job.handed_back.store(job.kept.load(Ordering::SeqCst), Ordering::SeqCst);
                 job.cancel();
             }
         }

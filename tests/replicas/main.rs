@@ -135,6 +135,22 @@ async fn a_replica_shutting_down_hands_its_job_to_another_before_its_lease_expir
 }
 
 #[tokio::test]
+async fn a_replica_stopping_with_no_client_connected_hands_its_job_back_once() {
+    // No connection keeps A's server up, so its drain loop cancels the job past a short
+    // grace, again every few milliseconds until the worker lets go: the job must still be
+    // handed back, not cancelled. The lease outlasts the test: only a hand-back is taken over.
+    let settings = [("MESHFIT_REDIS_LEASE_MS", "600000"), ("MESHFIT_SHUTDOWN_GRACE_MS", "1000")];
+    let Some((_redis, mut a, b)) = pair(&settings).await else { return };
+    let id = submit(&a, &long(1_000_000)).await;
+    b.wait_status(&id, |s| s == "running").await;
+    assert!(a.terminate(), "A shuts down cleanly");
+    let status = b.wait_status(&id, |s| !matches!(s, "queued" | "running")).await;
+    assert_eq!(status["status"], "succeeded", "{status}");
+    assert_eq!(b.metric("meshfit_takeovers_total").await, 1.0);
+    assert_eq!(b.metric(ENGINE_RUNS).await, 1.0);
+}
+
+#[tokio::test]
 async fn delete_on_any_replica_cancels_the_job_where_it_runs_and_a_new_request_runs_it_again() {
     let Some((_redis, a, b)) = pair(&[]).await else { return };
     let body = long(1_000_000);
