@@ -543,7 +543,7 @@ impl Jobs {
                 if let Some(ticket) = inner.join(&id, detached) {
                     return Ok(ticket);
                 }
-            } else if !(waits < patience && has_ended(cluster, &id, &held).await) {
+            } else if !has_ended(cluster, &id, &held).await {
                 inner.metrics.cache_misses.inc();
                 return Ok(Ticket::Job(follow::follow(inner, id, family, Some(held))));
             }
