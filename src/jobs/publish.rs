@@ -145,6 +145,20 @@ async fn deliver(
     result: Option<&(Vec<u8>, bool)>,
     record: &cluster::Record,
 ) -> bool {
+    // A whole result first, lease or not: every run of an id makes the same bytes, so a run
+    // that took the job over while this one could not reach Redis finds it stored instead
+    // of running the job again. A partial one is this run's own (another run stops at
+    // another count): only while it holds the lease.
+    let (whole, partial) = match result {
+        Some((bytes, false)) => (Some(bytes), None),
+        Some((bytes, true)) => (None, Some(bytes)),
+        None => (None, None),
+    };
+    if let Some(bytes) = whole
+        && !store(cluster, id, false, bytes).await
+    {
+        return false;
+    }
     // The lease may be gone: it lapsed while Redis was away, or Redis restarted empty.
     match cluster.renew(id, token).await {
         Ok(true) => {}
@@ -155,12 +169,10 @@ async fn deliver(
         },
         Err(_) => return false,
     }
-    if let Some((bytes, partial)) = result {
-        match cluster.put_result(id, *partial, bytes).await {
-            Ok(true) => {}
-            Ok(false) => tracing::info!(job = id, bytes = bytes.len(), "result not stored in redis"),
-            Err(_) => return false,
-        }
+    if let Some(bytes) = partial
+        && !store(cluster, id, true, bytes).await
+    {
+        return false;
     }
     match cluster.put_record(id, Some(token), record).await {
         Ok(true) => {}
@@ -171,6 +183,27 @@ async fn deliver(
     let _ = cluster.forget(id).await;
     let _ = cluster.release(id, token).await;
     true
+}
+
+/// Stores a whole result in Redis; false while Redis is away (or it cannot be encoded).
+pub(super) async fn store_result(cluster: &Cluster, id: &str, result: &Arc<MeshResult>) -> bool {
+    match encode(id, result).await {
+        Some((bytes, partial)) => store(cluster, id, partial, &bytes).await,
+        None => false,
+    }
+}
+
+/// Stores a result's compact bytes; false while Redis is away. One larger than
+/// `MESHFIT_REDIS_MAX_BYTES` is not stored, and only its replica serves it.
+async fn store(cluster: &Cluster, id: &str, partial: bool, bytes: &[u8]) -> bool {
+    match cluster.put_result(id, partial, bytes).await {
+        Ok(true) => true,
+        Ok(false) => {
+            tracing::info!(job = id, bytes = bytes.len(), "result not stored in redis");
+            true
+        }
+        Err(_) => false,
+    }
 }
 
 /// Ends run `token` of job `id` with its final `record`: stored and sent, the job off the

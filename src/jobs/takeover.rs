@@ -69,8 +69,16 @@ async fn take_over(inner: &Arc<Inner>, cluster: &Cluster, id: &str, token: Strin
         let _ = cluster.release(id, &token).await;
         return;
     }
+    let here = inner.cache.get_memory(id).is_some();
     match follow::fetch(inner, id, false).await {
         Fetched::Found(result) => {
+            // Held here when this replica ran the job and has not yet told Redis (an outage
+            // outlasted its lease): the result goes first, so that the final record never
+            // sends followers to a result Redis does not have.
+            if here && !publish::store_result(cluster, id, &result).await {
+                let _ = cluster.release(id, &token).await;
+                return;
+            }
             let record = publish::ended(Status::Succeeded, Some(result.stats.clone()), None, seq, &token);
             publish::close(cluster, id, &token, &record).await;
             return;
