@@ -95,7 +95,12 @@ pub struct Cluster {
 }
 
 struct Inner {
+    /// Leases, records, messages and the ping: small commands that must not wait.
     conn: ConnectionManager,
+    /// Results and requests, up to `max_bytes` each: on a connection of their own, so that a
+    /// large transfer never holds a lease renewal or the ping back (a ping held past its
+    /// timeout would take Redis for gone).
+    bulk: ConnectionManager,
     settings: Settings,
     /// This replica's name in leases: host, process and start time.
     replica: String,
@@ -177,13 +182,15 @@ impl Cluster {
             .set_response_timeout(Some(Duration::from_secs(30)))
             .set_number_of_retries(2)
             .set_max_delay(Duration::from_millis(500));
-        let conn = ConnectionManager::new_lazy_with_config(client.clone(), config)?;
+        let conn = ConnectionManager::new_lazy_with_config(client.clone(), config.clone())?;
+        let bulk = ConnectionManager::new_lazy_with_config(client.clone(), config)?;
         let host = rustix::system::uname().nodename().to_string_lossy().into_owned();
         let started = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
         let replica = format!("{host}/{}/{}", std::process::id(), started.as_micros());
         let (messages, _) = broadcast::channel(1024);
         let inner = Arc::new(Inner {
             conn,
+            bulk,
             settings,
             replica,
             runs: AtomicU64::new(0),
@@ -234,8 +241,17 @@ impl Cluster {
     /// of each waiting out a connection attempt: the replica serves alone until a ping (at each
     /// sweep for orphaned jobs) or the subscription finds Redis again.
     fn conn(&self) -> Result<ConnectionManager> {
+        self.while_up(&self.inner.conn)
+    }
+
+    /// [`Cluster::conn`] for results and requests.
+    fn bulk(&self) -> Result<ConnectionManager> {
+        self.while_up(&self.inner.bulk)
+    }
+
+    fn while_up(&self, conn: &ConnectionManager) -> Result<ConnectionManager> {
         match self.is_up() {
-            true => Ok(self.inner.conn.clone()),
+            true => Ok(conn.clone()),
             false => Err(Unavailable(std::io::Error::from(std::io::ErrorKind::NotConnected).into())),
         }
     }
@@ -264,7 +280,7 @@ impl Cluster {
     /// When Redis does not answer.
     pub async fn result(&self, id: &str, partial: bool) -> Result<Option<Vec<u8>>> {
         let name = if partial { "partial" } else { "result" };
-        let got = self.conn()?.get(key(name, id)).await;
+        let got = self.bulk()?.get(key(name, id)).await;
         self.note(got)
     }
 
@@ -278,7 +294,7 @@ impl Cluster {
             return Ok(false);
         }
         let name = if partial { "partial" } else { "result" };
-        let set = self.conn()?.pset_ex::<_, _, ()>(key(name, id), bytes, self.ttl_ms()).await;
+        let set = self.bulk()?.pset_ex::<_, _, ()>(key(name, id), bytes, self.ttl_ms()).await;
         self.note(set).map(|()| true)
     }
 
@@ -388,7 +404,7 @@ impl Cluster {
             .ignore()
             .sadd(PENDING, id)
             .ignore()
-            .query_async::<()>(&mut self.conn()?)
+            .query_async::<()>(&mut self.bulk()?)
             .await;
         self.note(done).map(|()| true)
     }
@@ -401,7 +417,7 @@ impl Cluster {
         let got = redis::cmd("HMGET")
             .arg(key("request", id))
             .arg(&["kind", "content_type", "body"])
-            .query_async::<(Option<String>, Option<String>, Option<Vec<u8>>)>(&mut self.conn()?)
+            .query_async::<(Option<String>, Option<String>, Option<Vec<u8>>)>(&mut self.bulk()?)
             .await;
         Ok(match self.note(got)? {
             (Some(kind), Some(content_type), Some(body)) => {
