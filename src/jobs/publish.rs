@@ -33,17 +33,20 @@ pub(super) async fn run(inner: &Arc<Inner>, job: Arc<Job>, lease: Lease, request
     if let Some(announced) = lease.announced {
         let _ = announced.send(());
     }
+    let every = cluster.settings().lease / 3;
     match request {
-        Some(request) => match cluster.put_request(&job.id, &request).await {
-            Ok(true) => job.kept.store(true, Ordering::SeqCst),
-            _ => {
-                tracing::info!(job = %job.id, "request not kept in redis: no other replica can take this job over")
+        Some(request) => {
+            match renewing(cluster, &job.id, token, every, cluster.put_request(&job.id, &request)).await {
+                Ok(true) => job.kept.store(true, Ordering::SeqCst),
+                _ => {
+                    tracing::info!(job = %job.id, "request not kept in redis: no other replica can take this job over")
+                }
             }
-        },
+        }
         // A job taken over: its request is kept already.
         None => job.kept.store(true, Ordering::SeqCst),
     }
-    let mut renew = tokio::time::interval(cluster.settings().lease / 3);
+    let mut renew = tokio::time::interval(every);
     renew.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     renew.tick().await;
     loop {
@@ -68,6 +71,28 @@ pub(super) async fn run(inner: &Arc<Inner>, job: Arc<Job>, lease: Lease, request
             changed = rx.changed() => if changed.is_err() { return },
             () = wait => {}
             _ = renew.tick() => keep(inner, cluster, &job, token).await,
+        }
+    }
+}
+
+/// Awaits `work` while renewing run `token`'s lease every `every`: a large request can take
+/// longer than a lease to send, and a job whose lease lapsed before it was listed as pending
+/// would look to its followers as if it ran nowhere.
+async fn renewing<T>(
+    cluster: &Cluster,
+    id: &str,
+    token: &str,
+    every: Duration,
+    work: impl Future<Output = T>,
+) -> T {
+    let mut work = std::pin::pin!(work);
+    let mut renew = tokio::time::interval_at(Instant::now() + every, every);
+    loop {
+        tokio::select! {
+            done = &mut work => return done,
+            _ = renew.tick() => {
+                let _ = cluster.renew(id, token).await;
+            }
         }
     }
 }
