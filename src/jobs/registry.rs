@@ -252,7 +252,7 @@ impl Inner {
 
     /// Whether one more job would wait at most behind `queue` others: it either finds a free
     /// worker or a place in the queue.
-    fn has_room(&self) -> bool {
+    pub(super) fn has_room(&self) -> bool {
         self.waiting.load(Ordering::SeqCst) < self.queue + self.permits.available_permits()
     }
 

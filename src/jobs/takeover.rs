@@ -44,30 +44,47 @@ async fn sweep_once(inner: &Arc<Inner>, cluster: &Cluster) {
     }
     let Ok(ids) = cluster.pending().await else { return };
     for id in ids {
+        if !inner.has_room() {
+            // A takeover would be refused: leave the jobs to replicas with room.
+            break;
+        }
         if inner.runs_here(&id) || !matches!(cluster.holder(&id).await, Ok(None)) {
             continue;
         }
         let token = cluster.token();
-        if let Ok(Claim::Won) = cluster.acquire(&id, &token, false).await {
-            take_over(inner, cluster, &id, token).await;
+        if let Ok(Claim::Won) = cluster.acquire(&id, &token, false).await
+            && take_over(inner, cluster, &id, token).await == Taken::Refused
+        {
+            // Full here: the other jobs would be fetched, parsed and refused too. Another
+            // replica, or this one at a later sweep, takes them.
+            break;
         }
     }
+}
+
+/// What a takeover came to.
+#[derive(Debug, PartialEq, Eq)]
+enum Taken {
+    /// Run here, ended, or left for a later sweep.
+    Done,
+    /// This replica has no room for it now.
+    Refused,
 }
 
 /// Ends or runs again job `id`, whose lease run `token` has just taken: ends it if it finished
 /// after all (its replica died between storing the result and the final record) or cannot be
 /// run here, else starts it from its kept request.
-async fn take_over(inner: &Arc<Inner>, cluster: &Cluster, id: &str, token: String) {
-    let Some(shared) = &inner.shared else { return };
+async fn take_over(inner: &Arc<Inner>, cluster: &Cluster, id: &str, token: String) -> Taken {
+    let Some(shared) = &inner.shared else { return Taken::Done };
     let Ok(record) = cluster.record(id).await else {
         let _ = cluster.release(id, &token).await;
-        return;
+        return Taken::Done;
     };
     let seq = record.as_ref().map_or(0, |r| r.seq);
     if record.as_ref().is_some_and(|r| r.is_final()) {
         let _ = cluster.forget(id).await;
         let _ = cluster.release(id, &token).await;
-        return;
+        return Taken::Done;
     }
     let here = inner.cache.get_memory(id).is_some();
     match follow::fetch(inner, id, false).await {
@@ -77,17 +94,17 @@ async fn take_over(inner: &Arc<Inner>, cluster: &Cluster, id: &str, token: Strin
             // sends followers to a result Redis does not have.
             if here && !publish::store_result(cluster, id, &result).await {
                 let _ = cluster.release(id, &token).await;
-                return;
+                return Taken::Done;
             }
             let record = publish::ended(Status::Succeeded, Some(result.stats.clone()), None, seq, &token);
             publish::close(cluster, id, &token, &record).await;
-            return;
+            return Taken::Done;
         }
         Fetched::Missing => {}
         // Redis went away meanwhile: the next sweep, here or elsewhere, tries again.
         Fetched::Unreachable => {
             let _ = cluster.release(id, &token).await;
-            return;
+            return Taken::Done;
         }
     }
     let parsed = match cluster.request(id).await {
@@ -95,7 +112,7 @@ async fn take_over(inner: &Arc<Inner>, cluster: &Cluster, id: &str, token: Strin
         Ok(None) => Err("its request is no longer kept".to_owned()),
         Err(_) => {
             let _ = cluster.release(id, &token).await;
-            return;
+            return Taken::Done;
         }
     };
     let (keys, spec) = match parsed {
@@ -112,7 +129,7 @@ async fn take_over(inner: &Arc<Inner>, cluster: &Cluster, id: &str, token: Strin
                 &publish::ended(Status::Failed, None, Some(problem), seq, &token),
             )
             .await;
-            return;
+            return Taken::Done;
         }
     };
     let lease = Lease { token: token.clone(), announced: None };
@@ -121,11 +138,17 @@ async fn take_over(inner: &Arc<Inner>, cluster: &Cluster, id: &str, token: Strin
         Ok((_, true)) => {
             inner.metrics.takeovers.inc();
             tracing::info!(job = id, "took over a job whose replica stopped renewing its lease");
+            Taken::Done
         }
-        // Busy here (or already run here): another replica, or this one at the next sweep,
-        // takes it.
-        _ => {
+        // Already run here.
+        Ok((_, false)) => {
             let _ = cluster.release(id, &token).await;
+            Taken::Done
+        }
+        // Busy here: another replica, or this one at a later sweep, takes it.
+        Err(_) => {
+            let _ = cluster.release(id, &token).await;
+            Taken::Refused
         }
     }
 }
