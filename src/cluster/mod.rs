@@ -4,9 +4,10 @@
 //! What a replica does with them (follow a job another replica runs, take over one whose
 //! replica died) is in [`crate::jobs`].
 //!
-//! redis-rs rather than a hand-written client: its `ConnectionManager` multiplexes every
-//! command over one connection and reconnects by itself after Redis comes back, which is
-//! exactly the behaviour a replica needs when Redis goes away.
+//! redis-rs rather than a hand-written client: its `ConnectionManager` multiplexes commands
+//! over one connection (a replica keeps two: small commands, and results and requests) and
+//! reconnects by itself after Redis comes back, which is exactly the behaviour a replica
+//! needs when Redis goes away.
 //!
 //! | key | holds | expires |
 //! |---|---|---|
