@@ -89,9 +89,9 @@ async fn take_over(inner: &Arc<Inner>, cluster: &Cluster, id: &str, token: Strin
     let here = inner.cache.get_memory(id).is_some();
     match follow::fetch(inner, id, false).await {
         Fetched::Found(result) => {
-            // Held here when this replica ran the job and has not yet told Redis (an outage
-            // outlasted its lease): the result goes first, so that the final record never
-            // sends followers to a result Redis does not have.
+            // In this replica's memory it may be nowhere else: this replica ran the job and
+            // has not yet told Redis (an outage outlasted the lease). Stored first, so that
+            // the final record never sends followers to a result Redis does not have.
             if here && !publish::store_result(cluster, id, &result).await {
                 let _ = cluster.release(id, &token).await;
                 return Taken::Done;
