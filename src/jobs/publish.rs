@@ -75,9 +75,10 @@ pub(super) async fn run(inner: &Arc<Inner>, job: Arc<Job>, lease: Lease, request
     }
 }
 
-/// Awaits `work` while renewing run `token`'s lease every `every`: a large request can take
-/// longer than a lease to send, and a job whose lease lapsed before it was listed as pending
-/// would look to its followers as if it ran nowhere.
+/// Awaits `work` while renewing run `token`'s lease every `every`. Sending a large request,
+/// or encoding and storing a large result, can take longer than a lease: a job whose lease
+/// lapsed before it was listed as pending would look to its followers as if it ran nowhere,
+/// and one whose lease lapsed at its end would be taken over and run again.
 async fn renewing<T>(
     cluster: &Cluster,
     id: &str,
@@ -127,19 +128,32 @@ const DELIVER_FOR: Duration = Duration::from_secs(600);
 /// outage is known to every replica once Redis is back.
 async fn finish(inner: &Arc<Inner>, cluster: &Cluster, job: &Job, token: &str, snapshot: &Snapshot) {
     let Some(shared) = &inner.shared else { return };
+    let every = cluster.settings().lease / 3;
     let (problem, result) = match snapshot.outcome.as_ref().expect("finished") {
         Outcome::Failed(JobError::HandedBack) => {
             tracing::info!(job = %job.id, "handed back for another replica to take over");
             let _ = cluster.release(&job.id, token).await;
             return;
         }
-        Outcome::Succeeded(result) => (None, encode(&job.id, result).await),
+        // Renewed meanwhile: encoding and storing a large result can outlast a short lease,
+        // and a follower would then take the job over and run it again.
+        Outcome::Succeeded(result) => {
+            (None, renewing(cluster, &job.id, token, every, encode(&job.id, result)).await)
+        }
         Outcome::Failed(e) => (Some(shared.wire.problem(e)), None),
         Outcome::Cancelled => (None, None),
     };
     let record = wire(snapshot, problem, token);
     let give_up = Instant::now() + DELIVER_FOR;
-    while !deliver(cluster, &job.id, token, result.as_ref(), &record).await {
+    while !renewing(
+        cluster,
+        &job.id,
+        token,
+        every,
+        deliver(cluster, &job.id, token, result.as_ref(), &record),
+    )
+    .await
+    {
         if inner.closed.load(Ordering::SeqCst) || Instant::now() >= give_up {
             tracing::warn!(job = %job.id, "redis away: other replicas will not know this job finished");
             return;
