@@ -33,10 +33,9 @@ pub(super) async fn run(inner: &Arc<Inner>, job: Arc<Job>, lease: Lease, request
     if let Some(announced) = lease.announced {
         let _ = announced.send(());
     }
-    let every = cluster.settings().lease / 3;
     match request {
         Some(request) => {
-            match renewing(cluster, &job.id, token, every, cluster.put_request(&job.id, &request)).await {
+            match renewing(cluster, &job.id, token, cluster.put_request(&job.id, &request)).await {
                 Ok(true) => job.kept.store(true, Ordering::SeqCst),
                 _ => {
                     tracing::info!(job = %job.id, "request not kept in redis: no other replica can take this job over")
@@ -46,7 +45,7 @@ pub(super) async fn run(inner: &Arc<Inner>, job: Arc<Job>, lease: Lease, request
         // A job taken over: its request is kept already.
         None => job.kept.store(true, Ordering::SeqCst),
     }
-    let mut renew = tokio::time::interval(every);
+    let mut renew = tokio::time::interval(renew_every(cluster));
     renew.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     renew.tick().await;
     loop {
@@ -75,18 +74,18 @@ pub(super) async fn run(inner: &Arc<Inner>, job: Arc<Job>, lease: Lease, request
     }
 }
 
-/// Awaits `work` while renewing run `token`'s lease every `every`. Sending a large request,
+/// How often a run renews its lease: three times a lease.
+fn renew_every(cluster: &Cluster) -> Duration {
+    cluster.settings().lease / 3
+}
+
+/// Awaits `work` while renewing run `token`'s lease. Sending a large request,
 /// or encoding and storing a large result, can take longer than a lease: a job whose lease
 /// lapsed before it was listed as pending would look to its followers as if it ran nowhere,
 /// and one whose lease lapsed at its end would be taken over and run again.
-async fn renewing<T>(
-    cluster: &Cluster,
-    id: &str,
-    token: &str,
-    every: Duration,
-    work: impl Future<Output = T>,
-) -> T {
+async fn renewing<T>(cluster: &Cluster, id: &str, token: &str, work: impl Future<Output = T>) -> T {
     let mut work = std::pin::pin!(work);
+    let every = renew_every(cluster);
     let mut renew = tokio::time::interval_at(Instant::now() + every, every);
     loop {
         tokio::select! {
@@ -128,7 +127,6 @@ const DELIVER_FOR: Duration = Duration::from_secs(600);
 /// outage is known to every replica once Redis is back.
 async fn finish(inner: &Arc<Inner>, cluster: &Cluster, job: &Job, token: &str, snapshot: &Snapshot) {
     let Some(shared) = &inner.shared else { return };
-    let every = cluster.settings().lease / 3;
     let (problem, result) = match snapshot.outcome.as_ref().expect("finished") {
         Outcome::Failed(JobError::HandedBack) => {
             tracing::info!(job = %job.id, "handed back for another replica to take over");
@@ -138,21 +136,14 @@ async fn finish(inner: &Arc<Inner>, cluster: &Cluster, job: &Job, token: &str, s
         // Renewed meanwhile: encoding and storing a large result can outlast a short lease,
         // and a follower would then take the job over and run it again.
         Outcome::Succeeded(result) => {
-            (None, renewing(cluster, &job.id, token, every, encode(&job.id, result)).await)
+            (None, renewing(cluster, &job.id, token, encode(&job.id, result)).await)
         }
         Outcome::Failed(e) => (Some(shared.wire.problem(e)), None),
         Outcome::Cancelled => (None, None),
     };
     let record = wire(snapshot, problem, token);
     let give_up = Instant::now() + DELIVER_FOR;
-    while !renewing(
-        cluster,
-        &job.id,
-        token,
-        every,
-        deliver(cluster, &job.id, token, result.as_ref(), &record),
-    )
-    .await
+    while !renewing(cluster, &job.id, token, deliver(cluster, &job.id, token, result.as_ref(), &record)).await
     {
         if inner.closed.load(Ordering::SeqCst) || Instant::now() >= give_up {
             tracing::warn!(job = %job.id, "redis away: other replicas will not know this job finished");
@@ -188,12 +179,7 @@ async fn deliver(
     // that took the job over while this one could not reach Redis finds it stored instead
     // of running the job again. A partial one is this run's own (another run stops at
     // another count): only while it holds the lease.
-    let (whole, partial) = match result {
-        Some((bytes, false)) => (Some(bytes), None),
-        Some((bytes, true)) => (None, Some(bytes)),
-        None => (None, None),
-    };
-    if let Some(bytes) = whole
+    if let Some((bytes, false)) = result
         && !store(cluster, id, false, bytes).await
     {
         return false;
@@ -208,7 +194,7 @@ async fn deliver(
         },
         Err(_) => return false,
     }
-    if let Some(bytes) = partial
+    if let Some((bytes, true)) = result
         && !store(cluster, id, true, bytes).await
     {
         return false;
