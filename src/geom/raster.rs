@@ -21,15 +21,24 @@ pub fn for_each_span(
     ny: usize,
     mut visit: impl FnMut(usize, usize, usize),
 ) {
+    // `as usize` truncates towards zero and saturates, so for y ≥ 0 it is floor, and corners
+    // below the grid clamp to 0 (SSE2 has no rounding instruction, so ceil and floor are
+    // calls).
+    let (lo_y, hi_y) = (a.y.min(b.y).min(c.y), a.y.max(b.y).max(c.y));
+    let lo_j = lo_y as usize;
+    let lo_j = if (lo_j as f64) < lo_y { lo_j.saturating_add(1) } else { lo_j };
+    let hi_j = (hi_y as usize).min(ny - 1);
+    if lo_j > hi_j {
+        // No row crosses the triangle: the case of most triangles once they are smaller than
+        // a grid cell, so it skips the divisions below.
+        return;
+    }
     // Each edge as its lower end, upper end's y and dx/dy; horizontal edges add nothing the
     // other two do not.
     let edges = [(a, b), (b, c), (c, a)].map(|(p, q)| {
         let (lo, hi) = if p.y <= q.y { (p, q) } else { (q, p) };
         (lo, hi.y, (hi.x - lo.x) / (hi.y - lo.y))
     });
-    // `as usize` saturates, so corners below the grid clamp to 0.
-    let lo_j = a.y.min(b.y).min(c.y).ceil().max(0.0) as usize;
-    let hi_j = (a.y.max(b.y).max(c.y).floor().max(0.0) as usize).min(ny - 1);
     let last_i = (nx - 1) as f64;
     for j in lo_j..=hi_j {
         let y = j as f64;
@@ -43,8 +52,7 @@ pub fn for_each_span(
         }
         let (left, right) = ((left - SLACK).max(0.0), (right + SLACK).min(last_i));
         if left <= right {
-            // Both are in [0, nx − 1] now, where `as` truncation is floor, and cheaper than
-            // a call to ceil or floor (SSE2 has no rounding instruction).
+            // Both are in [0, nx − 1] now, where `as` truncation is floor.
             let (first, last) = (left as usize, right as usize);
             let first = if (first as f64) < left { first + 1 } else { first };
             if first <= last {
@@ -116,7 +124,47 @@ impl PlaneRow {
     #[inline]
     pub fn at(&self, k: i32) -> f64 {
         // An i32 count converts to f64 in one instruction; usize (u64) takes several.
-        (self.start + f64::from(k) * self.step).max(self.range.0).min(self.range.1)
+        self.at_step(f64::from(k))
+    }
+
+    /// [`PlaneRow::at`] for a whole number `k` held as an f64.
+    ///
+    /// Clamped by comparisons, which compile to one instruction each where `f64::max` and
+    /// `f64::min` add NaN handling: a NaN (from an overflowed plane) still becomes the lower
+    /// end, and the two can differ only in the sign of a zero, which no |value − F_n| sees.
+    #[inline]
+    fn at_step(&self, k: f64) -> f64 {
+        let (lo, hi) = self.range;
+        let z = self.start + k * self.step;
+        let z = if z > lo { z } else { lo };
+        if z < hi { z } else { hi }
+    }
+
+    /// The larger of `floor` and max |values[k] − self.at(k0 + k)| over the run.
+    ///
+    /// The same maximum, to the bit, as one comparison after another: a maximum does not
+    /// depend on the order it is taken in. Four running maxima instead of one let the
+    /// comparisons overlap (one maximum waits on the last), and counting k in f64 (exact below
+    /// 2^53) saves a conversion per node.
+    #[inline]
+    pub fn max_deviation(&self, k0: i32, values: &[f64], floor: f64) -> f64 {
+        const LANES: usize = 4;
+        // A plain comparison is the maximum: the deviations of finite values are not NaN.
+        let larger = |m: f64, e: f64| if e > m { e } else { m };
+        let mut lanes = [floor; LANES];
+        let mut k = f64::from(k0);
+        let mut runs = values.chunks_exact(LANES);
+        for run in &mut runs {
+            for (lane, (m, &value)) in lanes.iter_mut().zip(run).enumerate() {
+                *m = larger(*m, (value - self.at_step(k + lane as f64)).abs());
+            }
+            k += LANES as f64;
+        }
+        let mut max = lanes.into_iter().fold(floor, larger);
+        for (lane, &value) in runs.remainder().iter().enumerate() {
+            max = larger(max, (value - self.at_step(k + lane as f64)).abs());
+        }
+        max
     }
 }
 
@@ -168,6 +216,30 @@ mod tests {
     }
 
     proptest! {
+        /// Four running maxima find the maximum one comparison after another finds, and the
+        /// plane's values differ from `max`-then-`min` clamping in no |value − F_n|.
+        #[test]
+        fn max_deviation_is_the_maximum_of_the_run_in_order(
+            start in -10.0f64..10.0,
+            step in prop_oneof![Just(0.0), -3.0f64..3.0, Just(1e300)],
+            range in (-20.0f64..0.0, 0.0f64..20.0),
+            k0 in 0i32..100,
+            values in proptest::collection::vec(prop_oneof![Just(0.0), Just(-0.0), -25.0f64..25.0], 0..40),
+            floor in prop_oneof![Just(0.0), 0.0f64..30.0],
+        ) {
+            let row = PlaneRow { start, step, range };
+            let clamped = |k: i32| (start + f64::from(k) * step).max(range.0).min(range.1);
+            let mut expected = floor;
+            for (k, &value) in (k0..).zip(&values) {
+                let e = (value - clamped(k)).abs();
+                prop_assert_eq!(e.to_bits(), (value - row.at(k)).abs().to_bits(), "node {}", k);
+                if e > expected {
+                    expected = e;
+                }
+            }
+            prop_assert_eq!(row.max_deviation(k0, &values, floor).to_bits(), expected.to_bits());
+        }
+
         /// The spans are the nodes inside the triangle, up to nodes within rounding of an edge.
         #[test]
         fn spans_hold_the_nodes_inside_the_triangle(

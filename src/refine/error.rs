@@ -279,20 +279,17 @@ fn grid_nodes_error(grid: &Grid, corners: [crate::geom::Vertex; 3], floor: f64) 
         let (u, w) = grid.to_grid(v.point());
         Point::new(u, w)
     });
-    let Some(plane) = raster::Plane::new(in_grid, corners.map(|v| v.z)) else {
-        return floor;
-    };
+    // Made at the first span: most triangles of a fine mesh hold no node.
+    let mut plane = None;
     let mut error = floor;
     raster::for_each_span(in_grid, grid.nx(), grid.ny(), |j, i0, i1| {
+        let plane = plane.get_or_insert_with(|| raster::Plane::new(in_grid, corners.map(|v| v.z)));
+        // A triangle flat in floating point covers no area: its nodes are its neighbours'.
+        let Some(plane) = plane else { return };
         let (values, line) = (grid.row(j), plane.row_at(i0, j));
         if i1 - i0 < 2 * BLOCK {
             // Too short a span for a bound to pay for itself: scan it.
-            for (k, &value) in (0..).zip(&values[i0..=i1]) {
-                let e = (value - line.at(k)).abs();
-                if e > error {
-                    error = e;
-                }
-            }
+            error = line.max_deviation(0, &values[i0..=i1], error);
             return;
         }
         let mut first = i0;
@@ -304,13 +301,7 @@ fn grid_nodes_error(grid: &Grid, corners: [crate::geom::Vertex; 3], floor: f64) 
             let (a, b) = (line.at(k0), line.at(k1));
             let (lo, hi) = grid.block_range(j, block);
             if (hi - a.min(b)).max(a.max(b) - lo) > error {
-                for (k, &value) in (k0..).zip(&values[first..=last]) {
-                    // Grid values are finite, so a plain comparison is max without NaN handling.
-                    let e = (value - line.at(k)).abs();
-                    if e > error {
-                        error = e;
-                    }
-                }
+                error = line.max_deviation(k0, &values[first..=last], error);
             }
             first = last + 1;
         }

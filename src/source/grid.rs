@@ -138,19 +138,31 @@ impl Grid {
     #[inline]
     pub fn to_grid(&self, p: Point) -> (f64, f64) {
         let r = self.rect;
-        let u = (p.x - r.x0()) / (r.x1() - r.x0()) * (self.nx - 1) as f64;
-        let v = (p.y - r.y0()) / (r.y1() - r.y0()) * (self.ny - 1) as f64;
+        let u = (p.x - r.x0()) / (r.x1() - r.x0()) * to_f64(self.nx - 1);
+        let v = (p.y - r.y0()) / (r.y1() - r.y0()) * to_f64(self.ny - 1);
         (u, v)
     }
+}
+
+/// A count as an f64, the same number as `n as f64`: through i64, which x86-64 converts in
+/// one instruction where an unsigned 64-bit integer takes several (a Vec's length is below
+/// 2^63, and both conversions round alike).
+#[inline]
+fn to_f64(n: usize) -> f64 {
+    n as i64 as f64
 }
 
 /// Splits a continuous grid coordinate into a cell index in [0, n−2] and a fraction.
 #[inline]
 fn cell(u: f64, n: usize) -> (usize, f64) {
-    let u = u.clamp(0.0, (n - 1) as f64);
+    // Comparisons rather than `clamp`, which checks its bounds first: the same value, NaN
+    // included.
+    let last = to_f64(n - 1);
+    let u = if u < 0.0 { 0.0 } else { u };
+    let u = if u > last { last } else { u };
     // `as` truncates, which is floor for u ≥ 0 without a call (SSE2 has no rounding op).
-    let i = (u as usize).min(n - 2);
-    (i, u - i as f64)
+    let i = (u as i64 as usize).min(n - 2);
+    (i, u - to_f64(i))
 }
 
 impl Surface for Grid {
@@ -161,12 +173,12 @@ impl Surface for Grid {
         let (i, fx) = cell(u, self.nx);
         let (j, fy) = cell(v, self.ny);
         let row = j * self.nx + i;
-        let (z00, z10) = (self.values[row], self.values[row + 1]);
-        let (z01, z11) = (self.values[row + self.nx], self.values[row + self.nx + 1]);
+        // A slice per row of the cell: two bounds checks instead of four.
+        let (low, high) = (&self.values[row..row + 2], &self.values[row + self.nx..row + self.nx + 2]);
         // Weighted sums rather than z0 + (z1 - z0)·t: the difference of two finite values
         // near ±f64::MAX overflows.
-        let bottom = z00 * (1.0 - fx) + z10 * fx;
-        let top = z01 * (1.0 - fx) + z11 * fx;
+        let bottom = low[0] * (1.0 - fx) + low[1] * fx;
+        let top = high[0] * (1.0 - fx) + high[1] * fx;
         bottom * (1.0 - fy) + top * fy
     }
 
