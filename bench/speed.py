@@ -7,6 +7,7 @@ Run by hand, never in CI (it builds the release binary and takes minutes):
     pip install numpy matplotlib pydelatin
     python3 bench/speed.py                        # tables on stdout, for docs/speed.md
     python3 bench/speed.py --no-build --quick     # smoke test: 1025 grid and DEM, 10^4, 1 run
+    python3 bench/speed.py --before old/meshfit   # also an earlier build, alternately, on the grids
 
 Grids: Franke's function sampled at 1025 x 1025 and 4097 x 4097 on [0,1]^2, and the two
 elevation rasters of matplotlib's sample data (jacksboro_fault_dem.npz, topobathy.npz). Each is
@@ -82,10 +83,10 @@ def grids(args):
     return out
 
 
-def run_meshfit(source, n, method, criterion="error"):
+def run_meshfit(source, n, method, criterion="error", binary=MESHFIT):
     """(elapsed_ms, vertices, max_error) from `meshfit mesh ... --stats`; source is CLI args."""
     out = subprocess.run(
-        [str(MESHFIT), "mesh", *source, "--max-vertices", str(n), "--method", method,
+        [str(binary), "mesh", *source, "--max-vertices", str(n), "--method", method,
          "--criterion", criterion, "--stats"],
         check=True, capture_output=True).stdout
     doc = json.loads(out)
@@ -116,8 +117,8 @@ def median_of(runs):
 
 
 def bench_grids(args, tmp):
-    """Returns (time rows, check rows) for the Markdown tables."""
-    times, checks = [], []
+    """Returns (time rows, check rows, before/after rows) for the Markdown tables."""
+    times, checks, befores = [], [], []
     for name, load in grids(args):
         values = load()
         if values is None:
@@ -135,9 +136,14 @@ def bench_grids(args, tmp):
                 print(f"skipping {name} at n={n}: the grid has only {nx * ny} nodes", file=sys.stderr)
                 continue
             results = {m: [] for m in [*METHODS, "pydelatin"]}
+            if args.before:
+                results.update({f"before {m}": [] for m in METHODS})
             for run in range(args.runs):  # alternate, so drift in the machine's speed hits all
                 for method in METHODS:
                     results[method].append(run_meshfit(["--grid", str(path)], n, method))
+                    if args.before:
+                        results[f"before {method}"].append(
+                            run_meshfit(["--grid", str(path)], n, method, binary=args.before))
                 results["pydelatin"].append(run_pydelatin(heights, n))
                 for tool, rs in results.items():
                     ms, v, err = rs[-1]
@@ -148,7 +154,13 @@ def bench_grids(args, tmp):
                          f" {ratio(semi[0], pyd[0])} | {ratio(rec[0], pyd[0])} |")
             checks.append(f"| {name} | {nx}x{ny} | {n} | {semi[1]} | {rec[1]} | {pyd[1]} |"
                           f" {semi[2]:.3e} | {rec[2]:.3e} | {pyd[2]:.3e} |")
-    return times, checks
+            if args.before:
+                old_semi, old_rec = (median_of(results[f"before {m}"]) for m in METHODS)
+                same = "yes" if (old_semi[1:], old_rec[1:]) == (semi[1:], rec[1:]) else "NO"
+                befores.append(f"| {name} | {n} | {old_semi[0]:.1f} | {semi[0]:.1f} | {old_rec[0]:.1f} |"
+                               f" {rec[0]:.1f} | {old_semi[0] / semi[0]:.2f}x | {old_rec[0] / rec[0]:.2f}x |"
+                               f" {same} |")
+    return times, checks, befores
 
 
 def bench_expressions(args):
@@ -199,6 +211,8 @@ def main():
     parser.add_argument("--quick", action="store_true",
                         help="smoke test: the 1025 grid and the DEM at 10^4, expressions at 10^5 only, 1 run")
     parser.add_argument("--skip-4097", action="store_true", help="leave out the 4097 x 4097 Franke grid")
+    parser.add_argument("--before", type=Path, metavar="BINARY",
+                        help="an earlier meshfit build to run alternately on the grids, for a before/after table")
     args = parser.parse_args()
     if args.quick:
         args.runs, args.sizes = 1, [10_000]
@@ -207,7 +221,7 @@ def main():
 
     print("\n".join(machine()) + f"\n- {args.runs} run(s) per case, medians\n")
     with tempfile.TemporaryDirectory(prefix="meshfit-speed-") as tmp:
-        times, checks = bench_grids(args, tmp)
+        times, checks, befores = bench_grids(args, tmp)
     print("## Grids: refinement time, criterion error\n")
     print("| grid | n | meshfit semi (ms) | meshfit recursive (ms) | pydelatin (ms) | semi/pydelatin"
           " | recursive/pydelatin |")
@@ -218,6 +232,12 @@ def main():
           " | E_max recursive | E_max pydelatin |")
     print("|---|---|---|---|---|---|---|---|---|")
     print("\n".join(checks), flush=True)
+    if befores:
+        print(f"\n## Grids: {args.before} (before) against this build (after), run alternately\n")
+        print("| grid | n | semi before (ms) | semi after (ms) | recursive before (ms) | recursive after (ms)"
+              " | semi speed-up | recursive speed-up | same vertices and E_max |")
+        print("|---|---|---|---|---|---|---|---|---|")
+        print("\n".join(befores), flush=True)
     rows = bench_expressions(args)
     print("\n## Franke's expression on [0,1]^2 (meshfit)\n")
     print("| criterion | method | n | vertices | median (ms) | target (ms) | target |")
