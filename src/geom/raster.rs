@@ -140,7 +140,7 @@ impl PlaneRow {
         if z < hi { z } else { hi }
     }
 
-    /// The larger of `floor` and max |values[k] − self.at(k0 + k)| over the run.
+    /// The larger of `floor` and the largest |v − self.at(k0 + k)| over the run, v = `values[k]`.
     ///
     /// The same maximum, to the bit, as one comparison after another: a maximum does not
     /// depend on the order it is taken in. Four running maxima instead of one let the
@@ -224,7 +224,10 @@ mod tests {
             step in prop_oneof![Just(0.0), -3.0f64..3.0, Just(1e300)],
             range in (-20.0f64..0.0, 0.0f64..20.0),
             k0 in 0i32..100,
-            values in proptest::collection::vec(prop_oneof![Just(0.0), Just(-0.0), -25.0f64..25.0], 0..40),
+            values in proptest::collection::vec(
+                prop_oneof![Just(0.0), Just(-0.0), -25.0f64..25.0],
+                0..40,
+            ),
             floor in prop_oneof![Just(0.0), 0.0f64..30.0],
         ) {
             let row = PlaneRow { start, step, range };
