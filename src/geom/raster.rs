@@ -29,8 +29,8 @@ pub fn for_each_span(
     let lo_j = if (lo_j as f64) < lo_y { lo_j.saturating_add(1) } else { lo_j };
     let hi_j = (hi_y as usize).min(ny - 1);
     if lo_j > hi_j {
-        // No row crosses the triangle: the case of most triangles once they are smaller than
-        // a grid cell, so it skips the divisions below.
+        // No row crosses the triangle, as often happens once triangles are smaller than a
+        // grid cell: skip the divisions below.
         return;
     }
     // Each edge as its lower end, upper end's y and dx/dy; horizontal edges add nothing the
@@ -144,8 +144,8 @@ impl PlaneRow {
     ///
     /// The same maximum, to the bit, as one comparison after another: a maximum does not
     /// depend on the order it is taken in. Four running maxima instead of one let the
-    /// comparisons overlap (one maximum waits on the last), and counting k in f64 (exact below
-    /// 2^53) saves a conversion per node.
+    /// comparisons overlap (with one, each waits for the one before), and counting k in f64
+    /// (exact below 2^53) saves a conversion per node.
     #[inline]
     pub fn max_deviation(&self, k0: i32, values: &[f64], floor: f64) -> f64 {
         const LANES: usize = 4;

@@ -279,7 +279,7 @@ fn grid_nodes_error(grid: &Grid, corners: [crate::geom::Vertex; 3], floor: f64) 
         let (u, w) = grid.to_grid(v.point());
         Point::new(u, w)
     });
-    // Made at the first span: most triangles of a fine mesh hold no node.
+    // Made at the first span: a triangle smaller than a grid cell often holds no node.
     let mut plane = None;
     let mut error = floor;
     raster::for_each_span(in_grid, grid.nx(), grid.ny(), |j, i0, i1| {
