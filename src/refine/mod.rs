@@ -43,6 +43,7 @@
 //! The order of splits may change between versions of meshfit (the service keys its cache by
 //! an engine version); it never changes between two runs of one version.
 
+mod bands;
 mod error;
 mod history;
 mod metrics;

@@ -15,6 +15,7 @@
 //! heapified when the heap above it runs dry. The pop order is the heap's order, exactly:
 //! every entry in a bucket is below every entry in the heap.
 
+use super::bands::{Buckets, band};
 use crate::geom::Vertex;
 use std::cmp::Ordering;
 
@@ -75,23 +76,10 @@ pub struct WorstEdgeQueue {
     /// The lowest band in the heap.
     floor: usize,
     /// The entries of each band below `floor`.
-    buckets: Buckets,
+    buckets: Buckets<Candidate>,
 }
 
 const ARITY: usize = 4;
-
-/// Mantissa bits in a band's key: bands are 1/16 of an octave wide.
-const BAND_BITS: u32 = 4;
-
-/// Bands of finite values ≥ +0: the exponent and the top mantissa bits.
-const BANDS: usize = 1 << (11 + BAND_BITS);
-
-/// The band of a finite value ≥ +0. Bit patterns of such values order like the values, so
-/// bands do too, and equal values share one.
-#[inline]
-fn band(value: f64) -> usize {
-    (value.to_bits() >> (52 - BAND_BITS)) as usize
-}
 
 impl WorstEdgeQueue {
     /// An empty queue.
@@ -165,63 +153,6 @@ impl WorstEdgeQueue {
 impl Default for WorstEdgeQueue {
     fn default() -> Self {
         Self::new()
-    }
-}
-
-/// Entries per block of a bucket (4 KiB, a page).
-const BLOCK: usize = 256;
-
-/// The bands below the floor: each a list of fixed-size blocks from one shared pool, so a run's
-/// buckets hold their entries and at most one part-filled block each, not the slack of a
-/// growing vector per band. A drained band's blocks go back to the pool for the next.
-#[derive(Debug)]
-struct Buckets {
-    /// The blocks, `BLOCK` entries each.
-    pool: Vec<Candidate>,
-    /// Blocks no band uses.
-    free: Vec<u32>,
-    /// Each band's blocks in order and the fill of the last one.
-    bands: Vec<(Vec<u32>, usize)>,
-}
-
-impl Buckets {
-    fn new() -> Self {
-        Self { pool: Vec::new(), free: Vec::new(), bands: vec![(Vec::new(), 0); BANDS] }
-    }
-
-    #[inline]
-    fn push(&mut self, band: usize, candidate: Candidate) {
-        let (blocks, fill) = &mut self.bands[band];
-        if blocks.is_empty() || *fill == BLOCK {
-            let block = self.free.pop().unwrap_or_else(|| {
-                let block = self.pool.len() / BLOCK;
-                self.pool.resize(self.pool.len() + BLOCK, candidate);
-                block as u32
-            });
-            blocks.push(block);
-            *fill = 0;
-        }
-        let last = *blocks.last().expect("a block was just ensured") as usize;
-        self.pool[last * BLOCK + *fill] = candidate;
-        *fill += 1;
-    }
-
-    /// The highest band below `floor` that holds entries.
-    fn highest_below(&self, floor: usize) -> Option<usize> {
-        (0..floor).rev().find(|&band| !self.bands[band].0.is_empty())
-    }
-
-    /// Appends the entries of `band` to `out` and empties the band.
-    fn drain_into(&mut self, band: usize, out: &mut Vec<Candidate>) {
-        let (blocks, fill) = &mut self.bands[band];
-        let count = blocks.len();
-        for (k, &block) in blocks.iter().enumerate() {
-            let start = block as usize * BLOCK;
-            let len = if k + 1 == count { *fill } else { BLOCK };
-            out.extend_from_slice(&self.pool[start..start + len]);
-        }
-        self.free.append(blocks);
-        *fill = 0;
     }
 }
 
