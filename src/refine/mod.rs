@@ -216,7 +216,7 @@ where
     O: Observer,
 {
     let start = Instant::now();
-    let mut sampler = Sampler { surface, evaluations: 0 };
+    let mut sampler = Sampler { surface, evaluations: 0, batch: error::Batch::default() };
     let [p1, p2, p3, p4] = rect.corners();
     let z = [sampler.eval(p1)?, sampler.eval(p2)?, sampler.eval(p3)?, sampler.eval(p4)?];
     let mut mesh = Mesh::with_capacity(rect, z, params.max_vertices());
@@ -270,6 +270,29 @@ pub(crate) trait Estimator: Field {
         t: u32,
         known: [Option<f64>; 3],
     ) -> Result<(f64, [f64; 3]), Self::Error>;
+
+    /// Whether [`Estimator::estimate_many`] beats estimating a step's triangles one by one.
+    fn batches(&self) -> bool {
+        false
+    }
+
+    /// [`Estimator::estimate`] for each triangle of `ts` (sorted), in order, into `out`.
+    /// `known[i]` is what fresh triangles outside `ts` know of `ts[i]`'s edges; an edge two
+    /// triangles of `ts` share is measured by the first and lent to the second. Estimators that
+    /// share work across triangles (one batch of samples) override it, with the same results.
+    fn estimate_many(
+        &mut self,
+        mesh: &Mesh,
+        ts: &[u32],
+        known: &[[Option<f64>; 3]],
+        out: &mut Vec<(f64, [f64; 3])>,
+    ) -> Result<(), Self::Error> {
+        for (i, &t) in ts.iter().enumerate() {
+            let estimate = self.estimate(mesh, t, error::lend(mesh, ts, i, known[i], out))?;
+            out.push(estimate);
+        }
+        Ok(())
+    }
 
     /// A step rewrote the triangles `touched`; called before any of them is estimated again.
     fn rewritten(&mut self, _mesh: &Mesh, _touched: &[u32]) -> Result<(), Self::Error> {
@@ -379,6 +402,8 @@ pub(crate) fn resume<E: Estimator, O: Observer>(
 struct Sampler<'s, S: ?Sized> {
     surface: &'s S,
     evaluations: u64,
+    /// The error criterion's samples of a step, kept so that steps do not allocate.
+    batch: error::Batch,
 }
 
 impl<S: Surface + ?Sized> Sampler<'_, S> {
