@@ -132,10 +132,13 @@ pub(super) fn refine<E: Estimator, O: Observer>(
     for t in 0..mesh.num_triangles() as u32 {
         estimates.invalidate(t);
     }
-    let all: Vec<u32> = (0..mesh.num_triangles() as u32).collect();
     // In chunks, so that a resumed mesh's first estimates do not hold every sample at once.
-    for chunk in all.chunks(64) {
-        estimates.estimate(mesh, estimator, chunk, run.observer)?;
+    let n = mesh.num_triangles() as u32;
+    let mut chunk = Vec::with_capacity(64);
+    for start in (0..n).step_by(64) {
+        chunk.clear();
+        chunk.extend(start..n.min(start + 64));
+        estimates.estimate(mesh, estimator, &chunk, run.observer)?;
     }
     run.observer.started(estimator.evaluations());
     let recursive = run.params.method() == Method::Recursive;
