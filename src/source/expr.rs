@@ -5,9 +5,9 @@
 //! compiled form: variables are slots, functions are resolved to pointers once, and the
 //! transcendental functions come from the `libm` crate, a pure-Rust port of musl's libm, so
 //! the same expression gives the same bits on every machine (the platform libm may differ in
-//! the last ulp). Batches run the stack program, each operation over all their points; one
-//! point runs the closures ([`closures`]), which keep values in registers. Both do the same
-//! operations in the same order. The compiled forms are `Send + Sync`, unlike meval's bound
+//! the last ulp). Batches run the stack program, each operation over all their points, with
+//! `exp` four lanes at a time ([`lanes`]); one point runs the closures ([`closures`]), which
+//! keep values in registers. All do the same operations in the same order. The compiled forms are `Send + Sync`, unlike meval's bound
 //! closures.
 
 use super::Surface;
@@ -19,6 +19,7 @@ use std::fmt;
 use std::sync::Arc;
 
 mod closures;
+mod lanes;
 
 /// The most values an expression may hold pending at once while evaluating; deeper nesting
 /// is rejected at parse time so evaluation can use a fixed stack array and never allocate.
@@ -97,7 +98,8 @@ enum Op {
     Div,
     Rem,
     Pow,
-    Call(fn(f64) -> f64),
+    /// A function of one argument, and its form over a batch's lanes where one exists.
+    Call(fn(f64) -> f64, Option<fn(&mut [f64])>),
     Atan2,
     Max(u32),
     Min(u32),
@@ -152,6 +154,15 @@ fn unary(name: &str) -> Option<fn(f64) -> f64> {
         "signum" => f64::signum,
         _ => return None,
     })
+}
+
+/// The functions of one argument that a batch runs over its lanes at once, bit for bit as
+/// [`unary`]'s one value at a time.
+fn over_lanes(name: &str) -> Option<fn(&mut [f64])> {
+    match name {
+        "exp" => Some(lanes::exp),
+        _ => None,
+    }
 }
 
 /// How many arguments a known function takes, as text for messages, and whether `n` fits.
@@ -245,7 +256,7 @@ impl Expression {
                 }
                 Op::Neg => stack[sp - 1] = -stack[sp - 1],
                 Op::Square => stack[sp - 1] *= stack[sp - 1],
-                Op::Call(f) => stack[sp - 1] = f(stack[sp - 1]),
+                Op::Call(f, _) => stack[sp - 1] = f(stack[sp - 1]),
                 Op::Add | Op::Sub | Op::Mul | Op::Div | Op::Rem | Op::Pow | Op::Atan2 => {
                     sp -= 1;
                     let (l, r) = (stack[sp - 1], stack[sp]);
@@ -333,7 +344,8 @@ impl Expression {
                 }
                 Op::Neg => stack[sp - 1][..n].iter_mut().for_each(|v| *v = -*v),
                 Op::Square => stack[sp - 1][..n].iter_mut().for_each(|v| *v *= *v),
-                Op::Call(f) => stack[sp - 1][..n].iter_mut().for_each(|v| *v = f(*v)),
+                Op::Call(_, Some(lanes)) => lanes(&mut stack[sp - 1][..n]),
+                Op::Call(f, None) => stack[sp - 1][..n].iter_mut().for_each(|v| *v = f(*v)),
                 Op::Add | Op::Sub | Op::Mul | Op::Div | Op::Rem | Op::Pow | Op::Atan2 => {
                     sp -= 1;
                     let (below, top) = stack.split_at_mut(sp);
@@ -453,7 +465,7 @@ fn compile(rpn: &[Token]) -> Result<Vec<Op>, ExprErrorKind> {
             Token::Func(name, Some(n)) => {
                 let n = *n;
                 match (name.as_str(), unary(name)) {
-                    (_, Some(f)) if n == 1 => (Op::Call(f), 1),
+                    (_, Some(f)) if n == 1 => (Op::Call(f, over_lanes(name)), 1),
                     ("atan2", _) if n == 2 => (Op::Atan2, 2),
                     ("max", _) if n >= 1 => (Op::Max(n as u32), n),
                     ("min", _) if n >= 1 => (Op::Min(n as u32), n),

@@ -45,7 +45,7 @@ pub(super) fn build(program: &[Op]) -> Option<Scalar> {
             Op::Const(c) => (Value::Const(c), 1),
             Op::X => (Value::X, 1),
             Op::Y => (Value::Y, 1),
-            Op::Neg | Op::Square | Op::Call(_) => {
+            Op::Neg | Op::Square | Op::Call(..) => {
                 let (a, h) = stack.pop()?;
                 let a = a.into_tree();
                 let f: Scalar = match *op {
@@ -54,7 +54,7 @@ pub(super) fn build(program: &[Op]) -> Option<Scalar> {
                         let v = a(x, y);
                         v * v
                     }),
-                    Op::Call(g) => Box::new(move |x, y| g(a(x, y))),
+                    Op::Call(g, _) => Box::new(move |x, y| g(a(x, y))),
                     _ => unreachable!("a unary operation"),
                 };
                 (Value::Tree(f), h + 1)
