@@ -7,8 +7,8 @@
 //! the same expression gives the same bits on every machine (the platform libm may differ in
 //! the last ulp). Batches run the stack program, each operation over all their points, with
 //! `exp` four lanes at a time ([`lanes`]); one point runs the closures ([`closures`]), which
-//! keep values in registers. All do the same operations in the same order. The compiled forms are `Send + Sync`, unlike meval's bound
-//! closures.
+//! keep values in registers. All do the same operations in the same order. The compiled
+//! forms are `Send + Sync`, unlike meval's bound closures.
 
 use super::Surface;
 use crate::geom::Point;

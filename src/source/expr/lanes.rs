@@ -7,7 +7,8 @@
 //! x86-64 baseline) and the divisions overlap. A lane outside the common range
 //! (|x| ≥ 708.39, |x| ≤ 2⁻²⁸, NaN) is left to `libm::exp` itself. On every other lane the
 //! operations, and their order, are libm's, so the results are the same bits on every
-//! machine.
+//! machine. (AVX2, picked at run time, was faster on full batches and slower on the short ones
+//! the error criterion also makes; docs/speed.md has the figures.)
 
 // libm's constants, by the bit patterns its source gives them.
 const LN2HI: f64 = f64::from_bits(0x3fe6_2e42_fee0_0000);
@@ -62,7 +63,7 @@ fn is_rare(hx: u32) -> bool {
 fn exp_common(x: [f64; WIDTH]) -> ([f64; WIDTH], bool) {
     let mut y = [0.0; WIDTH];
     let mut rare = false;
-    for (y, x) in y.iter_mut().zip(x) {
+    for (out, x) in y.iter_mut().zip(x) {
         let hx = high_word(x);
         rare |= is_rare(hx);
         // Argument reduction, x = k ln2 + r: k rounded from x / ln2 when |x| ≥ 1.5 ln2, ±1
@@ -89,7 +90,7 @@ fn exp_common(x: [f64; WIDTH]) -> ([f64; WIDTH], bool) {
         // scalbn(e, k): in the common range |k| ≤ 1022, so 2^k is a normal number and
         // scalbn is this one product (and e · 1 = e where libm returns e for k = 0).
         // (A rare lane's k may be anything; its result is replaced.)
-        *y = e * f64::from_bits((0x3ff_i32.wrapping_add(k) as u64) << 52);
+        *out = e * f64::from_bits((0x3ff_i32.wrapping_add(k) as u64) << 52);
     }
     (y, rare)
 }
