@@ -183,7 +183,8 @@ mod tests {
             check(&values)?;
         }
 
-        /// The whole range where exp is finite and not 1, which the reduction's k spans.
+        /// The whole range of the common path, which the reduction's k spans, and a little past
+        /// both ends, where exp overflows and underflows.
         #[test]
         fn the_whole_finite_range_gives_libms_bits(values in prop::collection::vec(-746.0..710.0f64, 0..37)) {
             check(&values)?;
