@@ -12,7 +12,7 @@ fn main() {
         for method in [Method::SemiRecursive, Method::Recursive] {
             let p = Params::new(100_000).unwrap().with_method(method).with_criterion(criterion);
             let mut q = ();
-            let mut r = Recorder::new(&mut q, method, criterion);
+            let mut r = Recorder::new(&mut q, &p);
             let run = refine(&f, Rect::unit(), &p, &mut r).unwrap();
             let t = r.finish(run.stats.stop);
             let disk =

@@ -132,7 +132,7 @@ fn source_of(input: &SourceInput) -> Option<Source> {
 fn run(source: &Source, rect: Rect, params: &Params) {
     let semi = params.method() == Method::SemiRecursive;
     let mut checker = Checker { delaunay: semi, insertions: 0 };
-    let mut recorder = Recorder::new(&mut checker, params.method(), params.criterion());
+    let mut recorder = Recorder::new(&mut checker, params);
     let Ok(full) = refine(source, rect, params, &mut recorder) else {
         return; // F not finite somewhere it was needed: the service reports that.
     };

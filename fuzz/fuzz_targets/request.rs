@@ -75,7 +75,7 @@ fn settle(spec: Result<JobSpec, ApiError>) {
                 assert_eq!(g.rect(), mesh.domain, "the grid is not spread over the domain");
             }
             let mut quiet = ();
-            let mut recorder = Recorder::new(&mut quiet, params.method(), params.criterion());
+            let mut recorder = Recorder::new(&mut quiet, params);
             let run = match refine(&*mesh.source, mesh.domain, params, &mut recorder) {
                 Ok(run) => run,
                 Err(e) => return check_failure(JobError::Refine(e)),

@@ -1,4 +1,5 @@
-//! Splitting an edge at a new vertex: 2 → 4 triangles inside, 1 → 2 on the boundary.
+//! Inserting a vertex: on an edge, 2 → 4 triangles inside and 1 → 2 on the boundary; inside a
+//! triangle, 1 → 3.
 
 use super::mesh::{Mesh, NONE, next, prev};
 use super::predicates::{Orientation, orientation, signed_area_x2};
@@ -12,11 +13,12 @@ pub struct Split {
     pub vertex: u32,
     /// Half-edges opposite the new vertex; only the first [`Split::link_len`] are used.
     pub link: [u32; 4],
-    /// 4 for an interior edge, 2 for a boundary edge.
+    /// 4 for an interior edge, 2 for a boundary edge, 3 for a vertex inside a triangle.
     pub link_len: usize,
-    /// Whether the new vertex lies exactly on the split edge (exact `orient2d`); a rounded
-    /// midpoint of a slanted edge may not.
-    pub on_edge: bool,
+    /// Whether the new vertex lies exactly on the split edge or inside the split triangle
+    /// (exact `orient2d`), so that only link edges can be illegal afterwards; a rounded
+    /// midpoint of a slanted edge may sit a hair off its edge.
+    pub exact: bool,
 }
 
 impl Split {
@@ -97,7 +99,7 @@ impl Mesh {
     pub fn split(&mut self, e: u32, m: Vertex) -> Split {
         debug_assert!(self.can_split(e, m.point(), 0.0), "split would create a non-positive triangle");
         let (a, b, c) = (self.origin(e), self.dest(e), self.apex(e));
-        let on_edge = is_on_segment_line(self.point(a), self.point(b), m.point());
+        let exact = is_on_segment_line(self.point(a), self.point(b), m.point());
         let t0 = e / 3;
         let (out_bc, out_ca) = (self.twin(next(e)), self.twin(prev(e)));
         let f = self.twin(e);
@@ -111,7 +113,7 @@ impl Mesh {
             self.set_triangle(t2, [b, c, mv], [out_bc, 3 * t0 + 2, NONE]);
             self.claim_corners(t0);
             self.claim_corners(t2);
-            return Split { vertex: mv, link: [3 * t0, 3 * t2, NONE, NONE], link_len: 2, on_edge };
+            return Split { vertex: mv, link: [3 * t0, 3 * t2, NONE, NONE], link_len: 2, exact };
         }
 
         let d = self.apex(f);
@@ -125,7 +127,51 @@ impl Mesh {
         for t in [t0, t1, t2, t3] {
             self.claim_corners(t);
         }
-        Split { vertex: mv, link: [3 * t0, 3 * t2, 3 * t1, 3 * t3], link_len: 4, on_edge }
+        Split { vertex: mv, link: [3 * t0, 3 * t2, 3 * t1, 3 * t3], link_len: 4, exact }
+    }
+
+    /// Whether inserting `m` inside triangle `t` gives three triangles that are all strictly
+    /// counter-clockwise (decided exactly) with twice their area above `min_area_x2`: `m` lies
+    /// strictly inside, and not within the floor of an edge.
+    pub fn can_insert_inside(&self, t: u32, m: Point, min_area_x2: f64) -> bool {
+        let [a, b, c] = self.triangle(t as usize).map(|v| self.point(v));
+        [(a, b), (b, c), (c, a)].into_iter().all(|(p, q)| {
+            let area = signed_area_x2(p, q, m);
+            area > 0.0 && area > min_area_x2
+        })
+    }
+
+    /// Inserts `m` strictly inside triangle `t`, joining it to the three corners.
+    ///
+    /// ```text
+    ///          c                   c
+    ///         / \                 /|\
+    ///        /   \               / | \
+    ///       /  t  \     ==>     /t2|t1\
+    ///      /       \           /  _m_  \
+    ///     a---------b         a--- t0 --b
+    /// ```
+    /// t0 = (a, b, m) keeps `t`'s slot, t1 = (b, c, m) and t2 = (c, a, m) are new: as in
+    /// [`Mesh::split`], the new vertex comes last, so each new triangle's half-edge 0 is the
+    /// link edge opposite `m`. Every old edge survives.
+    ///
+    /// # Panics
+    /// In debug builds, when [`Mesh::can_insert_inside`] would have refused.
+    pub fn insert_inside(&mut self, t: u32, m: Vertex) -> Split {
+        debug_assert!(self.can_insert_inside(t, m.point(), 0.0), "the vertex is not strictly inside");
+        let [a, b, c] = self.triangle(t as usize);
+        let [out_ab, out_bc, out_ca] = [0, 1, 2].map(|k| self.twin(3 * t + k));
+        let mv = self.vertices.len() as u32;
+        self.vertices.push(m);
+        self.outgoing.push(NONE);
+        let (t0, t1, t2) = (t, self.push_triangle(), self.push_triangle());
+        self.set_triangle(t0, [a, b, mv], [out_ab, 3 * t1 + 2, 3 * t2 + 1]);
+        self.set_triangle(t1, [b, c, mv], [out_bc, 3 * t2 + 2, 3 * t0 + 1]);
+        self.set_triangle(t2, [c, a, mv], [out_ca, 3 * t0 + 2, 3 * t1 + 1]);
+        for t in [t0, t1, t2] {
+            self.claim_corners(t);
+        }
+        Split { vertex: mv, link: [3 * t0, 3 * t1, 3 * t2, NONE], link_len: 3, exact: true }
     }
 }
 
@@ -179,6 +225,38 @@ mod tests {
     }
 
     #[test]
+    fn inside_insertion_adds_one_vertex_two_triangles_and_three_edges() {
+        // Triangle 0 of S4 is P1 P2 P3; (0.75, 0.25) lies strictly inside it.
+        let mut mesh = Mesh::new(Rect::unit(), [0.0; 4]);
+        assert!(mesh.can_insert_inside(0, Point::new(0.75, 0.25), 0.0));
+        let split = mesh.insert_inside(0, Vertex { x: 0.75, y: 0.25, z: 2.0 });
+        mesh.check_invariants().unwrap();
+        assert_eq!((split.vertex, split.link_len, split.exact), (4, 3, true));
+        assert_eq!(mesh.num_triangles(), 4);
+        // 5 old edges, all kept, + 3 spokes.
+        assert_eq!(mesh.num_edges(), 8);
+        for v in [0, 1, 2] {
+            assert!(mesh.find_edge(4, v).is_some(), "no spoke to corner {v}");
+        }
+        assert!(mesh.find_edge(4, 3).is_none() && mesh.find_edge(0, 2).is_some());
+        for &e in split.link() {
+            assert_eq!(mesh.apex(e), 4, "link half-edge {e} is not opposite the new vertex");
+        }
+    }
+
+    #[test]
+    fn inside_insertion_is_refused_on_an_edge_outside_or_under_the_floor() {
+        let mesh = Mesh::new(Rect::unit(), [0.0; 4]);
+        // On the diagonal, on the bottom side, a corner, and a point of the other triangle.
+        for p in [(0.5, 0.5), (0.5, 0.0), (1.0, 0.0), (0.25, 0.75)] {
+            assert!(!mesh.can_insert_inside(0, Point::new(p.0, p.1), 0.0), "{p:?}");
+        }
+        // (0.75, 0.25) makes triangles of twice-area 0.25, 0.25 and 0.5.
+        assert!(mesh.can_insert_inside(0, Point::new(0.75, 0.25), 0.24));
+        assert!(!mesh.can_insert_inside(0, Point::new(0.75, 0.25), 0.25));
+    }
+
+    #[test]
     fn split_is_refused_when_the_point_is_not_strictly_inside_the_quadrilateral() {
         let mesh = Mesh::new(Rect::unit(), [0.0; 4]);
         let diagonal = mesh.find_edge(0, 2).unwrap();
@@ -199,28 +277,47 @@ mod properties {
     use proptest::prelude::*;
 
     proptest! {
-        /// Any sequence of midpoint splits, with or without flips, leaves a valid mesh whose
-        /// edge count grows by 2 (boundary) or 3 (interior) per split, and Lawson flips after
-        /// each split keep it Delaunay.
+        /// Any sequence of midpoint splits and insertions inside triangles, with or without
+        /// flips, leaves a valid mesh whose edge count grows by 2 (boundary split) or 3
+        /// (interior split, inside insertion) per step, and Lawson flips after each step keep
+        /// it Delaunay.
         #[test]
         fn any_sequence_of_splits_leaves_the_mesh_valid(
-            picks in prop::collection::vec(any::<u32>(), 1..150),
+            picks in prop::collection::vec((any::<u32>(), prop::option::of((1u8..15, 1u8..15))), 1..150),
             flip in any::<bool>(),
             (a, w, c, h) in (-10.0..10.0f64, 0.1..10.0f64, -10.0..10.0f64, 0.1..10.0f64),
         ) {
             let mut mesh = Mesh::new(Rect::new(a, a + w, c, c + h).unwrap(), [0.0; 4]);
             let mut stack = Vec::new();
-            for pick in picks {
+            for (pick, inside) in picks {
                 let e = pick % mesh.num_halfedges() as u32;
-                let m = mesh.point(mesh.origin(e)).midpoint(mesh.point(mesh.dest(e)));
-                if !mesh.can_split(e, m, 0.0) {
-                    continue;
-                }
-                let (edges, boundary) = (mesh.num_edges(), mesh.twin(e) == super::NONE);
-                let split = mesh.split(e, Vertex { x: m.x, y: m.y, z: 0.0 });
-                prop_assert_eq!(mesh.num_edges(), edges + if boundary { 2 } else { 3 });
+                let edges = mesh.num_edges();
+                let split = match inside {
+                    // Barycentric weights (u, w, 16 − u − w) / 16 of the triangle's corners.
+                    Some((u, w)) if u + w < 16 => {
+                        let [a, b, c] = mesh.triangle((e / 3) as usize).map(|v| mesh.point(v));
+                        let (u, w) = (f64::from(u) / 16.0, f64::from(w) / 16.0);
+                        let m = Vertex { x: u * a.x + w * b.x + (1.0 - u - w) * c.x, y: u * a.y + w * b.y + (1.0 - u - w) * c.y, z: 0.0 };
+                        if !mesh.can_insert_inside(e / 3, m.point(), 0.0) {
+                            continue;
+                        }
+                        let split = mesh.insert_inside(e / 3, m);
+                        prop_assert_eq!(mesh.num_edges(), edges + 3);
+                        split
+                    }
+                    _ => {
+                        let m = mesh.point(mesh.origin(e)).midpoint(mesh.point(mesh.dest(e)));
+                        if !mesh.can_split(e, m, 0.0) {
+                            continue;
+                        }
+                        let boundary = mesh.twin(e) == super::NONE;
+                        let split = mesh.split(e, Vertex { x: m.x, y: m.y, z: 0.0 });
+                        prop_assert_eq!(mesh.num_edges(), edges + if boundary { 2 } else { 3 });
+                        split
+                    }
+                };
                 if flip {
-                    if split.on_edge {
+                    if split.exact {
                         stack.extend_from_slice(split.link());
                         mesh.legalize(&mut stack, |_, _| {});
                     } else {

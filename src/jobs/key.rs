@@ -11,7 +11,7 @@ use sha2::{Digest, Sha256};
 
 /// Bumped whenever the engine may produce a different mesh for the same request, so that a
 /// cache (in memory or on disk) never serves a mesh the current engine would not make.
-pub const ENGINE_VERSION: &str = "meshfit-engine-5";
+pub const ENGINE_VERSION: &str = "meshfit-engine-6";
 
 /// A job's id, and the id of its family: the requests that differ from it only in budget,
 /// tolerance or time limit, whose runs are prefixes of one another.
@@ -79,6 +79,7 @@ pub fn job_keys(spec: &JobSpec) -> JobKeys {
     field(&mut h, "method", p.method().to_string().as_bytes());
     field(&mut h, "criterion", p.criterion().to_string().as_bytes());
     field(&mut h, "quality", &[u8::from(spec.quality)]);
+    field(&mut h, "min_angle", &p.min_angle().map_or(Vec::new(), |a| a.to_bits().to_le_bytes().to_vec()));
     let mut family = h.clone();
     field(&mut family, "family", &[]);
     field(&mut h, "max_vertices", &(p.max_vertices() as u64).to_le_bytes());
@@ -168,27 +169,46 @@ mod tests {
         assert_ne!(job_id(&spec(body, &short)), job_id(&spec(named, &short)), "a named limit is asked for");
     }
 
-    /// One request's id and the SHA-256 of its mesh document, pinned with the engine version:
-    /// a change that alters meshes fails here until it bumps [`ENGINE_VERSION`] on purpose
-    /// (then update both figures with what this test prints).
-    #[test]
-    fn a_pinned_request_gives_the_pinned_id_and_bytes_under_this_engine_version() {
-        let spec = spec(
-            r#"{"function": "x*x*y - y*y + 0.5*x", "max_vertices": 2000, "domain": {"x": [-1, 2], "y": [0, 1]}}"#,
-            &limits(Duration::from_secs(60)),
-        );
+    /// The id and the SHA-256 of the mesh document of `body`, under this engine version.
+    fn id_and_hash(body: &str) -> (String, String) {
+        let spec = spec(body, &limits(Duration::from_secs(60)));
         let id = job_id(&spec);
         let mesh = spec.mesh().unwrap();
         let refinement = refine(&*mesh.source, mesh.domain, &mesh.params, &mut ()).unwrap();
         let result = Arc::new(MeshResult::from(refinement));
         let options = Options { id: Some(id.clone()), ..Options::default() };
         let body = output::encode(&result, Format::Json, &options).to_vec();
-        let hash = format!("{:x}", Sha256::digest(&body));
-        let pinned = (
-            "meshfit-engine-5",
-            "7fe77e86a7378707d31ae84ab799c93d6b567f925adc09406da18671697ba1ff",
-            "bc88713014704964f91555b8ca2f6ceda3277c21c0c9176e146e9229746e4b55",
+        (id, format!("{:x}", Sha256::digest(&body)))
+    }
+
+    /// Requests' ids and the SHA-256 of their mesh documents, pinned with the engine version:
+    /// a change that alters meshes fails here until it bumps [`ENGINE_VERSION`] on purpose
+    /// (then update the figures with what this test prints). One expression, and one grid,
+    /// whose meshes take another path (vertices on its nodes).
+    #[test]
+    fn pinned_requests_give_the_pinned_ids_and_bytes_under_this_engine_version() {
+        let expression = r#"{"function": "x*x*y - y*y + 0.5*x", "max_vertices": 2000, "domain": {"x": [-1, 2], "y": [0, 1]}}"#;
+        let values: Vec<String> =
+            (0..40 * 30).map(|k| format!("{}", (k % 40) * (k / 40) % 17 + (k % 7) * 3)).collect();
+        let grid = format!(
+            r#"{{"grid": {{"nx": 40, "ny": 30, "values": [{}]}}, "max_vertices": 300, "domain": {{"x": [0, 2], "y": [-1, 0.5]}}}}"#,
+            values.join(",")
         );
-        assert_eq!((ENGINE_VERSION, id.as_str(), hash.as_str()), pinned);
+        let pinned = [
+            (
+                "meshfit-engine-6",
+                "3f618103616c5b49d2ca1ad30d55ac3056f39ec98d00e16607e40646d67dff19",
+                "2b4014b0790572c5893f2e9c6b2e285270f1f9d698aa6b14a6cbb3b25f99035b",
+            ),
+            (
+                "meshfit-engine-6",
+                "48358487ecd8f37f15da148e495e367ba17d5bd62d0b4238e85428fd623c13c5",
+                "1f1cf4164c4f0804244991ad752768aa4720ab91c5914ad33886e1751cdbbafd",
+            ),
+        ];
+        for (body, pinned) in [expression, &grid].into_iter().zip(pinned) {
+            let (id, hash) = id_and_hash(body);
+            assert_eq!((ENGINE_VERSION, id.as_str(), hash.as_str()), pinned);
+        }
     }
 }

@@ -111,7 +111,7 @@ fn compute(job: &Job, spec: &JobSpec, inner: &Inner) -> (Outcome, Option<Duratio
     let mut observer = JobObserver { job, points: matches!(spec.work, Work::Mesh(_)) };
     let (mut result, trace, elapsed) = match &spec.work {
         Work::Mesh(mesh) => {
-            let mut recorder = Recorder::new(&mut observer, mesh.params.method(), mesh.params.criterion());
+            let mut recorder = Recorder::new(&mut observer, &mesh.params);
             let mut refinement = match refine(&*mesh.source, mesh.domain, &mesh.params, &mut recorder) {
                 Ok(r) => r,
                 Err(e) => return (Outcome::Failed(JobError::Refine(e)), None),

@@ -6,14 +6,17 @@
 //! `semi-recursive` bisects that triangle's worst edge among its longer ones (see
 //! [`split_edge`]) and flips; `recursive` follows the longest-edge propagation path (Rivara)
 //! and bisects its terminal edge, one midpoint per step, which keeps angles bounded away from
-//! zero.
+//! zero. (On a grid, `semi-recursive` puts its vertices on the grid's nodes instead: see
+//! [`super::nodes`].)
 
+use super::angles::{Encroachment, Repair, Repairs};
 use super::metrics::{LATTICE, lattice_point};
+use super::nodes::worst_node;
 use super::worst_triangle::{Entry, WorstTriangleQueue};
 use super::{Estimator, Observer, RefineError, Run, Sampler, StopReason};
-use crate::geom::{Mesh, NONE, Point, Vertex, raster};
+use crate::geom::{Mesh, NONE, Point, Vertex};
 use crate::refine::Method;
-use crate::source::{BLOCK, Grid, Surface};
+use crate::source::Surface;
 
 /// What is known of one triangle slot: 32 bytes, aligned, so one cache line holds it whole.
 #[derive(Debug, Clone, Copy)]
@@ -142,6 +145,8 @@ pub(super) fn refine<E: Estimator, O: Observer>(
     }
     run.observer.started(estimator.evaluations());
     let recursive = run.params.method() == Method::Recursive;
+    let encroachment = if recursive { Encroachment::Never } else { Encroachment::Lens };
+    let mut repairs = Repairs::new(encroachment, run.params.min_angle());
     // Triangles a step rewrote, re-estimated after it; reused so steps do not allocate.
     let mut touched: Vec<u32> = Vec::with_capacity(32);
     let stop = loop {
@@ -149,18 +154,28 @@ pub(super) fn refine<E: Estimator, O: Observer>(
         if let Some(stop) = run.stop_before_step(mesh, || top.map_or(0.0, |e| e.error)) {
             break stop;
         }
-        let Some(worst) = top else {
-            break StopReason::Exhausted;
+        let repair = repairs.next(mesh);
+        let worst = match (top, repair) {
+            (Some(top), _) => top.error,
+            (None, Some(_)) => 0.0,
+            (None, None) => break StopReason::Exhausted,
         };
-        run.checked(mesh, worst.error);
-        if run.is_tolerance_met(worst.error) {
+        run.checked(mesh, worst);
+        if run.is_tolerance_met(worst) {
             break StopReason::Tolerance;
         }
-        estimates.queue.pop();
-        let e = if recursive || E::LONGEST_EDGE_PATH {
-            terminal_edge(mesh, worst.t)
-        } else {
-            split_edge(mesh, worst.t, &estimates.slots[worst.t as usize])
+        let (e, popped) = match repair {
+            Some((_, Repair::Encroached(h))) => (h, None),
+            Some((t, Repair::Skinny)) => (terminal_edge(mesh, t), None),
+            None => {
+                let worst = estimates.queue.pop().expect("the queue's top");
+                let e = if recursive || E::LONGEST_EDGE_PATH {
+                    terminal_edge(mesh, worst.t)
+                } else {
+                    split_edge(mesh, worst.t, &estimates.slots[worst.t as usize])
+                };
+                (e, Some(worst))
+            }
         };
         run.observer.selected(mesh, mesh.origin(e), mesh.dest(e));
         touched.clear();
@@ -168,7 +183,7 @@ pub(super) fn refine<E: Estimator, O: Observer>(
             touched.extend([d / 3, mesh.twin(d) / 3]);
         })?;
         let Some(split) = split else {
-            // The triangle stays as it is, out of the queue.
+            // The triangle stays as it is, out of the queue (or, for a repair, unrepaired).
             run.observer.retired(mesh.origin(e), mesh.dest(e));
             run.observer.stepped(None, estimator.evaluations());
             continue;
@@ -181,10 +196,11 @@ pub(super) fn refine<E: Estimator, O: Observer>(
         }
         estimator.rewritten(mesh, &touched)?;
         estimates.estimate(mesh, estimator, &touched, run.observer)?;
-        if !touched.contains(&worst.t) {
+        if let Some(worst) = popped.filter(|w| !touched.contains(&w.t)) {
             // Rivara bisected a neighbour first: the worst triangle is still there, unchanged.
             estimates.queue.set(worst);
         }
+        repairs.look_at(&touched);
         run.observer.inserted(mesh, split.vertex);
         run.observer.stepped(Some(e), estimator.evaluations());
     };
@@ -226,7 +242,7 @@ fn longest_edge(mesh: &Mesh, t: u32) -> u32 {
 /// neighbours while the neighbour's longest edge is strictly longer. Lengths grow strictly
 /// along the path, so it ends; its last edge is the longest edge of both its triangles (or
 /// on the boundary), so bisecting it keeps the mesh conforming.
-fn terminal_edge(mesh: &Mesh, t: u32) -> u32 {
+pub(super) fn terminal_edge(mesh: &Mesh, t: u32) -> u32 {
     let mut e = longest_edge(mesh, t);
     loop {
         let f = mesh.twin(e);
@@ -380,7 +396,7 @@ fn triangle_error<S: Surface + ?Sized>(
     sampler.eval_many(&lattice.points[..lattice.count], values)?;
     let (mut error, edges) = lattice_error(values, &lattice.linear, &lattice.owner, known);
     if let Some(grid) = sampler.surface.grid() {
-        error = grid_nodes_error(grid, corners, error);
+        error = worst_node(grid, corners.map(|v| in_grid(grid, v)), corners.map(|v| v.z), error).error;
     }
     Ok((error, edges))
 }
@@ -422,7 +438,8 @@ fn triangles_error<S: Surface + ?Sized>(
         let (mut error, edges) =
             lattice_error(&values[range.clone()], &linear[range.clone()], &owner[range], known);
         if let Some(grid) = sampler.surface.grid() {
-            error = grid_nodes_error(grid, mesh.triangle(ts[i] as usize).map(|v| mesh.vertex(v)), error);
+            let corners = mesh.triangle(ts[i] as usize).map(|v| mesh.vertex(v));
+            error = worst_node(grid, corners.map(|v| in_grid(grid, v)), corners.map(|v| v.z), error).error;
         }
         out.push((error, edges));
         next += usize::from(count);
@@ -431,47 +448,10 @@ fn triangles_error<S: Surface + ?Sized>(
     Ok(())
 }
 
-/// The larger of `floor` and max |value − F_n| over the grid nodes in the closed triangle.
-///
-/// A run of nodes within one of the grid's blocks is passed over when its bound cannot beat
-/// the largest error so far: its values lie in the block's range, and the plane's along the
-/// run between its ends (stepped values are monotone), so |value − F_n| is at most
-/// max(block max − plane min, plane max − block min), and the rounded differences obey the
-/// same bound (rounding is monotone). The result is the same maximum, to the bit, as a scan
-/// of every node; the order of the scan does not change a maximum.
-fn grid_nodes_error(grid: &Grid, corners: [crate::geom::Vertex; 3], floor: f64) -> f64 {
-    let in_grid = corners.map(|v| {
-        let (u, w) = grid.to_grid(v.point());
-        Point::new(u, w)
-    });
-    // Made at the first span: a triangle smaller than a grid cell often holds no node.
-    let mut plane = None;
-    let mut error = floor;
-    raster::for_each_span(in_grid, grid.nx(), grid.ny(), |j, i0, i1| {
-        let plane = plane.get_or_insert_with(|| raster::Plane::new(in_grid, corners.map(|v| v.z)));
-        // A triangle flat in floating point covers no area: its nodes are its neighbours'.
-        let Some(plane) = plane else { return };
-        let (values, line) = (grid.row(j), plane.row_at(i0, j));
-        if i1 - i0 < 2 * BLOCK {
-            // Too short a span for a bound to pay for itself: scan it.
-            error = line.max_deviation(0, &values[i0..=i1], error);
-            return;
-        }
-        let mut first = i0;
-        while first <= i1 {
-            let block = first / BLOCK;
-            let last = ((block + 1) * BLOCK - 1).min(i1);
-            // Steps from i0 fit an i32: a row has at most a few hundred million nodes.
-            let (k0, k1) = ((first - i0) as i32, (last - i0) as i32);
-            let (a, b) = (line.at(k0), line.at(k1));
-            let (lo, hi) = grid.block_range(j, block);
-            if (hi - a.min(b)).max(a.max(b) - lo) > error {
-                error = line.max_deviation(k0, &values[first..=last], error);
-            }
-            first = last + 1;
-        }
-    });
-    error
+/// Vertex `v`'s position in grid units.
+fn in_grid(grid: &crate::source::Grid, v: Vertex) -> Point {
+    let (u, w) = grid.to_grid(v.point());
+    Point::new(u, w)
 }
 
 #[cfg(test)]
@@ -481,42 +461,6 @@ mod tests {
     use crate::refine::{Params, refine};
     use crate::source::Expression;
     use proptest::prelude::*;
-
-    /// The oracle: every node of the triangle compared, none passed over.
-    fn every_node_error(grid: &Grid, corners: [Vertex; 3], floor: f64) -> f64 {
-        let in_grid = corners.map(|v| {
-            let (u, w) = grid.to_grid(v.point());
-            Point::new(u, w)
-        });
-        let Some(plane) = raster::Plane::new(in_grid, corners.map(|v| v.z)) else { return floor };
-        let mut error = floor;
-        raster::for_each_span(in_grid, grid.nx(), grid.ny(), |j, i0, i1| {
-            for (&value, linear) in grid.row(j)[i0..=i1].iter().zip(plane.row(i0, j)) {
-                error = error.max((value - linear).abs());
-            }
-        });
-        error
-    }
-
-    proptest! {
-        #[test]
-        fn passing_over_blocks_finds_the_same_maximum_as_every_node(
-            seed in 0u64..1000,
-            corners in proptest::array::uniform3((0.0f64..300.0, 0.0f64..200.0, -5.0f64..5.0)),
-            floor in prop_oneof![Just(0.0), 0.0f64..3.0],
-        ) {
-            let (nx, ny) = (301, 201);
-            // A smooth surface with a few spikes, so that some blocks hold the maximum.
-            let values = (0..nx * ny).map(|k| {
-                let (i, j) = ((k % nx) as f64, (k / nx) as f64);
-                let spike = if (k as u64).wrapping_mul(2654435761).wrapping_add(seed) % 997 == 0 { 4.0 } else { 0.0 };
-                (i * 0.05).sin() + (j * 0.03).cos() + spike
-            }).collect();
-            let grid = Grid::new(nx, ny, values).unwrap();
-            let corners = corners.map(|(x, y, z)| Vertex { x, y, z });
-            prop_assert_eq!(grid_nodes_error(&grid, corners, floor).to_bits(), every_node_error(&grid, corners, floor).to_bits());
-        }
-    }
 
     proptest! {
         /// A batch of triangles, some edges known from outside and some shared within it,

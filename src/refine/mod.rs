@@ -43,10 +43,12 @@
 //! The order of splits may change between versions of meshfit (the service keys its cache by
 //! an engine version); it never changes between two runs of one version.
 
+mod angles;
 mod bands;
 mod error;
 mod history;
 mod metrics;
+mod nodes;
 mod params;
 pub mod trace;
 mod variation;
@@ -56,7 +58,7 @@ mod worst_triangle;
 use history::History;
 pub use history::Sample;
 pub use metrics::{ErrorEstimate, dense_max_error, estimate_error, variation};
-pub use params::{Criterion, MAX_VERTICES, Method, Params, ParamsError};
+pub use params::{Criterion, MAX_MIN_ANGLE, MAX_VERTICES, Method, Params, ParamsError};
 pub use worst_edge::{Candidate, WorstEdgeQueue};
 
 use crate::geom::{Mesh, Point, Rect, Split, Vertex};
@@ -116,6 +118,10 @@ pub trait Observer {
     /// Vertex `vertex` was inserted and the mesh is consistent again (flips done).
     fn inserted(&mut self, _mesh: &Mesh, _vertex: u32) {}
 
+    /// The run puts its vertices on grid nodes rather than edge midpoints (criterion `error`
+    /// on a grid, `semi-recursive`); called before [`Observer::started`].
+    fn on_nodes(&mut self) {}
+
     /// The loop is about to start, after `evaluations` evaluations of F (the corners, and for
     /// `error` the first two triangles' samples).
     fn started(&mut self, _evaluations: u64) {}
@@ -156,6 +162,10 @@ pub struct Stats {
     pub stop: StopReason,
     /// Whether the final mesh passes the exact in-circle test on every interior edge.
     pub delaunay: bool,
+    /// With `min_angle`: how many triangles of the final mesh have a smaller angle, their
+    /// repair stopped by a size floor, the budget or the tolerance.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub below_min_angle: Option<u64>,
     /// V_n and the worst criterion value at vertex counts 4, 6, 8, 12, 16, 24, … and at the
     /// end: the run's convergence.
     pub history: Vec<Sample>,
@@ -220,7 +230,15 @@ where
     let [p1, p2, p3, p4] = rect.corners();
     let z = [sampler.eval(p1)?, sampler.eval(p2)?, sampler.eval(p3)?, sampler.eval(p4)?];
     let mut mesh = Mesh::with_capacity(rect, z, params.max_vertices());
-    let round = resume(&mut mesh, &mut sampler, params, Floors::of_rect(rect), observer)?;
+    let floors = Floors::of_rect(rect);
+    let round = match surface.grid() {
+        Some(grid) if params.criterion() == Criterion::Error && params.method() == Method::SemiRecursive => {
+            let mut run = Run::new(params, observer, floors);
+            let (stop, errors) = nodes::refine(&mut mesh, grid, &mut run, &mut sampler.evaluations);
+            run.finish(&mesh, stop, Some(errors))
+        }
+        _ => resume(&mut mesh, &mut sampler, params, floors, observer)?,
+    };
     let max_triangle_error =
         round.triangle_errors.as_ref().map(|e: &Vec<f64>| e.iter().copied().fold(0.0, f64::max));
     let stats = Stats {
@@ -234,6 +252,7 @@ where
         evaluations: sampler.evaluations,
         stop: round.stop,
         delaunay: mesh.is_delaunay(),
+        below_min_angle: params.min_angle().map(|degrees| angles::count_below(&mesh, degrees)),
         history: round.history,
         quality: None,
     };
@@ -374,19 +393,7 @@ pub(crate) fn resume<E: Estimator, O: Observer>(
     floors: Floors,
     observer: &mut O,
 ) -> Result<Round, E::Error> {
-    let start = Instant::now();
-    let mut run = Run {
-        params,
-        observer,
-        start,
-        last_report: start,
-        steps: 0,
-        floors,
-        stack: Vec::with_capacity(64),
-        flips: 0,
-        retired: 0,
-        history: History::new(params.criterion(), params.method()),
-    };
+    let mut run = Run::new(params, observer, floors);
     let (stop, triangle_errors) = match params.criterion() {
         Criterion::Variation => (variation::refine(mesh, estimator, &mut run)?, None),
         Criterion::Error => {
@@ -394,8 +401,7 @@ pub(crate) fn resume<E: Estimator, O: Observer>(
             (stop, Some(errors))
         }
     };
-    let history = run.history.finish(mesh);
-    Ok(Round { stop, triangle_errors, flips: run.flips, retired: run.retired, history })
+    Ok(run.finish(mesh, stop, triangle_errors))
 }
 
 /// F with a count of evaluations; a non-finite value is an error naming the point.
@@ -455,7 +461,30 @@ struct Run<'a, O> {
     history: History,
 }
 
-impl<O: Observer> Run<'_, O> {
+impl<'a, O: Observer> Run<'a, O> {
+    /// A run of `params` that starts now.
+    fn new(params: &'a Params, observer: &'a mut O, floors: Floors) -> Self {
+        let start = Instant::now();
+        Self {
+            params,
+            observer,
+            start,
+            last_report: start,
+            steps: 0,
+            floors,
+            stack: Vec::with_capacity(64),
+            flips: 0,
+            retired: 0,
+            history: History::new(params.criterion(), params.method()),
+        }
+    }
+
+    /// What the run did, once it stopped with `stop` on `mesh`.
+    fn finish(self, mesh: &Mesh, stop: StopReason, triangle_errors: Option<Vec<f64>>) -> Round {
+        let history = self.history.finish(mesh);
+        Round { stop, triangle_errors, flips: self.flips, retired: self.retired, history }
+    }
+
     /// The worst value `worst` is about to be compared with the tolerance on `mesh`.
     #[inline]
     fn checked(&mut self, mesh: &Mesh, worst: f64) {
@@ -509,7 +538,7 @@ impl<O: Observer> Run<'_, O> {
         mesh: &mut Mesh,
         field: &mut F,
         e: u32,
-        mut on_flip: impl FnMut(&Mesh, u32),
+        on_flip: impl FnMut(&Mesh, u32),
     ) -> Result<Option<Split>, F::Error> {
         let (a, b) = (mesh.vertex(mesh.origin(e)), mesh.vertex(mesh.dest(e)));
         let m = a.point().midpoint(b.point());
@@ -520,35 +549,85 @@ impl<O: Observer> Run<'_, O> {
             return Ok(None);
         }
         let z = field.midpoint(a, b, m)?;
-        let (split, flips) = insert(
-            mesh,
-            e,
-            Vertex { x: m.x, y: m.y, z },
-            self.params.method(),
-            &mut self.stack,
-            &mut on_flip,
-        );
+        Ok(Some(self.insert(mesh, e, Vertex { x: m.x, y: m.y, z }, Placement::OnEdge, on_flip)))
+    }
+
+    /// Inserts `v` at half-edge `e` as [`place`] decides, with flips as in
+    /// [`Run::split_midpoint`]; `None` (and an untouched mesh) when [`place`] finds no way in.
+    fn insert_vertex(
+        &mut self,
+        mesh: &mut Mesh,
+        e: u32,
+        v: Vertex,
+        on_flip: impl FnMut(&Mesh, u32),
+    ) -> Option<Split> {
+        let (a, b) = (mesh.point(mesh.origin(e)), mesh.point(mesh.dest(e)));
+        let Some(placement) = place(mesh, e, v.point(), self.floors.at(a, b).1) else {
+            self.retired += 1;
+            self.history.retired();
+            return None;
+        };
+        Some(self.insert(mesh, e, v, placement, on_flip))
+    }
+
+    fn insert(
+        &mut self,
+        mesh: &mut Mesh,
+        e: u32,
+        v: Vertex,
+        placement: Placement,
+        mut on_flip: impl FnMut(&Mesh, u32),
+    ) -> Split {
+        let (split, flips) =
+            insert(mesh, e, v, placement, self.params.method(), &mut self.stack, &mut on_flip);
         self.flips += u64::from(flips);
-        Ok(Some(split))
+        split
     }
 }
 
-/// Splits the edge of half-edge `e` at `v` and, with `semi-recursive`, restores the Delaunay
-/// property by Lawson flips, telling `on_flip` the half-edge of each new diagonal. Returns the
-/// split and the number of flips. The one topology step of every loop: refinement's, and a
-/// replay's of a traced run.
+/// How a new vertex goes in at a half-edge.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Placement {
+    /// On the half-edge's edge (or a hair off it): the one or two triangles beside it split.
+    OnEdge,
+    /// Strictly inside the half-edge's triangle, which splits in three.
+    Inside,
+}
+
+/// How a vertex at `p` goes in at half-edge `e`: e's midpoint on its edge, as in the paper;
+/// any other point inside e's triangle when every new triangle clears `min_area_x2`, otherwise
+/// on e's edge (`p` on the edge, or near it on either side). `None` when the split that would
+/// be made does not clear the floor. Refinement and replay both ask here, so a traced step
+/// is redone as it was made.
+fn place(mesh: &Mesh, e: u32, p: Point, min_area_x2: f64) -> Option<Placement> {
+    let is_midpoint = p == mesh.point(mesh.origin(e)).midpoint(mesh.point(mesh.dest(e)));
+    if !is_midpoint && mesh.can_insert_inside(e / 3, p, min_area_x2) {
+        Some(Placement::Inside)
+    } else {
+        mesh.can_split(e, p, min_area_x2).then_some(Placement::OnEdge)
+    }
+}
+
+/// Inserts `v` at half-edge `e` (on its edge, or inside its triangle) and, with
+/// `semi-recursive`, restores the Delaunay property by Lawson flips, telling `on_flip` the
+/// half-edge of each new diagonal. Returns the split and the number of flips. The one
+/// topology step of every loop: refinement's, and a replay's of a traced run.
 fn insert(
     mesh: &mut Mesh,
     e: u32,
     v: Vertex,
+    placement: Placement,
     method: Method,
     stack: &mut Vec<u32>,
     on_flip: impl FnMut(&Mesh, u32),
 ) -> (Split, u32) {
-    let split = mesh.split(e, v);
+    let split = match placement {
+        Placement::OnEdge => mesh.split(e, v),
+        Placement::Inside => mesh.insert_inside(e / 3, v),
+    };
     let flips = match method {
         Method::Recursive => 0,
-        Method::SemiRecursive if split.on_edge => {
+        Method::SemiRecursive if split.exact => {
             stack.extend_from_slice(split.link());
             mesh.legalize(stack, on_flip)
         }

@@ -48,7 +48,11 @@ pub struct Params {
     max_vertices: usize,
     tolerance: Option<f64>,
     time_limit: Option<Duration>,
+    min_angle: Option<f64>,
 }
+
+/// The largest `min_angle` in degrees: Lepp-Delaunay refinement is known to end below it.
+pub const MAX_MIN_ANGLE: f64 = 30.0;
 
 /// A parameter out of range.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -59,6 +63,12 @@ pub enum ParamsError {
     /// The tolerance is negative or not finite.
     #[error("tolerance must be a finite number >= 0, got {0}")]
     Tolerance(f64),
+    /// The smallest angle asked for is not in (0, 30] degrees.
+    #[error("min_angle must be above 0 and at most {MAX_MIN_ANGLE} degrees, got {0}")]
+    MinAngle(f64),
+    /// `min_angle` with the paper's criterion, which has no triangles to repair first.
+    #[error("min_angle needs criterion error: the paper's variation splits only its worst edge")]
+    MinAngleCriterion,
 }
 
 impl Params {
@@ -76,6 +86,7 @@ impl Params {
             max_vertices,
             tolerance: None,
             time_limit: None,
+            min_angle: None,
         })
     }
 
@@ -104,6 +115,19 @@ impl Params {
         Ok(self)
     }
 
+    /// With criterion `error`, repairs every triangle whose smallest angle is below `degrees`
+    /// before any error-driven split (see the refinement's docs).
+    ///
+    /// # Errors
+    /// When `degrees` is not above 0 and at most [`MAX_MIN_ANGLE`].
+    pub fn with_min_angle(mut self, degrees: f64) -> Result<Self, ParamsError> {
+        if !(degrees > 0.0 && degrees <= MAX_MIN_ANGLE) {
+            return Err(ParamsError::MinAngle(degrees));
+        }
+        self.min_angle = Some(degrees);
+        Ok(self)
+    }
+
     /// Stops once this much time has passed.
     pub fn with_time_limit(mut self, limit: Duration) -> Self {
         self.time_limit = Some(limit);
@@ -129,6 +153,10 @@ impl Params {
     /// The time limit, if any.
     pub fn time_limit(&self) -> Option<Duration> {
         self.time_limit
+    }
+    /// The smallest angle in degrees that criterion `error` repairs up to, if any.
+    pub fn min_angle(&self) -> Option<f64> {
+        self.min_angle
     }
 }
 
@@ -168,7 +196,11 @@ mod tests {
         let p = Params::new(10).unwrap();
         assert!(p.clone().with_tolerance(-1.0).is_err());
         assert!(p.clone().with_tolerance(f64::NAN).is_err());
-        assert_eq!(p.with_tolerance(0.0).unwrap().tolerance(), Some(0.0));
+        assert_eq!(p.clone().with_tolerance(0.0).unwrap().tolerance(), Some(0.0));
+        for bad in [0.0, -1.0, 30.5, f64::NAN, f64::INFINITY] {
+            assert!(matches!(p.clone().with_min_angle(bad), Err(ParamsError::MinAngle(_))), "{bad}");
+        }
+        assert_eq!(p.with_min_angle(30.0).unwrap().min_angle(), Some(30.0));
     }
 
     #[test]

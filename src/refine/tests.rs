@@ -495,7 +495,12 @@ proptest! {
         let p = params(n, method).with_criterion(Criterion::Error);
         let r = refine(&source, rect, &p, &mut checker).unwrap();
         prop_assert!(checker.failure.is_none(), "{}", checker.failure.unwrap());
-        prop_assert_eq!(r.stats.vertices, n, "stopped by {:?}", r.stats.stop);
+        // A grid's nodes run out: semi-recursive stops once F_n matches every one of them.
+        let matched = r.stats.stop == StopReason::Exhausted
+            && r.stats.max_triangle_error == Some(0.0)
+            && method == Method::SemiRecursive
+            && matches!(source, Source::Grid(_));
+        prop_assert!(r.stats.vertices == n || matched, "stopped by {:?} at {}", r.stats.stop, r.stats.vertices);
         prop_assert!(method == Method::Recursive || r.stats.delaunay);
         let again = refine(&source, rect, &p, &mut ()).unwrap();
         prop_assert_eq!(format!("{:?}", again.mesh.vertices()), format!("{:?}", r.mesh.vertices()));

@@ -12,7 +12,7 @@
 //! each estimate (about five a step).
 
 use super::history::History;
-use super::{Criterion, Method, Observer, Progress, Refinement, Stats, StopReason, insert};
+use super::{Criterion, Floors, Method, Observer, Progress, Refinement, Stats, StopReason, insert, place};
 use crate::geom::{Mesh, NONE, Rect, Vertex};
 
 /// What a traced run did, step by step.
@@ -22,6 +22,10 @@ pub struct Trace {
     pub method: Method,
     /// The run's criterion.
     pub criterion: Criterion,
+    /// Whether the run put its vertices on grid nodes, not only at edge midpoints.
+    pub on_nodes: bool,
+    /// The run's `min_angle`, which its stats count the triangles below.
+    pub min_angle: Option<f64>,
     /// Why the run stopped.
     pub stop: StopReason,
     /// Evaluations of F before the first step.
@@ -69,11 +73,13 @@ pub struct Recorder<'o, O> {
 }
 
 impl<'o, O: Observer> Recorder<'o, O> {
-    /// Traces a run of `method` and `criterion`, reporting to `inner` as well.
-    pub fn new(inner: &'o mut O, method: Method, criterion: Criterion) -> Self {
+    /// Traces a run of `params`, reporting to `inner` as well.
+    pub fn new(inner: &'o mut O, params: &super::Params) -> Self {
         let trace = Trace {
-            method,
-            criterion,
+            method: params.method(),
+            criterion: params.criterion(),
+            on_nodes: false,
+            min_angle: params.min_angle(),
             stop: StopReason::Exhausted,
             base_evaluations: 0,
             worst: Vec::new(),
@@ -111,6 +117,11 @@ impl<O: Observer> Observer for Recorder<'_, O> {
 
     fn inserted(&mut self, mesh: &Mesh, vertex: u32) {
         self.inner.inserted(mesh, vertex);
+    }
+
+    fn on_nodes(&mut self) {
+        self.trace.on_nodes = true;
+        self.inner.on_nodes();
     }
 
     fn started(&mut self, evaluations: u64) {
@@ -152,6 +163,7 @@ pub fn replay(
     let rect = Rect::new(p1.x, p3.x, p1.y, p3.y).ok()?;
     let z = [0, 1, 2, 3].map(|k| vertices[k].z);
     let mut mesh = Mesh::with_capacity(rect, z, max_vertices.min(vertices.len()));
+    let floors = Floors::of_rect(rect);
     let error = trace.criterion == Criterion::Error;
     let mut errors: Vec<f64> = Vec::new();
     let apply = |estimates: &[(u32, f64)], errors: &mut Vec<f64>| {
@@ -191,12 +203,17 @@ pub fn replay(
                 history.retired();
             } else {
                 let v = *vertices.get(mesh.num_vertices())?;
-                let (a, b) = (mesh.point(mesh.origin(split)), mesh.point(mesh.dest(split)));
-                if (split as usize) >= mesh.num_halfedges() || a.midpoint(b) != v.point() {
-                    // Not the trace of these vertices: never guess.
+                if (split as usize) >= mesh.num_halfedges() {
                     return None;
                 }
-                flips += u64::from(insert(&mut mesh, split, v, trace.method, &mut stack, |_, _| {}).1);
+                let (a, b) = (mesh.point(mesh.origin(split)), mesh.point(mesh.dest(split)));
+                // Not the trace of these vertices: never guess.
+                if !trace.on_nodes && a.midpoint(b) != v.point() {
+                    return None;
+                }
+                let placement = place(&mesh, split, v.point(), floors.at(a, b).1)?;
+                flips +=
+                    u64::from(insert(&mut mesh, split, v, placement, trace.method, &mut stack, |_, _| {}).1);
             }
             evaluations = *trace.evaluations.get(step)?;
             if error {
@@ -221,6 +238,7 @@ pub fn replay(
         evaluations,
         stop,
         delaunay: mesh.is_delaunay(),
+        below_min_angle: trace.min_angle.map(|degrees| super::angles::count_below(&mesh, degrees)),
         history,
         quality: None,
     };
@@ -235,7 +253,7 @@ mod tests {
 
     fn traced(source: &Source, rect: Rect, params: &Params) -> (Refinement, Trace) {
         let mut quiet = ();
-        let mut recorder = Recorder::new(&mut quiet, params.method(), params.criterion());
+        let mut recorder = Recorder::new(&mut quiet, params);
         let run = refine(source, rect, params, &mut recorder).unwrap();
         let trace = recorder.finish(run.stats.stop);
         (run, trace)
@@ -250,8 +268,9 @@ mod tests {
         let expr =
             crate::source::Expression::parse("sin(7*x)*cos(5*y) + exp(-30*((x-0.3)^2+(y-0.6)^2))").unwrap();
         let values =
-            (0..33 * 17).map(|k| (((k % 33) as f64) * 0.3).sin() * ((k / 33) as f64 * 0.5).cos()).collect();
-        let grid = Grid::new(33, 17, values).unwrap();
+            (0..65 * 49).map(|k| (((k % 65) as f64) * 0.3).sin() * ((k / 65) as f64 * 0.5).cos()).collect();
+        // More nodes than the runs' 1500 vertices: on nodes, a run ends when it matches them all.
+        let grid = Grid::new(65, 49, values).unwrap();
         let rect = Rect::new(-1.0, 2.0, 0.0, 1.5).unwrap();
         vec![
             ("expression", Source::Expression(expr).with_domain(rect), rect),

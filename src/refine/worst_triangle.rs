@@ -132,6 +132,23 @@ impl WorstTriangleQueue {
         Some(top)
     }
 
+    /// Takes triangle `t`'s entry out of the queue, if it has one.
+    pub fn remove(&mut self, t: u32) {
+        let Some(&position) = self.position.get(t as usize) else { return };
+        self.position[t as usize] = ABSENT;
+        match position {
+            ABSENT => {}
+            i if i & IN_BUCKET == 0 => self.remove_from_heap(i as usize),
+            place => {
+                let place = (place & !IN_BUCKET) as usize;
+                let band = band(self.buckets.get(place).error);
+                if let Some(moved) = self.buckets.swap_remove(band, place) {
+                    self.position[moved.t as usize] = place as u32 | IN_BUCKET;
+                }
+            }
+        }
+    }
+
     /// Adds an entry for a triangle that has none.
     fn insert(&mut self, entry: Entry, band: usize) {
         if self.heap.is_empty() {
@@ -228,12 +245,14 @@ mod tests {
     #[derive(Debug, Clone)]
     enum Op {
         Set { t: u32, error: usize },
+        Remove { t: u32 },
         Pop,
     }
 
     fn op() -> impl Strategy<Value = Op> {
         prop_oneof![
             3 => (0u32..40, 0..ERRORS.len()).prop_map(|(t, error)| Op::Set { t, error }),
+            1 => (0u32..45).prop_map(|t| Op::Remove { t }),
             1 => Just(Op::Pop),
         ]
     }
@@ -264,8 +283,8 @@ mod tests {
 
     proptest! {
         /// Against a map from triangle to entry: every pop is the map's worst entry, each
-        /// triangle holds one entry, the last one set, and the heap holds each entry it
-        /// indexes once, whichever band or bucket the entries went through.
+        /// triangle holds one entry, the last one set (none once removed), and the heap holds
+        /// each entry it indexes once, whichever band or bucket the entries went through.
         #[test]
         fn pops_the_worst_live_entry(ops in proptest::collection::vec(op(), 0..400)) {
             let mut queue = WorstTriangleQueue::with_capacity(0);
@@ -279,6 +298,10 @@ mod tests {
                         let entry = Entry { error: ERRORS[error], seq: seq as u32, t };
                         queue.set(entry);
                         model.insert(t, entry);
+                    }
+                    Op::Remove { t } => {
+                        queue.remove(t);
+                        model.remove(&t);
                     }
                     Op::Pop => {
                         let expected = model.values().max().copied();

@@ -5,7 +5,8 @@
 //! magic "MESHFIT\0" · u32 version · u32 flags (bit 0: triangle errors)
 //! u64 vertices · u64 triangles · u32 id length · id · u32 stats length · stats (JSON)
 //! vertices (x, y, z as f64) · triangles (3 × u32) · [triangle errors (f64)]
-//! [trace (flag bit 1): u8 method · u8 criterion · u8 stop · u64 base evaluations ·
+//! [trace (flag bit 1): u8 method · u8 criterion · u8 stop · u8 on nodes · u8 has min angle ·
+//!  f64 min angle (0 without one) · u64 base evaluations ·
 //!  u64 checks · u64 steps · u64 estimates · worst (f64 per check) · split half-edges (u32 per
 //!  step) · evaluations (u64 per step) · estimates (u32 triangle, f64 error) ·
 //!  estimate ends (u32 per step, plus one)]
@@ -23,7 +24,7 @@ use std::io::{self, Write};
 use std::sync::Arc;
 
 const MAGIC: &[u8; 8] = b"MESHFIT\0";
-const VERSION: u32 = 2;
+const VERSION: u32 = 3;
 const HAS_ERRORS: u32 = 1;
 const HAS_TRACE: u32 = 2;
 const CHECKSUM_LEN: usize = 32;
@@ -79,7 +80,7 @@ pub fn size(result: &MeshResult, id: &str) -> u64 {
     let trace = result.trace.as_ref().map_or(0, |t| {
         let (checks, steps, estimates) =
             (t.worst.len() as u64, t.splits.len() as u64, t.estimates.len() as u64);
-        3 + 4 * 8 + 8 * checks + 12 * steps + 12 * estimates + 4 * (steps + 1)
+        3 + 1 + 1 + 8 + 4 * 8 + 8 * checks + 12 * steps + 12 * estimates + 4 * (steps + 1)
     });
     let header = MAGIC.len() as u64 + 4 + 4 + 8 + 8 + 4 + id.len() as u64 + 4 + stats;
     header + 24 * nv + 12 * nt + errors + trace + CHECKSUM_LEN as u64
@@ -132,8 +133,11 @@ pub fn write(result: &MeshResult, id: &str, out: impl Write) -> io::Result<u64> 
             METHODS.iter().position(|&m| m == trace.method),
             CRITERIA.iter().position(|&c| c == trace.criterion),
             STOPS.iter().position(|&s| s == trace.stop),
+            Some(usize::from(trace.on_nodes)),
         ];
         buf.extend(codes.map(|c| c.expect("every value has a code") as u8));
+        buf.push(u8::from(trace.min_angle.is_some()));
+        buf.extend_from_slice(&trace.min_angle.unwrap_or(0.0).to_le_bytes());
         for n in [
             trace.base_evaluations,
             trace.worst.len() as u64,
@@ -228,6 +232,9 @@ fn f64_at(c: &[u8], at: usize) -> f64 {
 /// The trace section, to the end of `r`.
 fn read_trace(r: &mut Reader<'_>) -> Result<Trace, CompactError> {
     let (method, criterion, stop) = (r.code(&METHODS)?, r.code(&CRITERIA)?, r.code(&STOPS)?);
+    let on_nodes = r.code(&[false, true])?;
+    let has_min_angle = r.code(&[false, true])?;
+    let min_angle = Some(f64::from_bits(r.u64()?)).filter(|_| has_min_angle);
     let (base_evaluations, checks, steps, estimates) = (r.u64()?, r.u64()?, r.u64()?, r.u64()?);
     let worst = r.records(checks, 8)?.map(|c| f64_at(c, 0)).collect();
     let (splits, evaluations) = r.records(steps, 12)?.map(|c| (u32_at(c, 0), u64_at(c, 4))).unzip();
@@ -239,6 +246,8 @@ fn read_trace(r: &mut Reader<'_>) -> Result<Trace, CompactError> {
     Ok(Trace {
         method,
         criterion,
+        on_nodes,
+        min_angle,
         stop,
         base_evaluations,
         worst,

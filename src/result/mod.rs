@@ -166,7 +166,7 @@ pub(crate) mod testing {
     pub(crate) fn traced(n: usize, criterion: Criterion) -> MeshResult {
         let params = Params::new(n).unwrap().with_criterion(criterion);
         let mut quiet = ();
-        let mut recorder = Recorder::new(&mut quiet, params.method(), criterion);
+        let mut recorder = Recorder::new(&mut quiet, &params);
         let run = refine(&bump, rect(), &params, &mut recorder).unwrap();
         let trace = recorder.finish(run.stats.stop);
         MeshResult { trace: Some(Arc::new(trace)), ..run.into() }

@@ -125,13 +125,15 @@ impl Grid {
         self.blocks[j * self.nx.div_ceil(BLOCK) + b]
     }
 
-    /// Position of node (i, j).
+    /// Position of node (i, j); the last node of a row or column is exactly on the far side.
     #[inline]
     pub fn node(&self, i: usize, j: usize) -> Point {
         let r = self.rect;
-        let hx = (r.x1() - r.x0()) / (self.nx - 1) as f64;
-        let hy = (r.y1() - r.y0()) / (self.ny - 1) as f64;
-        Point::new(r.x0() + i as f64 * hx, r.y0() + j as f64 * hy)
+        let at = |k: usize, n: usize, lo: f64, hi: f64| match k {
+            _ if k == n - 1 => hi,
+            _ => lo + k as f64 * ((hi - lo) / (n - 1) as f64),
+        };
+        Point::new(at(i, self.nx, r.x0(), r.x1()), at(j, self.ny, r.y0(), r.y1()))
     }
 
     /// Continuous grid coordinates of `p`: node (i, j) is at (i, j).

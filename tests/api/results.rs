@@ -129,12 +129,14 @@ async fn evaluate_answers_the_surrogate_at_points_as_json_or_binary() {
 #[tokio::test]
 async fn smaller_budgets_and_passed_tolerances_are_replayed_byte_for_byte_without_running_f() {
     let app = spawn_app().await;
+    // More nodes than the runs' vertices: on a grid's nodes, a run that matched them all would
+    // answer every larger budget too.
     let grid: Vec<f64> =
-        (0..40 * 30).map(|k| ((k % 40) as f64 * 0.4).sin() + ((k / 40) as f64 * 0.3).cos()).collect();
+        (0..80 * 60).map(|k| ((k % 80) as f64 * 0.4).sin() + ((k / 80) as f64 * 0.3).cos()).collect();
     // With `quality` the replay measures its mesh against F as a fresh run does.
     let sources = [
         json!({"function": "sin(6*x)*cos(4*y)"}),
-        json!({"grid": {"nx": 40, "ny": 30, "values": grid}}),
+        json!({"grid": {"nx": 80, "ny": 60, "values": grid}}),
         json!({"function": "sin(6*x)*cos(4*y)", "quality": true}),
     ];
     let mut runs = 0.0;

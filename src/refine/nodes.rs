@@ -1,0 +1,431 @@
+//! Criterion `error` on a grid with `semi-recursive`: every new vertex is a grid node, the
+//! worst one of the worst triangle (greedy insertion: Garland and Heckbert 1995, as in hmm).
+//!
+//! A grid's data are its nodes. An edge midpoint lies between them, where F is only the
+//! bilinear interpolant, so once edges near the node spacing a midpoint vertex no longer sits
+//! on the data and the error at the nodes stops falling. Here e(T) is the largest
+//! |value − F_n| over the nodes in the closed triangle, found exactly (no lattice of samples),
+//! and a step inserts the node where it is reached, with the node's own value: F_n is exact
+//! there from then on. Lawson flips keep the mesh Delaunay.
+//!
+//! A triangle whose nodes F_n matches (often one with no node off its corners) has e(T) = 0
+//! and leaves the queue; when all have, F_n matches every node and the run stops as
+//! `exhausted`. An encroached side splits at its node nearest the midpoint, and a triangle
+//! below `min_angle` at the midpoint of its longest-edge path's end (see [`super::angles`]).
+//! `recursive` keeps midpoints: Rivara's bisection needs them for its bound on the angles.
+
+use super::angles::{Encroachment, Repair, Repairs};
+use super::error::terminal_edge;
+use super::worst_triangle::{Entry, WorstTriangleQueue};
+use super::{Observer, Run, StopReason};
+use crate::geom::predicates::signed_area_x2;
+use crate::geom::{Mesh, Point, Vertex, raster};
+use crate::source::{BLOCK, Grid, Surface};
+
+/// No node: a triangle whose nodes F_n matches.
+const NO_NODE: u64 = u64::MAX;
+
+/// What is known of one triangle slot: e(T) and the node where it is reached.
+#[derive(Debug, Clone, Copy)]
+struct Slot {
+    error: f64,
+    /// `j·nx + i` of node (i, j), or [`NO_NODE`].
+    node: u64,
+}
+
+/// Triangle errors and the queue over those above zero.
+struct Estimates<'g> {
+    grid: &'g Grid,
+    /// Each vertex's position in grid units: a node's exact (i, j), so that F_n there is its
+    /// value up to the plane's rounding, which the corner rule below takes out.
+    at: Vec<Point>,
+    queue: WorstTriangleQueue,
+    slots: Vec<Slot>,
+    next_seq: u32,
+}
+
+impl Estimates<'_> {
+    /// Measures triangle `t` and queues it when its error is above zero.
+    ///
+    /// When the worst node is a corner, every node's deviation is within the plane's rounding
+    /// (a few units in the last place of z at the other corners): F_n matches the triangle's
+    /// nodes, and its error is 0.
+    fn estimate<O: Observer>(&mut self, mesh: &Mesh, t: u32, observer: &mut O) {
+        let corners = mesh.triangle(t as usize);
+        let in_grid = corners.map(|v| self.at[v as usize]);
+        let worst = worst_node(self.grid, in_grid, corners.map(|v| mesh.vertex(v).z), 0.0);
+        let node = worst.node(self.grid);
+        let nx = self.grid.nx() as u64;
+        let is_corner = |p: &Point| p.x == (node % nx) as f64 && p.y == (node / nx) as f64;
+        let slot = match node != NO_NODE && in_grid.iter().any(is_corner) {
+            true => Slot { error: 0.0, node: NO_NODE },
+            false => Slot { error: worst.error, node },
+        };
+        observer.estimated(t, slot.error);
+        if self.slots.len() <= t as usize {
+            self.slots.resize(t as usize + 1, Slot { error: 0.0, node: NO_NODE });
+        }
+        self.slots[t as usize] = slot;
+        if slot.node == NO_NODE {
+            self.queue.remove(t);
+        } else {
+            self.queue.set(Entry { error: slot.error, seq: self.next_seq, t });
+            self.next_seq += 1;
+        }
+    }
+}
+
+/// Refines `mesh` by inserting the worst node of the worst triangle until a stop rule fires.
+/// Returns why it stopped and every triangle's e(T), by index. `evaluations` counts the node
+/// values taken as vertices (a node is read, not evaluated, but it is F's value there).
+pub(super) fn refine<O: Observer>(
+    mesh: &mut Mesh,
+    grid: &Grid,
+    run: &mut Run<'_, O>,
+    evaluations: &mut u64,
+) -> (StopReason, Vec<f64>) {
+    run.observer.on_nodes();
+    // Sized for the budget (capped for huge ones), so the run does not copy them as they grow.
+    let room = run.params.max_vertices().min(1 << 24);
+    let at = mesh.vertices().iter().map(|v| {
+        let (u, w) = grid.to_grid(v.point());
+        Point::new(u, w)
+    });
+    let mut at: Vec<Point> = at.collect();
+    // The corners are nodes; to_grid puts them within rounding of (0, 0) and (nx − 1, ny − 1).
+    let (last_i, last_j) = ((grid.nx() - 1) as f64, (grid.ny() - 1) as f64);
+    for (p, exact) in at.iter_mut().zip([(0.0, 0.0), (last_i, 0.0), (last_i, last_j), (0.0, last_j)]) {
+        *p = Point::new(exact.0, exact.1);
+    }
+    at.reserve(run.params.max_vertices().min(1 << 24));
+    let mut estimates = Estimates {
+        grid,
+        at,
+        queue: WorstTriangleQueue::with_capacity(2 * room),
+        slots: Vec::with_capacity(2 * room),
+        next_seq: 0,
+    };
+    for t in 0..mesh.num_triangles() as u32 {
+        estimates.estimate(mesh, t, run.observer);
+    }
+    run.observer.started(*evaluations);
+    let mut repairs = Repairs::new(Encroachment::Circle, run.params.min_angle());
+    // Triangles a step rewrote, measured again after it; reused so steps do not allocate.
+    let mut touched: Vec<u32> = Vec::with_capacity(32);
+    let stop = loop {
+        let top = estimates.queue.peek();
+        if let Some(stop) = run.stop_before_step(mesh, || top.map_or(0.0, |e| e.error)) {
+            break stop;
+        }
+        let repair = repairs.next(mesh);
+        let worst = match (top, repair) {
+            (Some(top), _) => top.error,
+            (None, Some(_)) => 0.0,
+            (None, None) => break StopReason::Exhausted,
+        };
+        run.checked(mesh, worst);
+        if run.is_tolerance_met(worst) {
+            break StopReason::Tolerance;
+        }
+        let (e, (vertex, in_grid)) = match repair {
+            Some((_, Repair::Encroached(h))) => (h, side_split(grid, mesh, h)),
+            Some((t, Repair::Skinny)) => {
+                // An angle is a matter of geometry, not data: the midpoint, F bilinear there.
+                let e = terminal_edge(mesh, t);
+                (e, midpoint(grid, mesh, e))
+            }
+            None => {
+                let worst = estimates.queue.pop().expect("the queue's top");
+                let node = estimates.slots[worst.t as usize].node;
+                let (i, j) = ((node % grid.nx() as u64) as usize, (node / grid.nx() as u64) as usize);
+                let p = grid.node(i, j);
+                (nearest_edge(mesh, worst.t, p), on_node(grid, i, j))
+            }
+        };
+        run.observer.selected(mesh, mesh.origin(e), mesh.dest(e));
+        touched.clear();
+        let split = run.insert_vertex(mesh, e, vertex, |mesh, d| touched.extend([d / 3, mesh.twin(d) / 3]));
+        let Some(split) = split else {
+            // Too close to an edge or a corner to insert: the triangle stays, out of the queue
+            // (or, for a repair, unrepaired).
+            run.observer.retired(mesh.origin(e), mesh.dest(e));
+            run.observer.stepped(None, *evaluations);
+            continue;
+        };
+        *evaluations += 1;
+        estimates.at.push(in_grid);
+        touched.extend(split.link().iter().map(|&h| h / 3));
+        touched.sort_unstable();
+        touched.dedup();
+        for &t in &touched {
+            estimates.estimate(mesh, t, run.observer);
+        }
+        repairs.look_at(&touched);
+        run.observer.inserted(mesh, split.vertex);
+        run.observer.stepped(Some(e), *evaluations);
+    };
+    let errors = estimates.slots[..mesh.num_triangles()].iter().map(|s| s.error).collect();
+    (stop, errors)
+}
+
+/// Where the encroached boundary edge of half-edge `h` splits: at the side's node nearest its
+/// midpoint, on the data, when one lies between its ends (half a node spacing clear of
+/// both); otherwise at the midpoint, F bilinear there.
+fn side_split(grid: &Grid, mesh: &Mesh, h: u32) -> (Vertex, Point) {
+    let (a, b) = (mesh.point(mesh.origin(h)), mesh.point(mesh.dest(h)));
+    let ((ua, va), (ub, vb)) = (grid.to_grid(a), grid.to_grid(b));
+    let (um, vm) = grid.to_grid(a.midpoint(b));
+    let (i, j) = (um.round(), vm.round());
+    let between = |k: f64, p: f64, q: f64| k >= p.min(q) + 0.5 && k <= p.max(q) - 0.5;
+    match if a.y == b.y { between(i, ua, ub) } else { between(j, va, vb) } {
+        // Both are within the grid, as the midpoint of a side is.
+        true => on_node(grid, i as usize, j as usize),
+        false => midpoint(grid, mesh, h),
+    }
+}
+
+/// Node (i, j) as a vertex with its value, and its position in grid units.
+fn on_node(grid: &Grid, i: usize, j: usize) -> (Vertex, Point) {
+    let p = grid.node(i, j);
+    (Vertex { x: p.x, y: p.y, z: grid.value(i, j) }, Point::new(i as f64, j as f64))
+}
+
+/// The midpoint of half-edge `e` as a vertex, F bilinear there, and its position in grid units.
+fn midpoint(grid: &Grid, mesh: &Mesh, e: u32) -> (Vertex, Point) {
+    let m = mesh.point(mesh.origin(e)).midpoint(mesh.point(mesh.dest(e)));
+    let (u, w) = grid.to_grid(m);
+    (Vertex { x: m.x, y: m.y, z: grid.eval(m) }, Point::new(u, w))
+}
+
+/// The half-edge of triangle `t` nearest `p`, by the twice-area of the triangle it makes with
+/// `p` (negative beyond the edge); among equal ones, the first. `p` goes inside `t` when it
+/// clears every edge by the area floor, and otherwise on this edge.
+fn nearest_edge(mesh: &Mesh, t: u32, p: Point) -> u32 {
+    let area = |e: u32| signed_area_x2(mesh.point(mesh.origin(e)), mesh.point(mesh.dest(e)), p);
+    (3 * t + 1..3 * t + 3).fold(3 * t, |best, e| if area(e) < area(best) { e } else { best })
+}
+
+/// The largest |value − F_n| over a triangle's grid nodes and the run of a row that holds it.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Worst {
+    /// The largest error found, or the floor it had to beat.
+    pub error: f64,
+    /// Where it was found: row j, the run's first and last node, and the plane along the row
+    /// with the run's first node `k0` steps along it.
+    run: Option<(usize, usize, usize, i32, raster::PlaneRow)>,
+}
+
+impl Worst {
+    /// `j·nx + i` of the first node of the run that reaches [`Worst::error`], or [`NO_NODE`]
+    /// when no node beat the floor. A second look at one run of at most a row's span.
+    fn node(&self, grid: &Grid) -> u64 {
+        let Some((j, first, last, k0, line)) = self.run else { return NO_NODE };
+        // The same steps as the scan's, so the same bits.
+        let i = (first..=last)
+            .zip(k0..)
+            .find(|&(i, k)| (grid.row(j)[i] - line.at(k)).abs() == self.error)
+            .map(|(i, _)| i)
+            .expect("the run holds its maximum");
+        (j * grid.nx() + i) as u64
+    }
+}
+
+/// The larger of `floor` and max |value − F_n| over the grid nodes in the closed triangle with
+/// corners `in_grid` (in grid units) and values `z`, with the run of nodes that first reaches
+/// it in row order.
+///
+/// A run of nodes within one of the grid's blocks is passed over when its bound cannot beat
+/// the largest error so far: its values lie in the block's range, and the plane's along the
+/// run between its ends (stepped values are monotone), so |value − F_n| is at most
+/// max(block max − plane min, plane max − block min), and the rounded differences obey the
+/// same bound (rounding is monotone). The result is the same maximum, to the bit, as a scan
+/// of every node; the order of the scan does not change a maximum.
+pub(super) fn worst_node(grid: &Grid, in_grid: [Point; 3], z: [f64; 3], floor: f64) -> Worst {
+    // Made at the first span: a triangle smaller than a grid cell often holds no node.
+    let mut plane = None;
+    let mut worst = Worst { error: floor, run: None };
+    raster::for_each_span(in_grid, grid.nx(), grid.ny(), |j, i0, i1| {
+        let plane = plane.get_or_insert_with(|| raster::Plane::new(in_grid, z));
+        // A triangle flat in floating point covers no area: its nodes are its neighbours'.
+        let Some(plane) = plane else { return };
+        let (values, row) = (grid.row(j), plane.row_at(i0, j));
+        let scan = |worst: &mut Worst, first: usize, last: usize| {
+            // Steps from i0 fit an i32: a row has at most a few hundred million nodes.
+            let k0 = (first - i0) as i32;
+            let error = row.max_deviation(k0, &values[first..=last], worst.error);
+            if error > worst.error {
+                *worst = Worst { error, run: Some((j, first, last, k0, row)) };
+            }
+        };
+        if i1 - i0 < 2 * BLOCK {
+            // Too short a span for a bound to pay for itself: scan it.
+            scan(&mut worst, i0, i1);
+            return;
+        }
+        let mut first = i0;
+        while first <= i1 {
+            let block = first / BLOCK;
+            let last = ((block + 1) * BLOCK - 1).min(i1);
+            let (a, b) = (row.at((first - i0) as i32), row.at((last - i0) as i32));
+            let (lo, hi) = grid.block_range(j, block);
+            if (hi - a.min(b)).max(a.max(b) - lo) > worst.error {
+                scan(&mut worst, first, last);
+            }
+            first = last + 1;
+        }
+    });
+    worst
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::Rect;
+    use crate::refine::{Params, refine};
+    use proptest::prelude::*;
+
+    /// The oracle: every node of the triangle compared, none passed over.
+    fn every_node(grid: &Grid, corners: [Vertex; 3], floor: f64) -> (f64, u64) {
+        let in_grid = corners.map(|v| {
+            let (u, w) = grid.to_grid(v.point());
+            Point::new(u, w)
+        });
+        let Some(plane) = raster::Plane::new(in_grid, corners.map(|v| v.z)) else { return (floor, NO_NODE) };
+        let (mut error, mut node) = (floor, NO_NODE);
+        raster::for_each_span(in_grid, grid.nx(), grid.ny(), |j, i0, i1| {
+            for (i, linear) in (i0..=i1).zip(plane.row(i0, j)) {
+                let e = (grid.value(i, j) - linear).abs();
+                if e > error {
+                    (error, node) = (e, (j * grid.nx() + i) as u64);
+                }
+            }
+        });
+        (error, node)
+    }
+
+    /// |value − F_n| at node (i, j) of the triangle, as the oracle computes it.
+    fn every_node_error_at(grid: &Grid, corners: [Vertex; 3], i: usize, j: usize) -> f64 {
+        let in_grid = corners.map(|v| {
+            let (u, w) = grid.to_grid(v.point());
+            Point::new(u, w)
+        });
+        let plane = raster::Plane::new(in_grid, corners.map(|v| v.z)).unwrap();
+        let mut found = None;
+        raster::for_each_span(in_grid, grid.nx(), grid.ny(), |row, i0, i1| {
+            if row == j && (i0..=i1).contains(&i) {
+                let linear = plane.row(i0, j).nth(i - i0).unwrap();
+                found = Some((grid.value(i, j) - linear).abs());
+            }
+        });
+        found.expect("the node is in the triangle")
+    }
+
+    /// A smooth surface with a few spikes, so that some blocks hold the maximum.
+    fn spiky(nx: usize, ny: usize, seed: u64) -> Grid {
+        let values = (0..nx * ny)
+            .map(|k| {
+                let (i, j) = ((k % nx) as f64, (k / nx) as f64);
+                let spike = (k as u64).wrapping_mul(2654435761).wrapping_add(seed).is_multiple_of(997);
+                (i * 0.05).sin() + (j * 0.03).cos() + if spike { 4.0 } else { 0.0 }
+            })
+            .collect();
+        Grid::new(nx, ny, values).unwrap()
+    }
+
+    proptest! {
+        #[test]
+        fn passing_over_blocks_finds_the_same_maximum_and_node_as_every_node(
+            seed in 0u64..1000,
+            corners in proptest::array::uniform3((0.0f64..300.0, 0.0f64..200.0, -5.0f64..5.0)),
+            floor in prop_oneof![Just(0.0), 0.0f64..3.0],
+        ) {
+            let grid = spiky(301, 201, seed);
+            let corners = corners.map(|(x, y, z)| Vertex { x, y, z });
+            let in_grid = corners.map(|v| {
+                let (u, w) = grid.to_grid(v.point());
+                Point::new(u, w)
+            });
+            let worst = worst_node(&grid, in_grid, corners.map(|v| v.z), floor);
+            let (error, node) = every_node(&grid, corners, floor);
+            prop_assert_eq!(worst.error.to_bits(), error.to_bits());
+            // A node that reaches the maximum, and the first one in row order.
+            let found = worst.node(&grid);
+            prop_assert_eq!(found, node);
+            prop_assert_eq!(found == NO_NODE, node == NO_NODE);
+            if found != NO_NODE {
+                let (i, j) = ((found % grid.nx() as u64) as usize, (found / grid.nx() as u64) as usize);
+                let at = every_node_error_at(&grid, corners, i, j);
+                prop_assert_eq!(at.to_bits(), error.to_bits(), "node ({}, {})", i, j);
+            }
+        }
+    }
+
+    /// A grid with one sharp peak and a ridge, off the dyadic lines of the domain.
+    fn terrain() -> Grid {
+        let (nx, ny) = (61, 45);
+        let values = (0..nx * ny)
+            .map(|k| {
+                let (x, y) = ((k % nx) as f64, (k / nx) as f64);
+                100.0 * (-((x - 17.0).powi(2) + (y - 29.0).powi(2)) / 8.0).exp() + 0.3 * (x - 2.0 * y).abs()
+            })
+            .collect();
+        Grid::new(nx, ny, values).unwrap()
+    }
+
+    #[test]
+    fn every_vertex_is_a_grid_node_with_its_value_and_the_mesh_stays_delaunay() {
+        let grid = terrain().with_domain(Rect::new(-3.0, 9.0, 1.0, 5.4).unwrap());
+        let run = refine(&grid, grid.rect(), &Params::new(400).unwrap(), &mut ()).unwrap();
+        run.mesh.check_invariants().unwrap();
+        assert!(run.stats.delaunay && run.mesh.is_delaunay());
+        assert_eq!(run.mesh.num_vertices(), 400);
+        let on_node = |v: &Vertex| {
+            let (u, w) = grid.to_grid(v.point());
+            let (i, j) = (u.round() as usize, w.round() as usize);
+            grid.node(i, j) == v.point() && grid.value(i, j) == v.z
+        };
+        assert!(run.mesh.vertices().iter().all(on_node), "a vertex off the nodes");
+        // The errors the run kept are the nodes' errors, up to the rounding of planes made in
+        // grid units rather than from the vertices' coordinates.
+        let exact = crate::refine::estimate_error(&run.mesh, &grid).max_error;
+        let kept = run.stats.max_triangle_error.unwrap();
+        assert!((kept - exact).abs() <= 1e-9 * exact, "{kept} vs {exact}");
+    }
+
+    #[test]
+    fn a_grid_that_a_mesh_matches_stops_once_every_node_is_matched() {
+        // A plane on two rows but for one node.
+        let mut values: Vec<f64> = (0..14).map(|k| f64::from(k % 7) * 0.5).collect();
+        values[4] = 9.0;
+        let grid = Grid::new(7, 2, values).unwrap();
+        let run = refine(&grid, grid.rect(), &Params::new(50).unwrap(), &mut ()).unwrap();
+        assert_eq!(run.stats.stop, StopReason::Exhausted);
+        assert_eq!(run.stats.max_triangle_error, Some(0.0));
+        // The peak (4, 0), then (3, 0) and (5, 0) bring the bottom row onto its values; the
+        // rest split the sides those vertices encroach, at nodes.
+        let added: Vec<(usize, usize)> = run.mesh.vertices()[4..]
+            .iter()
+            .map(|v| {
+                let (i, j) = (v.x as usize, v.y as usize);
+                assert_eq!((grid.node(i, j), grid.value(i, j)), (v.point(), v.z), "a vertex off the nodes");
+                (i, j)
+            })
+            .collect();
+        assert_eq!(added[0], (4, 0));
+        assert!([(3, 0), (5, 0)].iter().all(|n| added.contains(n)), "{added:?}");
+        assert!(added.len() < 14 - 4, "every node taken: {added:?}");
+    }
+
+    #[test]
+    fn nodes_reach_a_lower_error_at_the_nodes_than_midpoints_at_equal_vertices() {
+        // Recursive bisects midpoints on the same grid: the nodes' errors fall faster here.
+        let grid = terrain();
+        let params = Params::new(300).unwrap();
+        let on_nodes = refine(&grid, grid.rect(), &params, &mut ()).unwrap();
+        let midpoints =
+            refine(&grid, grid.rect(), &params.with_method(crate::refine::Method::Recursive), &mut ())
+                .unwrap();
+        let error = |r: &crate::refine::Refinement| crate::refine::estimate_error(&r.mesh, &grid).max_error;
+        assert!(error(&on_nodes) < 0.5 * error(&midpoints), "{} vs {}", error(&on_nodes), error(&midpoints));
+    }
+}
