@@ -3,7 +3,7 @@
 use crate::refine::{Criterion, Method};
 use crate::result::Summary;
 use crate::solve::{Indicator, Physics};
-use crate::source::RawType;
+use crate::source::{Encoding, RawType};
 use serde::de::{self, Deserializer, Visitor};
 use serde::{Deserialize, Serialize};
 use serde_json::value::RawValue;
@@ -32,6 +32,10 @@ pub struct JobRequest<'a> {
     pub method: Option<Method>,
     /// `error` (default) or `variation` (the paper's).
     pub criterion: Option<Criterion>,
+    /// Criterion `error` only: repair every triangle whose smallest angle is below this many
+    /// degrees (above 0, at most 30) before any error-driven split; `stats.below_min_angle`
+    /// counts those a size floor, the budget or the tolerance left.
+    pub min_angle: Option<f64>,
     /// Stop after this many milliseconds; capped by the server's job time limit.
     #[serde(default, deserialize_with = "optional_count")]
     pub time_limit_ms: Option<u64>,
@@ -80,7 +84,8 @@ fn optional_count<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u64>, D::Err
 }
 
 /// A sampled grid: `values[j*nx + i] = F(x_i, y_j)`. Sent with a grid file (multipart), it
-/// holds only what the file cannot say: `nx`, `ny` and `dtype` of raw samples.
+/// holds only what the file cannot say: `nx`, `ny` and `dtype` of raw samples, and the
+/// `encoding` of a colour PNG elevation tile.
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GridInput<'a> {
@@ -95,6 +100,8 @@ pub struct GridInput<'a> {
     pub values: Option<&'a RawValue>,
     /// The sample type of a raw grid file: `f32` or `f64`, little-endian.
     pub dtype: Option<RawType>,
+    /// How a colour PNG tile encodes heights: `terrain-rgb` or `terrarium`.
+    pub encoding: Option<Encoding>,
 }
 
 /// `{"x": [a, b], "y": [c, d]}`.

@@ -10,7 +10,7 @@ use meshfit::jobs::{Limits, SolveSpec};
 use meshfit::output::{self, Format, Options, json};
 use meshfit::refine::{Criterion, MAX_VERTICES, Method, Params, estimate_error, refine};
 use meshfit::result::MeshResult;
-use meshfit::source::{Expression, GridHints, RawType, Source, decode_grid};
+use meshfit::source::{Encoding, Expression, GridHints, RawType, Source, decode_grid};
 use std::io::{BufWriter, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -207,9 +207,10 @@ struct MeshArgs {
     /// F as a meval expression in x and y, e.g. "sin(x)*cos(y)".
     #[arg(long, value_name = "EXPR")]
     function: Option<String>,
-    /// F sampled on a grid, from a file: .npy, 8- or 16-bit greyscale PNG, TIFF/GeoTIFF, raw
-    /// little-endian samples (give --nx, --ny and --dtype), or JSON {"nx", "ny", "values"}.
-    /// The format is read from the content, not the name.
+    /// F sampled on a grid, from a file: .npy, 8- or 16-bit greyscale PNG, a colour PNG
+    /// elevation tile (give --encoding), TIFF/GeoTIFF, raw little-endian samples (give --nx,
+    /// --ny and --dtype), or JSON {"nx", "ny", "values"}. The format is read from the content,
+    /// not the name.
     #[arg(long, value_name = "FILE")]
     grid: Option<PathBuf>,
     /// Samples along x of a raw grid file.
@@ -221,6 +222,10 @@ struct MeshArgs {
     /// Sample type of a raw grid file: f32 or f64.
     #[arg(long, value_name = "TYPE", requires = "grid", value_parser = parse_dtype)]
     dtype: Option<RawType>,
+    /// How a colour PNG tile encodes heights: terrain-rgb (−10000 + (R·65536 + G·256 + B)·0.1)
+    /// or terrarium (R·256 + G + B/256 − 32768).
+    #[arg(long, value_name = "ENCODING", requires = "grid", value_parser = parse_encoding)]
+    encoding: Option<Encoding>,
     /// The rectangle a,b,c,d = [a,b]×[c,d]; default [0,1]² for a function, a GeoTIFF's own
     /// rectangle, else [0,nx−1]×[0,ny−1] for a grid. Write negative bounds as --domain=-3,3,-3,3.
     #[arg(long, value_name = "a,b,c,d", value_parser = parse_domain)]
@@ -239,6 +244,10 @@ struct MeshArgs {
     /// for error, the largest |zi − zj| for variation.
     #[arg(long, value_name = "T")]
     tolerance: Option<f64>,
+    /// Criterion error: repair every triangle whose smallest angle is below DEG degrees (at
+    /// most 30) before any error-driven split.
+    #[arg(long, value_name = "DEG")]
+    min_angle: Option<f64>,
     /// Stop after this many milliseconds.
     #[arg(long, value_name = "MS")]
     time_limit_ms: Option<u64>,
@@ -375,6 +384,11 @@ fn parse_dtype(s: &str) -> Result<RawType, String> {
     RawType::from_name(s).ok_or_else(|| format!("`{s}` is not a sample type; use f32 or f64"))
 }
 
+fn parse_encoding(s: &str) -> Result<Encoding, String> {
+    Encoding::from_name(s)
+        .ok_or_else(|| format!("`{s}` is not a tile encoding; use terrain-rgb or terrarium"))
+}
+
 /// F, and the rectangle its file names (a GeoTIFF's), if any.
 fn load_source(args: &MeshArgs) -> Result<(Source, Option<Rect>)> {
     if let Some(text) = &args.function {
@@ -384,7 +398,7 @@ fn load_source(args: &MeshArgs) -> Result<(Source, Option<Rect>)> {
     }
     let Some(path) = &args.grid else { bail!("give --function or --grid") };
     let bytes = std::fs::read(path).with_context(|| format!("cannot read grid file {}", path.display()))?;
-    let hints = GridHints { nx: args.nx, ny: args.ny, dtype: args.dtype };
+    let hints = GridHints { nx: args.nx, ny: args.ny, dtype: args.dtype, encoding: args.encoding };
     let decoded =
         decode_grid(&bytes, &hints, usize::MAX).with_context(|| format!("grid file {}", path.display()))?;
     Ok((Source::Grid(decoded.grid), decoded.domain))
@@ -400,6 +414,12 @@ fn mesh(args: &MeshArgs) -> Result<()> {
         .with_criterion(args.criterion);
     if let Some(t) = args.tolerance {
         params = params.with_tolerance(t).context("--tolerance")?;
+    }
+    if let Some(degrees) = args.min_angle {
+        if args.criterion == Criterion::Variation {
+            bail!("--min-angle needs --criterion error: the paper's variation splits only its worst edge");
+        }
+        params = params.with_min_angle(degrees).context("--min-angle")?;
     }
     if let Some(ms) = args.time_limit_ms {
         params = params.with_time_limit(Duration::from_millis(ms));

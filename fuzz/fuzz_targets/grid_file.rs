@@ -18,7 +18,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use meshfit::source::{GridFileError, GridFileKind, GridHints, RawType, decode_grid};
+use meshfit::source::{Encoding, GridFileError, GridFileKind, GridHints, RawType, decode_grid};
 use std::sync::OnceLock;
 
 fn verbose() -> bool {
@@ -45,6 +45,11 @@ fuzz_target!(|data: &[u8]| {
         dtype: match (flags >> 2) & 3 {
             1 => Some(RawType::F32),
             2 => Some(RawType::F64),
+            _ => None,
+        },
+        encoding: match (flags >> 4) & 3 {
+            1 => Some(Encoding::TerrainRgb),
+            2 => Some(Encoding::Terrarium),
             _ => None,
         },
     };

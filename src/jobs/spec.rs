@@ -3,7 +3,7 @@
 use super::solution::SolveSpec;
 use crate::api::{DomainInput, JobRequest, SolveRequest};
 use crate::geom::Rect;
-use crate::refine::{Params, ParamsError, Refinement, estimate_error};
+use crate::refine::{Criterion, Params, ParamsError, Refinement, estimate_error};
 use crate::source::{ExprError, Expression, GridFileError, GridHints, Source, decode_grid, decode_values};
 use std::sync::Arc;
 use std::time::Duration;
@@ -205,7 +205,8 @@ impl JobSpec {
     }
 
     /// Validates `request` whose grid comes as a file (.npy, PNG, TIFF/GeoTIFF, raw): the
-    /// request's `grid` may name only `nx`, `ny` and `dtype` for raw samples. The domain
+    /// request's `grid` may name only `nx`, `ny` and `dtype` for raw samples and the
+    /// `encoding` of a colour PNG tile. The domain
     /// defaults to a GeoTIFF's, else to the grid's index range. The same values give the same
     /// job whichever format carried them.
     ///
@@ -223,14 +224,14 @@ impl JobSpec {
             (None, grid, Some(file)) => {
                 let grid = grid.unwrap_or_default();
                 if grid.values.is_some() {
-                    let detail =
-                        "values come from the grid file; the request's grid may give only nx, ny and dtype";
+                    let detail = "values come from the grid file; the request's grid may give only nx, ny, dtype and encoding";
                     return Err(SpecError::Grid { detail: detail.into(), index: None });
                 }
                 let hints = GridHints {
                     nx: grid.nx.map(|n| n.try_into().unwrap_or(usize::MAX)),
                     ny: grid.ny.map(|n| n.try_into().unwrap_or(usize::MAX)),
                     dtype: grid.dtype,
+                    encoding: grid.encoding,
                 };
                 let decoded = decode_grid(file, &hints, limits.max_grid_points).map_err(grid_error)?;
                 file_domain = decoded.domain;
@@ -248,8 +249,11 @@ impl JobSpec {
                     let detail = "a grid needs nx, ny and values (or send it as a file, multipart)";
                     return Err(SpecError::Grid { detail: detail.into(), index: None });
                 };
-                if grid.dtype.is_some() {
-                    let detail = "dtype is for raw grid files; JSON values are numbers";
+                if grid.dtype.is_some() || grid.encoding.is_some() {
+                    let detail = match grid.dtype {
+                        Some(_) => "dtype is for raw grid files; JSON values are numbers",
+                        None => "encoding is for colour PNG tiles sent as a file; JSON values are heights",
+                    };
                     return Err(SpecError::Grid { detail: detail.into(), index: None });
                 }
                 // One decoder for every grid, with the limit passed in: nx·ny is checked before
@@ -274,6 +278,12 @@ impl JobSpec {
             .with_time_limit(time_limit);
         if let Some(t) = request.tolerance {
             params = params.with_tolerance(t + 0.0).map_err(SpecError::Parameter)?;
+        }
+        if let Some(degrees) = request.min_angle {
+            if params.criterion() == Criterion::Variation {
+                return Err(SpecError::Parameter(ParamsError::MinAngleCriterion));
+            }
+            params = params.with_min_angle(degrees + 0.0).map_err(SpecError::Parameter)?;
         }
         let quality = request.quality.unwrap_or(false);
         let mesh = MeshSpec { source: Arc::new(source), domain, params, quality };

@@ -17,7 +17,7 @@
 //! | content starts with | format | samples |
 //! | --- | --- | --- |
 //! | `\x93NUMPY` | .npy (version 1–3) | 2-D, C or Fortran order, `f4 f8 i1 u1 i2 u2 i4 u4`, either byte order |
-//! | PNG signature | PNG | 8- or 16-bit greyscale, with or without alpha |
+//! | PNG signature | PNG | 8- or 16-bit greyscale, with or without alpha; 8-bit RGB or RGBA with an [`Encoding`] |
 //! | `II*\0`, `MM\0*` (or BigTIFF's `+`) | TIFF, GeoTIFF | one band of `u8 u16 u32 i8 i16 i32 f32 f64` |
 //! | `{` after whitespace | JSON `{"nx": .., "ny": .., "values": [..]}` | numbers, bottom row first |
 //! | anything else | raw little-endian `f32` or `f64` | needs the `nx`, `ny` and `dtype` hints |
@@ -27,7 +27,10 @@
 //! Hints are ignored for the formats whose header states the size.
 //!
 //! Every accepted sample type converts to f64 exactly; -0.0 becomes 0.0. Integer samples are
-//! taken as they are (a 16-bit PNG gives 0 to 65535): scaling z is the caller's business.
+//! taken as they are (a 16-bit PNG gives 0 to 65535): scaling z is the caller's business. A
+//! colour PNG is a web-map elevation tile only when the hints name its [`Encoding`]
+//! (Terrain-RGB or Terrarium); without one it is refused, and an encoding is refused for
+//! anything but an 8-bit RGB or RGBA PNG.
 //!
 //! # Holes
 //! A hole is an error, not a guess: a GeoTIFF sample equal to its `GDAL_NODATA` value, a PNG
@@ -69,6 +72,44 @@ pub struct GridHints {
     pub ny: Option<usize>,
     /// The sample type of raw data.
     pub dtype: Option<RawType>,
+    /// How a colour PNG tile encodes heights.
+    pub encoding: Option<Encoding>,
+}
+
+/// How a web-map elevation tile (an 8-bit RGB or RGBA PNG) encodes each pixel's height.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Encoding {
+    /// Mapbox Terrain-RGB: height = −10000 + (R·65536 + G·256 + B) · 0.1 metres.
+    TerrainRgb,
+    /// Terrarium (Mapzen, AWS Terrain Tiles): height = R·256 + G + B/256 − 32768 metres.
+    Terrarium,
+}
+
+impl Encoding {
+    /// `"terrain-rgb"` or `"terrarium"`, as the API spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Encoding::TerrainRgb => "terrain-rgb",
+            Encoding::Terrarium => "terrarium",
+        }
+    }
+
+    /// The encoding `name` spells, if any.
+    pub fn from_name(name: &str) -> Option<Self> {
+        [Encoding::TerrainRgb, Encoding::Terrarium].into_iter().find(|e| e.name() == name)
+    }
+
+    /// The height of a pixel of colour (r, g, b). Exact in f64 but for Terrain-RGB's tenths,
+    /// which are the nearest f64 to the decimal height (an integer count of tenths, divided).
+    #[inline]
+    pub fn height(self, [r, g, b]: [u8; 3]) -> f64 {
+        let (r, g, b) = (u32::from(r), u32::from(g), u32::from(b));
+        match self {
+            Encoding::TerrainRgb => f64::from((r << 16 | g << 8 | b) as i32 - 100_000) / 10.0,
+            Encoding::Terrarium => f64::from(r * 256 + g) - 32768.0 + f64::from(b) / 256.0,
+        }
+    }
 }
 
 /// The sample type of raw data: little-endian IEEE floats, rows from the top down.
@@ -203,12 +244,23 @@ pub enum GridFileError {
         got: u64,
     },
     /// A colour image where a greyscale heightmap is needed.
-    #[error("{kind} is {model} colour; send a greyscale heightmap")]
+    #[error(
+        "{kind} is {model} colour; send a greyscale heightmap, or give the encoding of an \
+         elevation tile (terrain-rgb or terrarium)"
+    )]
     Colour {
         /// The format.
         kind: GridFileKind,
         /// "RGB", "RGBA", "palette", "CMYK", "YCbCr", "CIELab" or "LogLuv".
         model: &'static str,
+    },
+    /// An encoding given for a file that is not an 8-bit RGB or RGBA PNG tile.
+    #[error("encoding {encoding} is for 8-bit RGB or RGBA PNG tiles, not {found}")]
+    NotATile {
+        /// The encoding named.
+        encoding: &'static str,
+        /// What the file is: "a greyscale PNG", "a 16-bit RGB PNG", "an NPY file", ...
+        found: String,
     },
     /// A TIFF with more than one sample per pixel.
     #[error("TIFF has {bands} bands (samples per pixel); send a single-band raster")]
@@ -335,7 +387,7 @@ impl GridFileError {
 /// // Two rows of three f32 samples, the top row first.
 /// let samples = [4.0f32, 5.0, 6.0, 1.0, 2.0, 3.0];
 /// let bytes: Vec<u8> = samples.iter().flat_map(|v| v.to_le_bytes()).collect();
-/// let hints = GridHints { nx: Some(3), ny: Some(2), dtype: Some(RawType::F32) };
+/// let hints = GridHints { nx: Some(3), ny: Some(2), dtype: Some(RawType::F32), encoding: None };
 /// let decoded = decode_grid(&bytes, &hints, 1 << 20).unwrap();
 /// assert_eq!(decoded.kind, GridFileKind::Raw);
 /// assert_eq!(decoded.grid.row(0), &[1.0, 2.0, 3.0]); // j = 0 is the bottom row
@@ -345,9 +397,13 @@ pub fn decode_grid(bytes: &[u8], hints: &GridHints, max_points: usize) -> Result
         return Err(GridFileError::Empty);
     }
     let kind = sniff(bytes, hints);
+    if let Some(encoding) = hints.encoding.filter(|_| kind != GridFileKind::Png) {
+        let found = format!("a{} {kind} file", if kind == GridFileKind::Npy { "n" } else { "" });
+        return Err(GridFileError::NotATile { encoding: encoding.name(), found });
+    }
     let (grid, domain) = match kind {
         GridFileKind::Npy => (npy::decode(bytes, max_points)?, None),
-        GridFileKind::Png => (png::decode(bytes, max_points)?, None),
+        GridFileKind::Png => (png::decode(bytes, hints.encoding, max_points)?, None),
         GridFileKind::Tiff => tiff::decode(bytes, max_points)?,
         GridFileKind::Json => (json::decode(bytes, max_points)?, None),
         GridFileKind::Raw => (decode_raw(bytes, hints, max_points)?, None),

@@ -6,7 +6,9 @@ mod file;
 mod grid;
 
 pub use expr::{ExprError, ExprErrorKind, Expression};
-pub use file::{DecodedGrid, GridFileError, GridFileKind, GridHints, RawType, decode_grid, decode_values};
+pub use file::{
+    DecodedGrid, Encoding, GridFileError, GridFileKind, GridHints, RawType, decode_grid, decode_values,
+};
 pub use grid::{BLOCK, Grid, GridError};
 
 use crate::geom::{Point, Rect};

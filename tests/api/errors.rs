@@ -146,6 +146,15 @@ fn cases() -> Vec<Case> {
             .field("/limit/value", json!(2_000_000)),
         case("negative budget", r#"{"function": "x", "max_vertices": -5}"#, 422, "invalid-request"),
         case("negative tolerance", r#"{"function": "x", "tolerance": -1}"#, 422, "invalid-parameter"),
+        case("min_angle above 30", r#"{"function": "x", "min_angle": 31}"#, 422, "invalid-parameter")
+            .detail("at most 30 degrees, got 31"),
+        case(
+            "min_angle with the paper's criterion",
+            r#"{"function": "x", "min_angle": 20, "criterion": "variation"}"#,
+            422,
+            "invalid-parameter",
+        )
+        .detail("needs criterion error"),
         case("unknown method", r#"{"function": "x", "method": "semi"}"#, 422, "invalid-request")
             .detail("semi-recursive"),
         case("unknown criterion", r#"{"function": "x", "criterion": "curvature"}"#, 422, "invalid-request")

@@ -292,6 +292,47 @@ async fn a_queue_of_zero_still_runs_jobs_on_idle_workers() {
     app.shutdown().await;
 }
 
+/// The smallest angle of each triangle of a mesh document, in degrees.
+fn smallest_angles(doc: &Value) -> Vec<f64> {
+    let v = |i: &Value| {
+        let p = &doc["vertices"][i.as_u64().unwrap() as usize];
+        (p[0].as_f64().unwrap(), p[1].as_f64().unwrap())
+    };
+    let angle = |p: (f64, f64), q: (f64, f64), r: (f64, f64)| {
+        let (u, w) = ((q.0 - p.0, q.1 - p.1), (r.0 - p.0, r.1 - p.1));
+        (u.0 * w.1 - u.1 * w.0).abs().atan2(u.0 * w.0 + u.1 * w.1).to_degrees()
+    };
+    let triangles = doc["triangles"].as_array().unwrap();
+    triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = [v(&t[0]), v(&t[1]), v(&t[2])];
+            angle(a, b, c).min(angle(b, c, a)).min(angle(c, a, b))
+        })
+        .collect()
+}
+
+#[tokio::test]
+async fn no_needles_by_default_and_min_angle_bounds_every_angle_it_could_repair() {
+    let app = spawn_app().await;
+    // F vanishes along y = 0, where the vertices above a side once crowded into needles.
+    let base = json!({"function": "sin(5*x)*y", "domain": {"x": [0, 2], "y": [0, 1]}, "max_vertices": 5000});
+    let doc: Value = app.post("/v1/meshes", &base).await.json().await.unwrap();
+    let smallest = smallest_angles(&doc).into_iter().fold(f64::INFINITY, f64::min);
+    assert!(smallest > 5.0, "smallest angle {smallest}°");
+    assert!(doc["stats"].get("below_min_angle").is_none());
+    let mut asked = base.clone();
+    asked["min_angle"] = json!(25);
+    let bounded: Value = app.post("/v1/meshes", &asked).await.json().await.unwrap();
+    assert_ne!(bounded["id"], doc["id"], "min_angle is part of the id");
+    let below = smallest_angles(&bounded).iter().filter(|&&a| a < 25.0).count();
+    assert_eq!(bounded["stats"]["below_min_angle"], below, "the stats count what the mesh has");
+    // Repairs go first: only the last step's triangles can be left, and none a floor stopped.
+    assert!(below <= 4, "{below} triangles below 25°");
+    assert_eq!(bounded["stats"]["vertices"], 5000);
+    app.shutdown().await;
+}
+
 #[tokio::test]
 async fn the_error_criterion_is_the_default_and_reports_its_max_triangle_error() {
     let app = spawn_app().await;

@@ -57,6 +57,26 @@ fn raw_f32() -> Vec<u8> {
     image_rows().iter().flat_map(|&v| f32::from(v).to_le_bytes()).collect()
 }
 
+/// The heights as an 8-bit RGBA web-map tile: Terrain-RGB's tenths of a metre above −10000 m,
+/// or Terrarium's metres above −32768 m; `hole` is a pixel (i, j) left fully transparent.
+fn tile(encoding: &str, hole: Option<(usize, usize)>) -> Vec<u8> {
+    let data: Vec<u8> = (0..NY)
+        .rev()
+        .flat_map(|j| (0..NX).map(move |i| (i, j)))
+        .flat_map(|(i, j)| {
+            let h = u32::from(height(i, j));
+            let code = if encoding == "terrain-rgb" { (h + 10_000) * 10 } else { (h + 32_768) * 256 };
+            let alpha = if hole == Some((i, j)) { 0 } else { 255 };
+            [(code >> 16) as u8, (code >> 8) as u8, code as u8, alpha]
+        })
+        .collect();
+    let mut bytes = Vec::new();
+    let mut encoder = png::Encoder::new(&mut bytes, NX as u32, NY as u32);
+    encoder.set_color(png::ColorType::Rgba);
+    encoder.write_header().unwrap().write_image_data(&data).unwrap();
+    bytes
+}
+
 async fn upload(app: &crate::helpers::TestApp, request: Value, file: Vec<u8>) -> reqwest::Response {
     let form =
         Form::new().text("request", request.to_string()).part("grid", Part::bytes(file).file_name("dem"));
@@ -80,6 +100,37 @@ async fn every_grid_file_format_gives_the_job_of_the_same_values_sent_as_json() 
         assert_eq!(response.headers()["x-cache"], "hit", "{name}: the same values are the same job");
         let doc: Value = response.json().await.unwrap();
         assert_eq!(doc, reference, "{name}");
+    }
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn elevation_tiles_in_both_encodings_give_the_job_of_their_heights() {
+    let app = spawn_app().await;
+    let json_body = json!({"grid": {"nx": NX, "ny": NY, "values": json_values()}, "max_vertices": 40});
+    let reference: Value = app.post("/v1/meshes", &json_body).await.json().await.unwrap();
+    for encoding in ["terrain-rgb", "terrarium"] {
+        let request = json!({"grid": {"encoding": encoding}, "max_vertices": 40});
+        let response = upload(&app, request, tile(encoding, None)).await;
+        assert_eq!(response.status(), 200, "{encoding}");
+        assert_eq!(response.headers()["x-cache"], "hit", "{encoding}: the same heights are the same job");
+        assert_eq!(response.json::<Value>().await.unwrap(), reference, "{encoding}");
+    }
+    // The tile without its encoding, an encoding for a greyscale PNG, and a hole.
+    let cases = [
+        (json!({}), tile("terrarium", None), "/detail", "encoding of an elevation tile"),
+        (json!({"grid": {"encoding": "terrarium"}}), png16(), "/detail", "not a greyscale PNG"),
+        (json!({"grid": {"encoding": "terrarium"}}), tile("terrarium", Some((5, 2))), "/index", ""),
+    ];
+    for (request, file, pointer, text) in cases {
+        let response = upload(&app, request.clone(), file).await;
+        assert_eq!(response.status(), 422, "{request}");
+        let problem: Value = response.json().await.unwrap();
+        assert_eq!(problem["type"], "/problems/invalid-grid", "{problem}");
+        match pointer {
+            "/index" => assert_eq!(problem["index"], json!([5, 2]), "{problem}"),
+            _ => assert!(problem["detail"].as_str().unwrap().contains(text), "{problem}"),
+        }
     }
     app.shutdown().await;
 }

@@ -61,6 +61,7 @@ function meshRequest(bad) {
   };
   const req = {};
   if (!view.file) req.function = $("function").value;
+  if (view.file && !$("encoding-field").hidden) req.grid = { encoding: $("encoding").value };
   const d = ["x0", "x1", "y0", "y1"].map((k) => number(k, "domain"));
   if (d.every((v) => v !== undefined)) req.domain = { x: [d[0], d[1]], y: [d[2], d[3]] };
   const n = number("max_vertices", "max_vertices");
@@ -894,8 +895,18 @@ function selectView(mode) {
   scheduleDraw();
 }
 
+// Byte 25 of a PNG is its IHDR colour type: 2 is RGB, 6 RGBA, which a heightmap can only be
+// as a web-map elevation tile, whose encoding the request must name.
+async function isColourPng(file) {
+  const head = new Uint8Array(await file.slice(0, 26).arrayBuffer());
+  const png = [0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a].every((b, k) => head[k] === b);
+  return png && head.length === 26 && (head[25] === 2 || head[25] === 6);
+}
+
 function setFile(file) {
   view.file = file || null;
+  $("encoding-field").hidden = true;
+  if (file) isColourPng(file).then((colour) => ($("encoding-field").hidden = !colour || view.file !== file));
   $("drop-text").textContent = file ? `${file.name} (${Math.round(file.size / 1024)} KiB)` : "Drop a heightmap here or pick one";
   $("grid-clear").hidden = !file;
   $("function").disabled = Boolean(file);

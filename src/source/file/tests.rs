@@ -45,7 +45,7 @@ fn no_hints() -> GridHints {
 }
 
 fn raw_hints(nx: usize, ny: usize, dtype: RawType) -> GridHints {
-    GridHints { nx: Some(nx), ny: Some(ny), dtype: Some(dtype) }
+    GridHints { nx: Some(nx), ny: Some(ny), dtype: Some(dtype), encoding: None }
 }
 
 /// A .npy file as numpy's `format.write_array` lays it out: version 1.0, the header padded with
@@ -418,7 +418,11 @@ fn a_colour_png_is_refused_as_colour() {
     let rgb = png(2, 2, ColorType::Rgb, BitDepth::Eight, &[0; 12]);
     let err = decode(&rgb).unwrap_err();
     assert_eq!(err, GridFileError::Colour { kind: GridFileKind::Png, model: "RGB" });
-    assert_eq!(err.to_string(), "PNG is RGB colour; send a greyscale heightmap");
+    assert_eq!(
+        err.to_string(),
+        "PNG is RGB colour; send a greyscale heightmap, or give the encoding of an elevation tile \
+         (terrain-rgb or terrarium)"
+    );
     let rgba = png(2, 2, ColorType::Rgba, BitDepth::Eight, &[0; 16]);
     assert_eq!(decode(&rgba).unwrap_err(), GridFileError::Colour { kind: GridFileKind::Png, model: "RGBA" });
     let palette = png_with(2, 2, ColorType::Indexed, BitDepth::Eight, &[0; 4], |e| {
@@ -428,6 +432,91 @@ fn a_colour_png_is_refused_as_colour() {
         decode(&palette).unwrap_err(),
         GridFileError::Colour { kind: GridFileKind::Png, model: "palette" }
     );
+}
+
+fn tile(encoding: Encoding) -> GridHints {
+    GridHints { encoding: Some(encoding), ..GridHints::default() }
+}
+
+/// The colour of height `h` in each encoding, by the formulas their publishers give.
+fn colour_of(encoding: Encoding, h: f64) -> [u8; 3] {
+    let code = match encoding {
+        Encoding::TerrainRgb => ((h + 10000.0) * 10.0).round() as u32,
+        Encoding::Terrarium => ((h + 32768.0) * 256.0).round() as u32,
+    };
+    [(code >> 16) as u8, (code >> 8) as u8, code as u8]
+}
+
+#[test]
+fn elevation_tiles_in_both_encodings_decode_to_their_heights_north_up() {
+    // Heights with tenths (Terrain-RGB's step) and 256ths (Terrarium's), below sea level too.
+    let height = |v: f64| v * 37.5 - 412.3;
+    for encoding in [Encoding::TerrainRgb, Encoding::Terrarium] {
+        let rgb: Vec<u8> = image(|v| colour_of(encoding, height(v))).concat();
+        let rgba: Vec<u8> = image(|v| {
+            let [r, g, b] = colour_of(encoding, height(v));
+            [r, g, b, 255]
+        })
+        .concat();
+        for (colour, data) in [(ColorType::Rgb, rgb), (ColorType::Rgba, rgba)] {
+            let bytes = png(NX as u32, NY as u32, colour, BitDepth::Eight, &data);
+            let grid = decode_grid(&bytes, &tile(encoding), LIMIT).unwrap().grid;
+            for j in 0..NY {
+                for i in 0..NX {
+                    let (got, want) = (grid.value(i, j), height(f(i, j)));
+                    // Terrain-RGB keeps the tenths (as the nearest f64), Terrarium 256ths.
+                    let step = if encoding == Encoding::Terrarium { 1.0 / 512.0 } else { 1e-9 };
+                    assert!(
+                        (got - want).abs() <= step,
+                        "{encoding:?} {colour:?} ({i}, {j}): {got} vs {want}"
+                    );
+                }
+            }
+        }
+    }
+    // The formulas at their ends: Terrain-RGB's zero colour is −10000 m, Terrarium's 2^15 is 0.
+    assert_eq!(Encoding::TerrainRgb.height([0, 0, 0]), -10000.0);
+    assert_eq!(Encoding::TerrainRgb.height([1, 134, 160]), 0.0);
+    assert_eq!(Encoding::TerrainRgb.height([255, 255, 255]), 1_667_721.5);
+    assert_eq!(Encoding::Terrarium.height([128, 0, 0]), 0.0);
+    assert_eq!(Encoding::Terrarium.height([0, 0, 0]), -32768.0);
+    assert_eq!(Encoding::Terrarium.height([127, 255, 128]), -0.5);
+}
+
+#[test]
+fn a_transparent_tile_pixel_is_nodata_naming_its_index() {
+    let mut data: Vec<[u8; 4]> = image(|v| {
+        let [r, g, b] = colour_of(Encoding::Terrarium, v);
+        [r, g, b, 255]
+    });
+    data[3][3] = 0; // top row (j = 2), column 3
+    let bytes = png(NX as u32, NY as u32, ColorType::Rgba, BitDepth::Eight, &data.concat());
+    let err = decode_grid(&bytes, &tile(Encoding::Terrarium), LIMIT).unwrap_err();
+    assert_eq!(err, GridFileError::Transparent { i: 3, j: 2, row: 0 });
+    // An RGB tile's tRNS colour is a hole too.
+    let rgb: Vec<u8> = image(|v| colour_of(Encoding::Terrarium, v)).concat();
+    let [r, g, b] = colour_of(Encoding::Terrarium, f(1, 1));
+    let keyed = png_with(NX as u32, NY as u32, ColorType::Rgb, BitDepth::Eight, &rgb, |e| {
+        e.set_trns(vec![0, r, 0, g, 0, b])
+    });
+    assert_eq!(decode_grid(&keyed, &tile(Encoding::Terrarium), LIMIT).unwrap_err().index(), Some([1, 1]));
+}
+
+#[test]
+fn an_encoding_is_refused_for_anything_but_an_eight_bit_colour_png() {
+    let grey = png(NX as u32, NY as u32, ColorType::Grayscale, BitDepth::Eight, &image(|v| v as u8));
+    let err = decode_grid(&grey, &tile(Encoding::TerrainRgb), LIMIT).unwrap_err();
+    assert_eq!(err, GridFileError::NotATile { encoding: "terrain-rgb", found: "a greyscale PNG".into() });
+    assert_eq!(
+        err.to_string(),
+        "encoding terrain-rgb is for 8-bit RGB or RGBA PNG tiles, not a greyscale PNG"
+    );
+    let deep = png(2, 2, ColorType::Rgb, BitDepth::Sixteen, &[0; 24]);
+    let err = decode_grid(&deep, &tile(Encoding::Terrarium), LIMIT).unwrap_err();
+    assert_eq!(err, GridFileError::NotATile { encoding: "terrarium", found: "a 16-bit colour PNG".into() });
+    let npy = npy("<f8", false, &[NY, NX], &image_bytes(f64::to_le_bytes));
+    let err = decode_grid(&npy, &tile(Encoding::Terrarium), LIMIT).unwrap_err();
+    assert_eq!(err.to_string(), "encoding terrarium is for 8-bit RGB or RGBA PNG tiles, not an NPY file");
 }
 
 #[test]
@@ -731,7 +820,7 @@ fn hints_strategy() -> impl Strategy<Value = GridHints> {
         proptest::option::of(0usize..6),
         proptest::option::of(prop_oneof![Just(RawType::F32), Just(RawType::F64)]),
     )
-        .prop_map(|(nx, ny, dtype)| GridHints { nx, ny, dtype })
+        .prop_map(|(nx, ny, dtype)| GridHints { nx, ny, dtype, encoding: None })
 }
 
 /// Arbitrary bytes, bytes behind each format's magic, and valid files with bytes changed,
