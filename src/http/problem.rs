@@ -100,7 +100,8 @@ impl From<JobError> for ApiError {
             JobError::Solve(e) => match e {
                 SolveError::InvalidK { .. }
                 | SolveError::NonFiniteF { .. }
-                | SolveError::NonFiniteG { .. } => ApiError::Unsolvable(e),
+                | SolveError::NonFiniteG { .. }
+                | SolveError::Overflow { .. } => ApiError::Unsolvable(e),
                 other => ApiError::Internal(other.to_string()),
             },
             JobError::Internal(detail) => ApiError::Internal(detail),
@@ -194,6 +195,7 @@ impl ApiError {
                     SolveError::InvalidK { x, y, .. } => ("k", x, y),
                     SolveError::NonFiniteF { x, y, .. } => ("f", x, y),
                     SolveError::NonFiniteG { x, y, .. } => ("g", x, y),
+                    SolveError::Overflow { x, y, .. } => ("f", x, y),
                     _ => ("", f64::NAN, f64::NAN),
                 };
                 ext.insert("field".into(), json!(field));

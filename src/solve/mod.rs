@@ -133,6 +133,19 @@ pub enum SolveError {
         /// The vertex's index.
         vertex: usize,
     },
+    /// The error estimate of a triangle overflows f64: k, f or the solution is too large.
+    #[error(
+        "the error estimate of triangle {triangle} near ({x}, {y}) overflows: k, f or the \
+         solution is too large for 64-bit floats; scale the problem"
+    )]
+    Overflow {
+        /// Abscissa of the triangle's centroid.
+        x: f64,
+        /// Ordinate of the triangle's centroid.
+        y: f64,
+        /// The triangle's index.
+        triangle: usize,
+    },
     /// A triangle is not counter-clockwise with positive area.
     #[error("triangle {triangle} has signed area {area}; triangles must be counter-clockwise")]
     DegenerateTriangle {

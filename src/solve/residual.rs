@@ -114,7 +114,13 @@ impl Estimator for Residual<'_, '_> {
         t: u32,
         _known: [Option<f64>; 3],
     ) -> Result<(f64, [f64; 3]), SolveError> {
-        Ok((self.indicator_sq(mesh, t).sqrt(), [0.0; 3]))
+        let eta = self.indicator_sq(mesh, t).sqrt();
+        if !eta.is_finite() {
+            let [a, b, c] = mesh.triangle(t as usize).map(|v| mesh.point(v));
+            let (x, y) = ((a.x + b.x + c.x) / 3.0, (a.y + b.y + c.y) / 3.0);
+            return Err(SolveError::Overflow { x, y, triangle: t as usize });
+        }
+        Ok((eta, [0.0; 3]))
     }
 
     fn rewritten(&mut self, mesh: &Mesh, touched: &[u32]) -> Result<(), SolveError> {

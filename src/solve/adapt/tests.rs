@@ -339,3 +339,12 @@ fn a_non_positive_k_where_a_new_triangle_samples_it_is_an_error_naming_the_point
     let SolveError::InvalidK { x, value, .. } = e else { panic!("{e:?}") };
     assert!((0.5..=0.5001).contains(&x) && value == -1.0, "{e}");
 }
+
+#[test]
+fn an_estimate_that_overflows_is_an_error_naming_the_triangle_not_a_panic() {
+    // f is finite, but f² is not: the residual estimate overflows on the first mesh.
+    let problem = Problem::new(Rect::unit()).with_f(|_, _| f64::MAX);
+    let err = adapt(&problem, None, &Settings::new(200), &mut ()).unwrap_err();
+    assert!(matches!(err, SolveError::Overflow { .. }), "{err:?}");
+    assert!(err.to_string().contains("overflows"), "{err}");
+}
