@@ -150,20 +150,10 @@ pub(super) fn refine<E: Estimator, O: Observer>(
     // Triangles a step rewrote, re-estimated after it; reused so steps do not allocate.
     let mut touched: Vec<u32> = Vec::with_capacity(32);
     let stop = loop {
-        let top = estimates.queue.peek();
-        if let Some(stop) = run.stop_before_step(mesh, || top.map_or(0.0, |e| e.error)) {
-            break stop;
-        }
-        let repair = repairs.next(mesh);
-        let worst = match (top, repair) {
-            (Some(top), _) => top.error,
-            (None, Some(_)) => 0.0,
-            (None, None) => break StopReason::Exhausted,
+        let repair = match run.begin_step(mesh, estimates.queue.peek().map(|e| e.error), &mut repairs) {
+            Ok(repair) => repair,
+            Err(stop) => break stop,
         };
-        run.checked(mesh, worst);
-        if run.is_tolerance_met(worst) {
-            break StopReason::Tolerance;
-        }
         let (e, popped) = match repair {
             Some((_, Repair::Encroached(h))) => (h, None),
             Some((t, Repair::Skinny)) => (terminal_edge(mesh, t), None),

@@ -524,6 +524,32 @@ impl<'a, O: Observer> Run<'a, O> {
         None
     }
 
+    /// Starts a step of criterion `error`'s loops, whose queue's worst value is `top`: the
+    /// stop rules before it, then the check of the worst value against the tolerance. A
+    /// pending repair goes first (`Ok(Some(..))`); `Ok(None)` takes the queue's top. With the
+    /// queue empty, a repair is checked at 0, and without one the run is exhausted.
+    fn begin_step(
+        &mut self,
+        mesh: &Mesh,
+        top: Option<f64>,
+        repairs: &mut angles::Repairs,
+    ) -> Result<Option<(u32, angles::Repair)>, StopReason> {
+        if let Some(stop) = self.stop_before_step(mesh, || top.unwrap_or(0.0)) {
+            return Err(stop);
+        }
+        let repair = repairs.next(mesh);
+        let worst = match (top, repair) {
+            (Some(top), _) => top,
+            (None, Some(_)) => 0.0,
+            (None, None) => return Err(StopReason::Exhausted),
+        };
+        self.checked(mesh, worst);
+        if self.is_tolerance_met(worst) {
+            return Err(StopReason::Tolerance);
+        }
+        Ok(repair)
+    }
+
     /// Whether the tolerance stops the run at this worst value.
     fn is_tolerance_met(&self, worst: f64) -> bool {
         self.params.tolerance().is_some_and(|tolerance| worst <= tolerance)

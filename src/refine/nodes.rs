@@ -87,17 +87,12 @@ pub(super) fn refine<O: Observer>(
     run.observer.on_nodes();
     // Sized for the budget (capped for huge ones), so the run does not copy them as they grow.
     let room = run.params.max_vertices().min(1 << 24);
-    let at = mesh.vertices().iter().map(|v| {
-        let (u, w) = grid.to_grid(v.point());
-        Point::new(u, w)
-    });
-    let mut at: Vec<Point> = at.collect();
-    // The corners are nodes; to_grid puts them within rounding of (0, 0) and (nx − 1, ny − 1).
+    // The mesh is S4, whose corners are the grid's corner nodes (exactly, where to_grid would
+    // round them).
+    debug_assert_eq!(mesh.num_vertices(), 4, "a grid's run starts from S4");
     let (last_i, last_j) = ((grid.nx() - 1) as f64, (grid.ny() - 1) as f64);
-    for (p, exact) in at.iter_mut().zip([(0.0, 0.0), (last_i, 0.0), (last_i, last_j), (0.0, last_j)]) {
-        *p = Point::new(exact.0, exact.1);
-    }
-    at.reserve(run.params.max_vertices().min(1 << 24));
+    let mut at = Vec::with_capacity(room);
+    at.extend([(0.0, 0.0), (last_i, 0.0), (last_i, last_j), (0.0, last_j)].map(|(i, j)| Point::new(i, j)));
     let mut estimates = Estimates {
         grid,
         at,
@@ -113,20 +108,10 @@ pub(super) fn refine<O: Observer>(
     // Triangles a step rewrote, measured again after it; reused so steps do not allocate.
     let mut touched: Vec<u32> = Vec::with_capacity(32);
     let stop = loop {
-        let top = estimates.queue.peek();
-        if let Some(stop) = run.stop_before_step(mesh, || top.map_or(0.0, |e| e.error)) {
-            break stop;
-        }
-        let repair = repairs.next(mesh);
-        let worst = match (top, repair) {
-            (Some(top), _) => top.error,
-            (None, Some(_)) => 0.0,
-            (None, None) => break StopReason::Exhausted,
+        let repair = match run.begin_step(mesh, estimates.queue.peek().map(|e| e.error), &mut repairs) {
+            Ok(repair) => repair,
+            Err(stop) => break stop,
         };
-        run.checked(mesh, worst);
-        if run.is_tolerance_met(worst) {
-            break StopReason::Tolerance;
-        }
         let (e, (vertex, in_grid)) = match repair {
             Some((_, Repair::Encroached(h))) => (h, side_split(grid, mesh, h)),
             Some((t, Repair::Skinny)) => {
