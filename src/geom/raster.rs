@@ -15,50 +15,92 @@ const SLACK: f64 = 1e-9;
 /// (a, b, c), given in grid units (node (i, j) is the point (i, j)): nodes i0..=i1 of row j,
 /// clipped to i < nx. A node on an edge may be visited for both triangles of that edge;
 /// callers that need each node once keep their own record.
+///
+/// A row's span runs between the crossings of the edges that reach it: the long edge from the
+/// lowest corner to the highest, and the short edge below or above the middle corner (both at
+/// its height). Each crossing is the edge's lower end plus a step along it, so the two
+/// triangles of an edge find the same bits there.
 pub fn for_each_span(
     [a, b, c]: [Point; 3],
     nx: usize,
     ny: usize,
     mut visit: impl FnMut(usize, usize, usize),
 ) {
+    // Corners by height: low, middle, high.
+    let (low, middle, high) = {
+        let (p, q) = if a.y <= b.y { (a, b) } else { (b, a) };
+        if c.y < p.y {
+            (c, p, q)
+        } else if c.y < q.y {
+            (p, c, q)
+        } else {
+            (p, q, c)
+        }
+    };
     // `as usize` truncates towards zero and saturates, so for y ≥ 0 it is floor, and corners
     // below the grid clamp to 0 (SSE2 has no rounding instruction, so ceil and floor are
     // calls).
-    let (lo_y, hi_y) = (a.y.min(b.y).min(c.y), a.y.max(b.y).max(c.y));
-    let lo_j = lo_y as usize;
-    let lo_j = if (lo_j as f64) < lo_y { lo_j.saturating_add(1) } else { lo_j };
-    let hi_j = (hi_y as usize).min(ny - 1);
-    if lo_j > hi_j {
+    let lo_j = low.y as usize;
+    let lo_j = if (lo_j as f64) < low.y { lo_j.saturating_add(1) } else { lo_j };
+    let hi_j = (high.y as usize).min(ny - 1);
+    if lo_j > hi_j || low.y == high.y {
         // No row crosses the triangle, as often happens once triangles are smaller than a
-        // grid cell: skip the divisions below.
+        // grid cell (or it is flat along a row, where no edge crosses): skip the divisions.
         return;
     }
-    // Each edge as its lower end, upper end's y and dx/dy; horizontal edges add nothing the
-    // other two do not.
-    let edges = [(a, b), (b, c), (c, a)].map(|(p, q)| {
-        let (lo, hi) = if p.y <= q.y { (p, q) } else { (q, p) };
-        (lo, hi.y, (hi.x - lo.x) / (hi.y - lo.y))
-    });
+    let long = Crossing::new(low, high);
+    let (below, above) = (Crossing::new(low, middle), Crossing::new(middle, high));
     let last_i = (nx - 1) as f64;
     for j in lo_j..=hi_j {
-        let y = j as f64;
-        let (mut left, mut right) = (f64::INFINITY, f64::NEG_INFINITY);
-        for &(lo, hi_y, dx_dy) in &edges {
-            if lo.y <= y && y <= hi_y && lo.y < hi_y {
-                let x = lo.x + (y - lo.y) * dx_dy;
-                left = left.min(x);
-                right = right.max(x);
-            }
+        // Through i64, which converts in one instruction where usize (u64) takes several.
+        let y = j as i64 as f64;
+        let x = long.at(y);
+        // A short edge flat along a row reaches no row but its own, where the long edge and
+        // the other short edge bound the span: it adds nothing, and is skipped.
+        let (mut left, mut right) = (x, x);
+        let mut cover = |x: f64| {
+            left = if x < left { x } else { left };
+            right = if x > right { x } else { right };
+        };
+        if y <= middle.y && low.y < middle.y {
+            cover(below.at(y));
+        }
+        if y >= middle.y && middle.y < high.y {
+            cover(above.at(y));
         }
         let (left, right) = ((left - SLACK).max(0.0), (right + SLACK).min(last_i));
         if left <= right {
-            // Both are in [0, nx − 1] now, where `as` truncation is floor.
-            let (first, last) = (left as usize, right as usize);
-            let first = if (first as f64) < left { first + 1 } else { first };
+            // Both are in [0, nx − 1] now, where `as` truncation is floor (and through i64,
+            // for the same reason as y).
+            let (first, last) = (left as i64, right as i64);
+            let (first, last) =
+                (if (first as f64) < left { first + 1 } else { first } as usize, last as usize);
             if first <= last {
                 visit(j, first, last);
             }
         }
+    }
+}
+
+/// Where an edge that is not flat crosses the rows between its ends.
+#[derive(Clone, Copy)]
+struct Crossing {
+    /// The lower end.
+    from: Point,
+    /// Δx per unit of y.
+    dx_dy: f64,
+}
+
+impl Crossing {
+    /// The edge from `lower` up to `upper`. (A flat one gives a non-finite slope, never used.)
+    #[inline]
+    fn new(lower: Point, upper: Point) -> Self {
+        Self { from: lower, dx_dy: (upper.x - lower.x) / (upper.y - lower.y) }
+    }
+
+    #[inline]
+    fn at(self, y: f64) -> f64 {
+        self.from.x + (y - self.from.y) * self.dx_dy
     }
 }
 
@@ -210,6 +252,58 @@ mod tests {
         assert!(Plane::new(flat, [0.0, 1.0, 5.0]).is_none());
     }
 
+    /// The spans as engine 6 found them, every edge tested at every row: the oracle.
+    /// Calls `visit(j, i0, i1)` for every row j < ny that has nodes in the closed triangle
+    /// (a, b, c), given in grid units (node (i, j) is the point (i, j)): nodes i0..=i1 of row j,
+    /// clipped to i < nx. A node on an edge may be visited for both triangles of that edge;
+    /// callers that need each node once keep their own record.
+    fn reference_spans(
+        [a, b, c]: [Point; 3],
+        nx: usize,
+        ny: usize,
+        mut visit: impl FnMut(usize, usize, usize),
+    ) {
+        // `as usize` truncates towards zero and saturates, so for y ≥ 0 it is floor, and corners
+        // below the grid clamp to 0 (SSE2 has no rounding instruction, so ceil and floor are
+        // calls).
+        let (lo_y, hi_y) = (a.y.min(b.y).min(c.y), a.y.max(b.y).max(c.y));
+        let lo_j = lo_y as usize;
+        let lo_j = if (lo_j as f64) < lo_y { lo_j.saturating_add(1) } else { lo_j };
+        let hi_j = (hi_y as usize).min(ny - 1);
+        if lo_j > hi_j {
+            // No row crosses the triangle, as often happens once triangles are smaller than a
+            // grid cell: skip the divisions below.
+            return;
+        }
+        // Each edge as its lower end, upper end's y and dx/dy; horizontal edges add nothing the
+        // other two do not.
+        let edges = [(a, b), (b, c), (c, a)].map(|(p, q)| {
+            let (lo, hi) = if p.y <= q.y { (p, q) } else { (q, p) };
+            (lo, hi.y, (hi.x - lo.x) / (hi.y - lo.y))
+        });
+        let last_i = (nx - 1) as f64;
+        for j in lo_j..=hi_j {
+            let y = j as f64;
+            let (mut left, mut right) = (f64::INFINITY, f64::NEG_INFINITY);
+            for &(lo, hi_y, dx_dy) in &edges {
+                if lo.y <= y && y <= hi_y && lo.y < hi_y {
+                    let x = lo.x + (y - lo.y) * dx_dy;
+                    left = left.min(x);
+                    right = right.max(x);
+                }
+            }
+            let (left, right) = ((left - SLACK).max(0.0), (right + SLACK).min(last_i));
+            if left <= right {
+                // Both are in [0, nx − 1] now, where `as` truncation is floor.
+                let (first, last) = (left as usize, right as usize);
+                let first = if (first as f64) < left { first + 1 } else { first };
+                if first <= last {
+                    visit(j, first, last);
+                }
+            }
+        }
+    }
+
     /// Signed distance of `p` from the line a→b, positive on its left.
     fn left_of(a: Point, b: Point, p: Point) -> f64 {
         ((b.x - a.x) * (p.y - a.y) - (b.y - a.y) * (p.x - a.x)) / a.distance_sq(b).sqrt()
@@ -260,6 +354,27 @@ mod tests {
                 prop_assert!(!d.iter().all(|&d| d >= 1e-12) || listed, "({i}, {j}) inside, not visited");
                 prop_assert!(!d.iter().any(|&d| d <= -1e-6) || !listed, "({i}, {j}) outside, visited");
             }
+        }
+
+        /// The long-edge-and-short-edge walk visits the spans of every edge at every row, to
+        /// the bit: same nodes, so the same maxima and the same meshes.
+        #[test]
+        fn spans_are_those_of_every_edge_at_every_row(
+            corners in proptest::array::uniform3(prop_oneof![
+                (-3.0f64..40.0, -3.0f64..40.0),
+                (-3i32..40, -3i32..40).prop_map(|(x, y)| (f64::from(x), f64::from(y))),
+                (-6i32..80, -6i32..80).prop_map(|(x, y)| (f64::from(x) * 0.5, f64::from(y) * 0.5)),
+            ]),
+            order in 0usize..6,
+        ) {
+            let [a, b, c] = corners.map(|(x, y)| Point::new(x, y));
+            let tri = [[a, b, c], [a, c, b], [b, a, c], [b, c, a], [c, a, b], [c, b, a]][order];
+            let (nx, ny) = (33, 29);
+            let mut expected = Vec::new();
+            reference_spans(tri, nx, ny, |j, i0, i1| expected.push((j, i0, i1)));
+            let mut found = Vec::new();
+            for_each_span(tri, nx, ny, |j, i0, i1| found.push((j, i0, i1)));
+            prop_assert_eq!(found, expected);
         }
 
         /// Two triangles that share an edge lose no node on it: with integer corners (edges
