@@ -22,15 +22,13 @@ use crate::geom::predicates::signed_area_x2;
 use crate::geom::{Mesh, Point, Vertex, raster};
 use crate::source::{BLOCK, Grid, Surface};
 
-/// No node: a triangle whose nodes F_n matches.
-const NO_NODE: u64 = u64::MAX;
-
 /// What is known of one triangle slot: e(T) and the node where it is reached.
 #[derive(Debug, Clone, Copy)]
 struct Slot {
     error: f64,
-    /// `j·nx + i` of node (i, j), or [`NO_NODE`].
-    node: u64,
+    /// Node (i, j), or `None` for a triangle whose nodes F_n matches. Kept as a pair, not
+    /// `j·nx + i`: taking the pair apart again costs two 64-bit divisions per estimate.
+    node: Option<(u32, u32)>,
 }
 
 /// Triangle errors and the queue over those above zero.
@@ -55,18 +53,18 @@ impl Estimates<'_> {
         let in_grid = corners.map(|v| self.at[v as usize]);
         let worst = worst_node(self.grid, in_grid, corners.map(|v| mesh.vertex(v).z), 0.0);
         let node = worst.node(self.grid);
-        let nx = self.grid.nx() as u64;
-        let is_corner = |p: &Point| p.x == (node % nx) as f64 && p.y == (node / nx) as f64;
-        let slot = match node != NO_NODE && in_grid.iter().any(is_corner) {
-            true => Slot { error: 0.0, node: NO_NODE },
-            false => Slot { error: worst.error, node },
+        let is_corner =
+            |(i, j): (u32, u32)| in_grid.iter().any(|p| p.x == f64::from(i) && p.y == f64::from(j));
+        let slot = match node.filter(|&node| !is_corner(node)) {
+            None => Slot { error: 0.0, node: None },
+            node => Slot { error: worst.error, node },
         };
         observer.estimated(t, slot.error);
         if self.slots.len() <= t as usize {
-            self.slots.resize(t as usize + 1, Slot { error: 0.0, node: NO_NODE });
+            self.slots.resize(t as usize + 1, Slot { error: 0.0, node: None });
         }
         self.slots[t as usize] = slot;
-        if slot.node == NO_NODE {
+        if slot.node.is_none() {
             self.queue.remove(t);
         } else {
             self.queue.set(Entry { error: slot.error, seq: self.next_seq, t });
@@ -121,8 +119,8 @@ pub(super) fn refine<O: Observer>(
             }
             None => {
                 let worst = estimates.queue.pop().expect("the queue's top");
-                let node = estimates.slots[worst.t as usize].node;
-                let (i, j) = ((node % grid.nx() as u64) as usize, (node / grid.nx() as u64) as usize);
+                let (i, j) = estimates.slots[worst.t as usize].node.expect("a queued triangle has a node");
+                let (i, j) = (i as usize, j as usize);
                 let p = grid.node(i, j);
                 (nearest_edge(mesh, worst.t, p), on_node(grid, i, j))
             }
@@ -201,17 +199,19 @@ pub(super) struct Worst {
 }
 
 impl Worst {
-    /// `j·nx + i` of the first node of the run that reaches [`Worst::error`], or [`NO_NODE`]
-    /// when no node beat the floor. A second look at one run of at most a row's span.
-    fn node(&self, grid: &Grid) -> u64 {
-        let Some((j, first, last, k0, line)) = self.run else { return NO_NODE };
+    /// Node (i, j), the first of the run that reaches [`Worst::error`], or `None` when no node
+    /// beat the floor. A second look at one run of at most a row's span.
+    fn node(&self, grid: &Grid) -> Option<(u32, u32)> {
+        let (j, first, last, k0, line) = self.run?;
         // The same steps as the scan's, so the same bits.
         let i = (first..=last)
             .zip(k0..)
             .find(|&(i, k)| (grid.row(j)[i] - line.at(k)).abs() == self.error)
             .map(|(i, _)| i)
             .expect("the run holds its maximum");
-        (j * grid.nx() + i) as u64
+        // Both fit: a row or column of 2^32 nodes would hold 64 GiB of values.
+        let narrow = |k: usize| u32::try_from(k).expect("a grid index below 2^32");
+        Some((narrow(i), narrow(j)))
     }
 }
 
@@ -270,18 +270,18 @@ mod tests {
     use proptest::prelude::*;
 
     /// The oracle: every node of the triangle compared, none passed over.
-    fn every_node(grid: &Grid, corners: [Vertex; 3], floor: f64) -> (f64, u64) {
+    fn every_node(grid: &Grid, corners: [Vertex; 3], floor: f64) -> (f64, Option<(u32, u32)>) {
         let in_grid = corners.map(|v| {
             let (u, w) = grid.to_grid(v.point());
             Point::new(u, w)
         });
-        let Some(plane) = raster::Plane::new(in_grid, corners.map(|v| v.z)) else { return (floor, NO_NODE) };
-        let (mut error, mut node) = (floor, NO_NODE);
+        let Some(plane) = raster::Plane::new(in_grid, corners.map(|v| v.z)) else { return (floor, None) };
+        let (mut error, mut node) = (floor, None);
         raster::for_each_span(in_grid, grid.nx(), grid.ny(), |j, i0, i1| {
             for (i, linear) in (i0..=i1).zip(plane.row(i0, j)) {
                 let e = (grid.value(i, j) - linear).abs();
                 if e > error {
-                    (error, node) = (e, (j * grid.nx() + i) as u64);
+                    (error, node) = (e, Some((i as u32, j as u32)));
                 }
             }
         });
@@ -336,9 +336,8 @@ mod tests {
             // A node that reaches the maximum, and the first one in row order.
             let found = worst.node(&grid);
             prop_assert_eq!(found, node);
-            prop_assert_eq!(found == NO_NODE, node == NO_NODE);
-            if found != NO_NODE {
-                let (i, j) = ((found % grid.nx() as u64) as usize, (found / grid.nx() as u64) as usize);
+            if let Some((i, j)) = found {
+                let (i, j) = (i as usize, j as usize);
                 let at = every_node_error_at(&grid, corners, i, j);
                 prop_assert_eq!(at.to_bits(), error.to_bits(), "node ({}, {})", i, j);
             }
