@@ -131,7 +131,7 @@ fn sees_wider(p: Point, q: Point, apex: Point, cos_sq: f64) -> bool {
 
 /// cos² of the triangle's smallest angle, the one opposite its shortest edge (law of cosines).
 /// Not a topology decision, so plain floating point: the same bits on every machine.
-fn smallest_angle_cos_sq(a: Point, b: Point, c: Point) -> f64 {
+pub(super) fn smallest_angle_cos_sq(a: Point, b: Point, c: Point) -> f64 {
     let (ab, bc, ca) = (a.distance_sq(b), b.distance_sq(c), c.distance_sq(a));
     // The shortest edge and the two that meet opposite it.
     let (short, u, v) = if ab <= bc && ab <= ca {

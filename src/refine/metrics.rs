@@ -2,6 +2,7 @@
 //!
 //! Kept out of the refinement loop: these walk the whole mesh once.
 
+use super::angles::smallest_angle_cos_sq;
 use crate::geom::{Mesh, Point, Vertex, raster};
 use crate::source::{Grid, Surface};
 
@@ -76,8 +77,22 @@ fn corners(mesh: &Mesh, t: usize) -> [(Point, f64); 3] {
 }
 
 /// The smallest interior angle of any triangle, in degrees.
+///
+/// The triangle is found by cos² of its smallest angle, which takes no trigonometry (three
+/// `atan2` per triangle were a third of a grid run's final pass), and only its angles are
+/// measured. Where two triangles' angles tie within rounding either may be taken: their
+/// values differ in the last bits at most.
 pub(super) fn min_angle_deg(mesh: &Mesh) -> f64 {
-    (0..mesh.num_triangles()).map(|t| min_angle(mesh, t)).fold(f64::INFINITY, f64::min).to_degrees()
+    let cos_sq = |t: usize| {
+        let [a, b, c] = mesh.triangle(t).map(|v| mesh.point(v));
+        // A triangle with coincident corners (never in a valid mesh) gives NaN: it is 0°.
+        let cos_sq = smallest_angle_cos_sq(a, b, c);
+        if cos_sq.is_nan() { f64::INFINITY } else { cos_sq }
+    };
+    let smallest = (0..mesh.num_triangles())
+        .map(|t| (cos_sq(t), t))
+        .reduce(|best, t| if t.0 > best.0 { t } else { best });
+    smallest.map_or(f64::INFINITY, |(_, t)| min_angle(mesh, t)).to_degrees()
 }
 
 fn min_angle(mesh: &Mesh, t: usize) -> f64 {
