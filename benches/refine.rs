@@ -1,7 +1,8 @@
 //! Refinement speed: Franke's function as a native closure, through meval, and sampled on a
 //! 4097 × 4097 grid, at 10^4, 10^5 and 10^6 vertices with both methods; and the error
 //! criterion (ids `refine/<method>-error/...`) through meval and on a 1025 × 1025 grid at 10^4
-//! and 10^5, and on the 4097 × 4097 grid at 10^6.
+//! and 10^5, on the 4097 × 4097 grid at 10^6, and on a real DEM: the 256 × 256 Terrain-RGB
+//! tile of examples/tiles (SRTM-derived heights) at 10^4 and 3·10^4 vertices.
 //!
 //! Run with `cargo bench --bench refine`; pick a subset with a filter, e.g.
 //! `cargo bench --bench refine -- semi-recursive/franke_native`.
@@ -12,7 +13,7 @@ mod support;
 
 use meshfit::geom::Rect;
 use meshfit::refine::{Method, Params, refine};
-use meshfit::source::{Expression, Grid, Source, Surface};
+use meshfit::source::{Encoding, Expression, Grid, GridHints, Source, Surface, decode_grid};
 use std::hint::black_box;
 use std::time::Duration;
 use support::{FRANKE, franke};
@@ -21,6 +22,13 @@ fn franke_grid(n: usize) -> Grid {
     let h = 1.0 / (n - 1) as f64;
     let values = (0..n * n).map(|k| franke((k % n) as f64 * h, (k / n) as f64 * h)).collect();
     Grid::new(n, n, values).unwrap().with_domain(Rect::unit())
+}
+
+/// The tile the README's curl line sends, its pixels on the unit square.
+fn jacksboro_tile() -> Grid {
+    let png = include_bytes!("../examples/tiles/jacksboro-terrain-rgb.png");
+    let hints = GridHints { encoding: Some(Encoding::TerrainRgb), ..GridHints::default() };
+    decode_grid(png, &hints, 1 << 20).unwrap().grid.with_domain(Rect::unit())
 }
 
 fn run<S: Surface + ?Sized>(c: &mut Criterion, name: &str, surface: &S) {
@@ -65,6 +73,7 @@ fn benches(c: &mut Criterion) {
     run_with(c, "franke_meval", &meval, error, &[10_000, 100_000]);
     run_with(c, "franke_grid1025", &Source::Grid(franke_grid(1025)), error, &[10_000, 100_000]);
     run_with(c, "franke_grid4097", &grid4097, error, &[1_000_000]);
+    run_with(c, "jacksboro_tile256", &Source::Grid(jacksboro_tile()), error, &[10_000, 30_000]);
 }
 
 criterion_group!(refine_benches, benches);
