@@ -22,13 +22,16 @@ use crate::geom::predicates::signed_area_x2;
 use crate::geom::{Mesh, Point, Vertex, raster};
 use crate::source::{BLOCK, Grid, Surface};
 
+/// No node: a triangle whose nodes F_n matches. (An `Option` would make a slot 24 bytes.)
+const NO_NODE: (u32, u32) = (u32::MAX, u32::MAX);
+
 /// What is known of one triangle slot: e(T) and the node where it is reached.
 #[derive(Debug, Clone, Copy)]
 struct Slot {
     error: f64,
-    /// Node (i, j), or `None` for a triangle whose nodes F_n matches. Kept as a pair, not
-    /// `j·nx + i`: taking the pair apart again costs two 64-bit divisions per estimate.
-    node: Option<(u32, u32)>,
+    /// Node (i, j), or [`NO_NODE`]. Kept as a pair, not `j·nx + i`: taking that apart again
+    /// cost two 64-bit divisions per estimate.
+    node: (u32, u32),
 }
 
 /// Triangle errors and the queue over those above zero.
@@ -56,15 +59,15 @@ impl Estimates<'_> {
         let is_corner =
             |(i, j): (u32, u32)| in_grid.iter().any(|p| p.x == f64::from(i) && p.y == f64::from(j));
         let slot = match node.filter(|&node| !is_corner(node)) {
-            None => Slot { error: 0.0, node: None },
-            node => Slot { error: worst.error, node },
+            None => Slot { error: 0.0, node: NO_NODE },
+            Some(node) => Slot { error: worst.error, node },
         };
         observer.estimated(t, slot.error);
         if self.slots.len() <= t as usize {
-            self.slots.resize(t as usize + 1, Slot { error: 0.0, node: None });
+            self.slots.resize(t as usize + 1, Slot { error: 0.0, node: NO_NODE });
         }
         self.slots[t as usize] = slot;
-        if slot.node.is_none() {
+        if slot.node == NO_NODE {
             self.queue.remove(t);
         } else {
             self.queue.set(Entry { error: slot.error, seq: self.next_seq, t });
@@ -119,7 +122,8 @@ pub(super) fn refine<O: Observer>(
             }
             None => {
                 let worst = estimates.queue.pop().expect("the queue's top");
-                let (i, j) = estimates.slots[worst.t as usize].node.expect("a queued triangle has a node");
+                let (i, j) = estimates.slots[worst.t as usize].node;
+                debug_assert_ne!((i, j), NO_NODE, "a queued triangle has a node");
                 let (i, j) = (i as usize, j as usize);
                 let p = grid.node(i, j);
                 (nearest_edge(mesh, worst.t, p), on_node(grid, i, j))
@@ -209,8 +213,9 @@ impl Worst {
             .find(|&(i, k)| (grid.row(j)[i] - line.at(k)).abs() == self.error)
             .map(|(i, _)| i)
             .expect("the run holds its maximum");
-        // Both fit: a row or column of 2^32 nodes would hold 64 GiB of values.
-        let narrow = |k: usize| u32::try_from(k).expect("a grid index below 2^32");
+        // Both fit, below NO_NODE's u32::MAX: a row or column of 2^32 nodes would hold 64 GiB.
+        let narrow =
+            |k: usize| u32::try_from(k).ok().filter(|&k| k < u32::MAX).expect("a grid index below 2^32 − 1");
         Some((narrow(i), narrow(j)))
     }
 }

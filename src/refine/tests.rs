@@ -265,6 +265,19 @@ fn the_history_knows_v_n_past_retired_edges_and_matches_a_walk() {
 }
 
 #[test]
+fn v_n_swept_over_the_triangles_is_the_largest_gap_over_the_edges() {
+    let wave = |x: f64, y: f64| (5.0 * x).sin() * (3.0 * y).cos();
+    for method in [Method::Recursive, Method::SemiRecursive] {
+        let params = params(3_000, method).with_criterion(Criterion::Error);
+        let mesh = refine(&wave, Rect::unit(), &params, &mut ()).unwrap().mesh;
+        let gap = |e: crate::geom::Edge| (mesh.vertex(e.a).z - mesh.vertex(e.b).z).abs();
+        let walk = mesh.edges().map(gap).fold(0.0, f64::max);
+        assert!(walk > 0.0);
+        assert_eq!(variation(&mesh).to_bits(), walk.to_bits(), "{method}");
+    }
+}
+
+#[test]
 fn a_run_stopped_by_its_tolerance_ends_its_history_with_the_check_that_stopped_it() {
     let f = |x: f64, y: f64| x * x + y;
     let p = Params::new(100_000).unwrap().with_criterion(Criterion::Variation).with_tolerance(0.05).unwrap();
