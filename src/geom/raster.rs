@@ -11,6 +11,13 @@ use super::Point;
 /// their shared edge's crossings with the same bits, and one of them takes the node.)
 const SLACK: f64 = 1e-9;
 
+/// A node index as a coordinate. Through i64, which converts in one instruction where usize
+/// (u64) takes several; exact, as every index is below 2^53.
+#[inline]
+fn coordinate(k: usize) -> f64 {
+    k as i64 as f64
+}
+
 /// Calls `visit(j, i0, i1)` for every row j < ny that has nodes in the closed triangle
 /// (a, b, c), given in grid units (node (i, j) is the point (i, j)): nodes i0..=i1 of row j,
 /// clipped to i < nx. A node on an edge may be visited for both triangles of that edge;
@@ -43,35 +50,39 @@ pub fn for_each_span(
     let lo_j = low.y as usize;
     let lo_j = if (lo_j as f64) < low.y { lo_j.saturating_add(1) } else { lo_j };
     let hi_j = (high.y as usize).min(ny - 1);
-    if lo_j > hi_j || low.y == high.y {
+    if lo_j > hi_j {
         // No row crosses the triangle, as often happens once triangles are smaller than a
-        // grid cell (or it is flat along a row, where no edge crosses): skip the divisions.
+        // grid cell: skip the divisions.
         return;
     }
-    let long = Crossing::new(low, high);
+    // A triangle flat along a row has no edge that crosses rows.
+    let Some(long) = Crossing::new(low, high) else { return };
+    // A short edge flat along a row reaches no row but its own, where the long edge and the
+    // other short edge bound the span: it adds nothing, and is `None`.
     let (below, above) = (Crossing::new(low, middle), Crossing::new(middle, high));
-    let last_i = (nx - 1) as f64;
+    let last_i = coordinate(nx - 1);
     for j in lo_j..=hi_j {
-        // Through i64, which converts in one instruction where usize (u64) takes several.
-        let y = j as i64 as f64;
+        let y = coordinate(j);
         let x = long.at(y);
-        // A short edge flat along a row reaches no row but its own, where the long edge and
-        // the other short edge bound the span: it adds nothing, and is skipped.
         let (mut left, mut right) = (x, x);
         let mut cover = |x: f64| {
             left = if x < left { x } else { left };
             right = if x > right { x } else { right };
         };
-        if y <= middle.y && low.y < middle.y {
+        if let Some(below) = below
+            && y <= middle.y
+        {
             cover(below.at(y));
         }
-        if y >= middle.y && middle.y < high.y {
+        if let Some(above) = above
+            && y >= middle.y
+        {
             cover(above.at(y));
         }
         let (left, right) = ((left - SLACK).max(0.0), (right + SLACK).min(last_i));
         if left <= right {
-            // Both are in [0, nx − 1] now, where `as` truncation is floor (and through i64,
-            // for the same reason as y).
+            // Both are in [0, nx − 1] now, where `as` truncation is floor (through i64 for the
+            // reason `coordinate` gives).
             let (first, last) = (left as i64, right as i64);
             let (first, last) =
                 (if (first as f64) < left { first + 1 } else { first } as usize, last as usize);
@@ -82,7 +93,7 @@ pub fn for_each_span(
     }
 }
 
-/// Where an edge that is not flat crosses the rows between its ends.
+/// Where an edge crosses the rows between its ends.
 #[derive(Clone, Copy)]
 struct Crossing {
     /// The lower end.
@@ -92,10 +103,10 @@ struct Crossing {
 }
 
 impl Crossing {
-    /// The edge from `lower` up to `upper`. (A flat one gives a non-finite slope, never used.)
+    /// The edge from `lower` up to `upper`, or `None` when it is flat along a row.
     #[inline]
-    fn new(lower: Point, upper: Point) -> Self {
-        Self { from: lower, dx_dy: (upper.x - lower.x) / (upper.y - lower.y) }
+    fn new(lower: Point, upper: Point) -> Option<Self> {
+        (lower.y < upper.y).then(|| Self { from: lower, dx_dy: (upper.x - lower.x) / (upper.y - lower.y) })
     }
 
     #[inline]
@@ -146,8 +157,7 @@ impl Plane {
     /// [`Plane::row`]'s k-th value.
     #[inline]
     pub fn row_at(&self, i0: usize, j: usize) -> PlaneRow {
-        // Through i64, as in `for_each_span`: the same values, in one instruction each.
-        let (x, y) = (i0 as i64 as f64, j as i64 as f64);
+        let (x, y) = (coordinate(i0), coordinate(j));
         let start = self.z + (y - self.origin.y) * self.dz_dy + (x - self.origin.x) * self.dz_dx;
         PlaneRow { start, step: self.dz_dx, range: self.z_range }
     }
@@ -253,11 +263,8 @@ mod tests {
         assert!(Plane::new(flat, [0.0, 1.0, 5.0]).is_none());
     }
 
-    /// The spans as engine 6 found them, every edge tested at every row: the oracle.
-    /// Calls `visit(j, i0, i1)` for every row j < ny that has nodes in the closed triangle
-    /// (a, b, c), given in grid units (node (i, j) is the point (i, j)): nodes i0..=i1 of row j,
-    /// clipped to i < nx. A node on an edge may be visited for both triangles of that edge;
-    /// callers that need each node once keep their own record.
+    /// The oracle for [`for_each_span`]: its spans as engine 6 found them, every edge tested
+    /// at every row.
     fn reference_spans(
         [a, b, c]: [Point; 3],
         nx: usize,
