@@ -2,7 +2,9 @@
 //! 4097 × 4097 grid, at 10^4, 10^5 and 10^6 vertices with both methods; and the error
 //! criterion (ids `refine/<method>-error/...`) through meval and on a 1025 × 1025 grid at 10^4
 //! and 10^5, on the 4097 × 4097 grid at 10^6, and on a real DEM: the 256 × 256 Terrain-RGB
-//! tile of examples/tiles (SRTM-derived heights) at 10^4 and 3·10^4 vertices.
+//! tile of examples/tiles (SRTM-derived heights) at 10^4 and 3·10^4 vertices. `check/delaunay`
+//! is the final independent Delaunay check alone, on the semi-recursive mesh of Franke's
+//! function at 10^6 vertices.
 //!
 //! Run with `cargo bench --bench refine`; pick a subset with a filter, e.g.
 //! `cargo bench --bench refine -- semi-recursive/franke_native`.
@@ -63,7 +65,18 @@ fn run_with<S: Surface + ?Sized>(
     group.finish();
 }
 
+/// The check behind `stats.delaunay`, on a mesh built once.
+fn delaunay_check(c: &mut Criterion) {
+    let params = Params::new(1_000_000).unwrap();
+    let mesh = refine(&franke, Rect::unit(), &params, &mut ()).unwrap().mesh;
+    let mut group = c.benchmark_group("check");
+    group.throughput(Throughput::Elements(mesh.num_edges() as u64));
+    group.bench_function("delaunay/franke_native/1000000", |b| b.iter(|| black_box(mesh.is_delaunay())));
+    group.finish();
+}
+
 fn benches(c: &mut Criterion) {
+    delaunay_check(c);
     let meval = Source::Expression(Expression::parse(FRANKE).unwrap());
     run(c, "franke_native", &franke);
     run(c, "franke_meval", &meval);

@@ -4,9 +4,11 @@
 //! refinement runs [`Mesh::is_delaunay`] once at the end, so the reported `delaunay` flag is
 //! verified, never assumed.
 
+use super::Point;
 use super::mesh::{Mesh, NONE};
 use super::predicates::{is_ccw, is_in_circle};
 use std::fmt;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// A broken mesh invariant, described for a human.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -102,14 +104,58 @@ impl Mesh {
 
     /// The first interior half-edge whose far vertex lies strictly inside the circumcircle of
     /// its triangle, if any.
+    ///
+    /// A large mesh is checked in two halves on two threads; the answer is the same edge
+    /// either way, the first half's when both have one (the second half then stops early).
     pub fn find_non_delaunay_edge(&self) -> Option<u32> {
-        (0..self.half.len() as u32).find(|&e| {
-            let f = self.twin(e);
-            f != NONE && e < f && {
-                let (a, b, c) = (self.origin(e), self.dest(e), self.apex(e));
-                is_in_circle(self.point(a), self.point(b), self.point(c), self.point(self.apex(f)))
-            }
+        let end = self.half.len() as u32;
+        let threads = std::thread::available_parallelism().map_or(1, usize::from);
+        if end < PARALLEL_CHECK || threads < 2 {
+            return self.find_non_delaunay_in(0..end, &AtomicBool::new(false));
+        }
+        let middle = end / 2;
+        let first_found = AtomicBool::new(false);
+        std::thread::scope(|scope| {
+            let second = scope.spawn(|| self.find_non_delaunay_in(middle..end, &first_found));
+            let first = self.find_non_delaunay_in(0..middle, &AtomicBool::new(false));
+            first_found.store(first.is_some(), Ordering::Relaxed);
+            let second = second.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+            first.or(second)
         })
+    }
+
+    /// [`Mesh::find_non_delaunay_edge`] among the half-edges of `range`; gives up (`None`)
+    /// once `stop` is set, between batches.
+    ///
+    /// The check is memory-bound: an edge's four corners are scattered over the vertices. So
+    /// a batch of edges gathers its corners' ids, then their points, then runs the predicate,
+    /// and the loads of a batch overlap instead of each waiting behind the previous test.
+    fn find_non_delaunay_in(&self, range: std::ops::Range<u32>, stop: &AtomicBool) -> Option<u32> {
+        let mut edges = [0u32; CHECK_BATCH];
+        let mut corners = [[0u32; 4]; CHECK_BATCH];
+        let mut quads = [[Point::new(0.0, 0.0); 4]; CHECK_BATCH];
+        let mut next = range.start;
+        while next < range.end && !stop.load(Ordering::Relaxed) {
+            let mut len = 0;
+            while len < CHECK_BATCH && next < range.end {
+                let f = self.twin(next);
+                if f != NONE && next < f {
+                    edges[len] = next;
+                    len += 1;
+                }
+                next += 1;
+            }
+            for (corner, &e) in corners.iter_mut().zip(&edges[..len]) {
+                *corner = [self.origin(e), self.dest(e), self.apex(e), self.apex(self.twin(e))];
+            }
+            for (quad, corner) in quads.iter_mut().zip(&corners[..len]) {
+                *quad = corner.map(|v| self.point(v));
+            }
+            if let Some(k) = quads[..len].iter().position(|&[a, b, c, d]| is_in_circle(a, b, c, d)) {
+                return Some(edges[k]);
+            }
+        }
+        None
     }
 
     /// Whether every interior edge passes the exact in-circle test (a Delaunay triangulation).
@@ -117,6 +163,13 @@ impl Mesh {
         self.find_non_delaunay_edge().is_none()
     }
 }
+
+/// Interior edges per batch of the Delaunay check.
+const CHECK_BATCH: usize = 64;
+
+/// Half-edges from which the Delaunay check takes a second thread (about 40,000 vertices,
+/// where the check takes milliseconds and a thread tens of microseconds).
+const PARALLEL_CHECK: u32 = 1 << 18;
 
 #[cfg(test)]
 mod tests {
@@ -135,6 +188,51 @@ mod tests {
         let mut nan = mesh;
         nan.vertices[3] = Vertex { x: 0.0, y: 1.0, z: f64::NAN };
         assert!(nan.check_invariants().unwrap_err().0.contains("non-finite"));
+    }
+
+    /// The check on two threads answers what one scan of every half-edge answers: nothing on a
+    /// Delaunay mesh, the edge made illegal in the second half, and the first of the many on a
+    /// recursive mesh.
+    #[test]
+    fn the_two_threads_find_the_edge_one_scan_finds() {
+        use crate::refine::{Criterion, Method, Params, refine};
+        let f = |x: f64, y: f64| (5.0 * x).sin() * y;
+        let params = Params::new(50_000).unwrap();
+        let scan =
+            |mesh: &Mesh| mesh.find_non_delaunay_in(0..mesh.num_halfedges() as u32, &AtomicBool::new(false));
+        let mut mesh = refine(&f, Rect::unit(), &params, &mut ()).unwrap().mesh;
+        let end = mesh.num_halfedges() as u32;
+        assert!(end >= PARALLEL_CHECK, "{end} half-edges take one thread");
+        assert_eq!(mesh.find_non_delaunay_edge(), None);
+
+        // A convex quadrilateral in the second half whose far corner is strictly outside the
+        // circle: its flipped diagonal is strictly illegal.
+        let e = (end / 2..end)
+            .find(|&e| {
+                let t = mesh.twin(e);
+                t != NONE && t > end / 2 && {
+                    let [u, v, m, w] =
+                        [mesh.origin(e), mesh.dest(e), mesh.apex(e), mesh.apex(t)].map(|v| mesh.point(v));
+                    is_ccw(u, w, m) && is_ccw(w, v, m) && is_in_circle(u, w, m, v)
+                }
+            })
+            .expect("a flippable edge");
+        mesh.flip(e);
+        let found = mesh.find_non_delaunay_edge();
+        assert!(found.is_some_and(|k| k >= end / 2), "found {found:?}");
+        assert_eq!(found, scan(&mesh));
+
+        let recursive = refine(
+            &f,
+            Rect::unit(),
+            &params.clone().with_method(Method::Recursive).with_criterion(Criterion::Variation),
+            &mut (),
+        )
+        .unwrap()
+        .mesh;
+        let found = recursive.find_non_delaunay_edge();
+        assert!(found.is_some());
+        assert_eq!(found, scan(&recursive));
     }
 
     #[test]
