@@ -50,9 +50,10 @@ pub fn for_each_span(
     let lo_j = low.y as usize;
     let lo_j = if (lo_j as f64) < low.y { lo_j.saturating_add(1) } else { lo_j };
     let hi_j = (high.y as usize).min(ny - 1);
-    if lo_j > hi_j {
+    if lo_j > hi_j || high.y < 0.0 {
         // No row crosses the triangle, as often happens once triangles are smaller than a
-        // grid cell: skip the divisions.
+        // grid cell: skip the divisions. (A triangle wholly below row 0 has hi_j = 0 from
+        // the saturating cast, and row 0 would be read off its edges' extensions.)
         return;
     }
     // A triangle flat along a row has no edge that crosses rows.
