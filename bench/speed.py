@@ -8,6 +8,8 @@ Run by hand, never in CI (it builds the release binary and takes minutes):
     python3 bench/speed.py                        # tables on stdout, for docs/speed.md
     python3 bench/speed.py --no-build --quick     # smoke test: 1025 grid and DEM, 10^4, 1 run
     python3 bench/speed.py --before old/meshfit   # also an earlier build, alternately, on the grids
+                                                  # and in the engine table
+    python3 bench/speed.py --no-build --only engine   # just issue #24's table (a few minutes)
 
 Grids: Franke's function sampled at 1025 x 1025 and 4097 x 4097 on [0,1]^2, and the two
 elevation rasters of matplotlib's sample data (jacksboro_fault_dem.npz, topobathy.npz). Each is
@@ -15,6 +17,12 @@ written as a float64 .npy file for `meshfit mesh --grid`. meshfit's time is the 
 `--stats`: the refinement alone, without reading the file or estimating the error. pydelatin's
 time is its constructor (copying the raster in, then refining). The tools run alternately,
 `--runs` times each, and the tables give medians. E_max is the max error at the grid nodes.
+
+The engine table (issue #24) measures every row against one yardstick, pydelatin meshing the
+1025 x 1025 Franke grid to 10^5 vertices, run alternately with the rows: the paper's variation
+criterion at 10^6, the error criterion through meval at 10^5, `meshfit solve` of the
+exp(-1000 r^2) peak to 10^5 vertices (the whole process, wall clock), and peak memory at 10^6
+(maximum resident set of the process, less that of a 4-vertex run, per vertex).
 """
 
 import argparse
@@ -178,6 +186,84 @@ def bench_expressions(args):
     return rows
 
 
+# Issue #24's rows: (label, `meshfit mesh` flags for Franke's expression, target ratio to the
+# yardstick); the solve row runs PEAK, the exp(-1000 r^2) problem of bench/solve.py.
+PEAK_R2 = "((x-0.5)^2+(y-0.5)^2)"
+PEAK = {"physics": "poisson", "domain": {"x": [0, 1], "y": [0, 1]}, "k": "1",
+        "f": f"(4000-4000000*{PEAK_R2})*exp(-1000*{PEAK_R2})", "g": f"exp(-1000*{PEAK_R2})",
+        "max_vertices": 100_000}
+ENGINE_CASES = [
+    ("`variation`, semi-recursive, 10^6 (an expression)", ["--criterion", "variation", "--method", "semi-recursive",
+                                                         "--max-vertices", "1000000"], 5.0),
+    ("`variation`, recursive, 10^6", ["--criterion", "variation", "--method", "recursive",
+                                      "--max-vertices", "1000000"], 1.7),
+    ("`error`, semi-recursive, Franke through meval, 10^5", ["--criterion", "error", "--method", "semi-recursive",
+                                                             "--max-vertices", "100000"], 0.6),
+]
+SOLVE_LABEL = "`meshfit solve` of the exp(−1000 r²) peak to 10^5 vertices, whole process"
+# (criterion, target bytes per vertex) for the memory row, Franke through meval at 10^6.
+MEMORY_CASES = [("variation", 170), ("error", 220)]
+
+
+def run_measured(argv):
+    """(wall seconds, stdout) of one process."""
+    start = time.perf_counter()
+    out = subprocess.run(argv, check=True, capture_output=True).stdout
+    return time.perf_counter() - start, out
+
+
+def peak_rss_kib(argv, tmp):
+    """The maximum resident set of a process, by GNU time: a child's own rusage would count the
+    Python image it was forked from."""
+    report = Path(tmp) / "rss"
+    subprocess.run(["/usr/bin/time", "-f", "%M", "-o", str(report), *argv], check=True, capture_output=True)
+    return int(report.read_text().split()[-1])
+
+
+def bench_engine(args, tmp):
+    """Rows of issue #24's table: each case's median against the yardstick's median, for this
+    build and, with --before, the earlier one, all run alternately."""
+    heights = franke_grid(1025).astype(np.float32)
+    peak = Path(tmp) / "peak.json"
+    peak.write_text(json.dumps(PEAK))
+    builds = [("after", MESHFIT), *([("before", args.before)] if args.before else [])]
+    labels = [label for label, _, _ in ENGINE_CASES] + [SOLVE_LABEL]
+    ms = {(build, label): [] for build, _ in builds for label in labels}
+    yardstick = []
+    for run in range(args.runs):  # alternate, so drift in the machine's speed hits all
+        yardstick.append(run_pydelatin(heights, 100_000)[0])
+        for build, binary in builds:
+            for label, flags, _ in ENGINE_CASES:
+                _, out = run_measured([str(binary), "mesh", "--function", FRANKE, "--stats", *flags])
+                ms[build, label].append(json.loads(out)["elapsed_ms"])
+            seconds, _ = run_measured([str(binary), "solve", str(peak), "-o", "/dev/null", "--format", "json"])
+            ms[build, SOLVE_LABEL].append(seconds * 1e3)
+        print(f"engine run {run + 1}: yardstick {yardstick[-1]:.1f} ms, "
+              + ", ".join(f"{build} {label}: {v[-1]:.1f}" for (build, label), v in ms.items()), file=sys.stderr)
+    reference = statistics.median(yardstick)
+    rows = [f"| yardstick: pydelatin, 1025² Franke grid, 10^5 |" + f" {reference:.1f} ms | 1 |" * len(builds) + " |"]
+    targets = [target for _, _, target in ENGINE_CASES] + [4.0]
+    for label, target in zip(labels, targets):
+        cells = "".join(f" {statistics.median(ms[b, label]):.1f} ms | {statistics.median(ms[b, label]) / reference:.2f}× |"
+                        for b, _ in builds)
+        rows.append(f"| {label} |{cells} ≤ {target}× |")
+    # Memory is deterministic enough for one run each.
+    cells = ""
+    for _, binary in builds:
+        base = peak_rss_kib([str(binary), "mesh", "--function", FRANKE, "--max-vertices", "4",
+                             "-o", "/dev/null", "--format", "ply"], tmp)
+        per_vertex = []
+        for criterion, _ in MEMORY_CASES:
+            rss = peak_rss_kib([str(binary), "mesh", "--function", FRANKE, "--max-vertices", "1000000",
+                                "--criterion", criterion, "-o", "/dev/null", "--format", "ply"], tmp)
+            per_vertex.append(f"{(rss - base) * 1024 / 1e6:.1f}")
+        cells += f" {' / '.join(per_vertex)} B per vertex | |"
+    rows.append(f"| peak memory at 10^6, `variation` / `error` |{cells} "
+                + " / ".join(f"≤ {t}" for _, t in MEMORY_CASES) + " |")
+    header = "| work |" + "".join(f" {b} | {b} / yardstick |" for b, _ in builds) + " target |"
+    return [header, "|---|" + "---|---|" * len(builds) + "---|", *rows]
+
+
 def command_output(argv):
     try:
         return subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, check=True).stdout.strip()
@@ -211,8 +297,10 @@ def main():
     parser.add_argument("--quick", action="store_true",
                         help="smoke test: the 1025 grid and the DEM at 10^4, expressions at 10^5 only, 1 run")
     parser.add_argument("--skip-4097", action="store_true", help="leave out the 4097 x 4097 Franke grid")
+    parser.add_argument("--only", choices=["grids", "expressions", "engine"],
+                        help="run one part: the grids against pydelatin, Franke's expression, or #24's table")
     parser.add_argument("--before", type=Path, metavar="BINARY",
-                        help="an earlier meshfit build to run alternately on the grids, for a before/after table")
+                        help="an earlier meshfit build to run alternately on the grids and the engine table")
     args = parser.parse_args()
     if args.quick:
         args.runs, args.sizes = 1, [10_000]
@@ -220,8 +308,24 @@ def main():
         subprocess.run(["cargo", "build", "--release"], cwd=ROOT, check=True)
 
     print("\n".join(machine()) + f"\n- {args.runs} run(s) per case, medians\n")
-    with tempfile.TemporaryDirectory(prefix="meshfit-speed-") as tmp:
-        times, checks, befores = bench_grids(args, tmp)
+    if args.only in (None, "grids"):
+        with tempfile.TemporaryDirectory(prefix="meshfit-speed-") as tmp:
+            times, checks, befores = bench_grids(args, tmp)
+        print_grids(args, times, checks, befores)
+    if args.only in (None, "expressions"):
+        rows = bench_expressions(args)
+        print("\n## Franke's expression on [0,1]^2 (meshfit)\n")
+        print("| criterion | method | n | vertices | median (ms) | target (ms) | target |")
+        print("|---|---|---|---|---|---|---|")
+        print("\n".join(rows), flush=True)
+    if args.only in (None, "engine") and not args.quick:
+        with tempfile.TemporaryDirectory(prefix="meshfit-engine-") as tmp:
+            rows = bench_engine(args, tmp)
+        print("\n## The engine against one yardstick (issue #24)\n")
+        print("\n".join(rows))
+
+
+def print_grids(args, times, checks, befores):
     print("## Grids: refinement time, criterion error\n")
     print("| grid | n | meshfit semi (ms) | meshfit recursive (ms) | pydelatin (ms) | semi/pydelatin"
           " | recursive/pydelatin |")
@@ -238,11 +342,6 @@ def main():
               " | semi speed-up | recursive speed-up | same vertices and E_max |")
         print("|---|---|---|---|---|---|---|---|---|")
         print("\n".join(befores), flush=True)
-    rows = bench_expressions(args)
-    print("\n## Franke's expression on [0,1]^2 (meshfit)\n")
-    print("| criterion | method | n | vertices | median (ms) | target (ms) | target |")
-    print("|---|---|---|---|---|---|---|")
-    print("\n".join(rows))
 
 
 if __name__ == "__main__":
