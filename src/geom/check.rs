@@ -109,8 +109,8 @@ impl Mesh {
     /// either way, the first half's when both have one (the second half then stops early).
     pub fn find_non_delaunay_edge(&self) -> Option<u32> {
         let end = self.half.len() as u32;
-        let threads = std::thread::available_parallelism().map_or(1, usize::from);
-        if end < PARALLEL_CHECK || threads < 2 {
+        // Small meshes first: asking for the parallelism is a system call.
+        if end < PARALLEL_CHECK || std::thread::available_parallelism().map_or(1, usize::from) < 2 {
             return self.find_non_delaunay_in(0..end, &AtomicBool::new(false));
         }
         let middle = end / 2;
