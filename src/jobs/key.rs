@@ -11,7 +11,7 @@ use sha2::{Digest, Sha256};
 
 /// Bumped whenever the engine may produce a different mesh for the same request, so that a
 /// cache (in memory or on disk) never serves a mesh the current engine would not make.
-pub const ENGINE_VERSION: &str = "meshfit-engine-6";
+pub const ENGINE_VERSION: &str = "meshfit-engine-7";
 
 /// A job's id, and the id of its family: the requests that differ from it only in budget,
 /// tolerance or time limit, whose runs are prefixes of one another.
@@ -196,14 +196,14 @@ mod tests {
         );
         let pinned = [
             (
-                "meshfit-engine-6",
-                "3f618103616c5b49d2ca1ad30d55ac3056f39ec98d00e16607e40646d67dff19",
-                "2b4014b0790572c5893f2e9c6b2e285270f1f9d698aa6b14a6cbb3b25f99035b",
+                "meshfit-engine-7",
+                "02f389ca18e7226a8835e83a32e0300d7e405bbbcf04a1ebe26066052a754d35",
+                "9cadf695cfee649d53249f18bc51445732a8247cc1dbc7c48c41c12e0e689c81",
             ),
             (
-                "meshfit-engine-6",
-                "48358487ecd8f37f15da148e495e367ba17d5bd62d0b4238e85428fd623c13c5",
-                "1f1cf4164c4f0804244991ad752768aa4720ab91c5914ad33886e1751cdbbafd",
+                "meshfit-engine-7",
+                "ac2ad953bb307c15c925807cdfa375367e45d6bbf1c9079ee6d719952246f7dc",
+                "68f74fb179b7102e3a26152bd1caa78d7df93bed52cfd9391d14c9c9aa66290d",
             ),
         ];
         for (body, pinned) in [expression, &grid].into_iter().zip(pinned) {

@@ -17,14 +17,15 @@
 //!   of k: a jump of k inside a triangle is smeared over that triangle only (a mesh line
 //!   never follows a side that is not at a dyadic fraction of the rectangle). The load
 //!   vector ∫ f φᵢ is exact for f of degree ≤ 3 (linear f included) and for region values.
-//! - The symmetric positive definite system is factorised by `faer`'s simplicial sparse
-//!   Cholesky (LLᵀ) after an approximate-minimum-degree ordering.
+//! - The symmetric positive definite system is factorised by a supernodal sparse Cholesky
+//!   (LLᵀ, `cholesky`): `faer` orders it (approximate minimum degree) and finds the
+//!   supernodes, and the numbers are computed by dense kernels of our own.
 //!
 //! # Guarantees
 //! - Deterministic bit for bit: triangles are assembled in index order, the matrix entries
 //!   are sorted by (column, row) with a stable sort and duplicates summed in assembly order,
-//!   and the factorisation runs single-threaded ([`faer::Par::Seq`]) on the simplicial path,
-//!   which uses no runtime-dispatched SIMD kernels.
+//!   and the factorisation's every sum is a `mul_add` chain in a fixed order, so the AVX2
+//!   build that runs where the CPU has it gives the bits of the portable one.
 //! - Linear g with f = 0 and constant k is reproduced to rounding (the patch test).
 //!
 //! # Limitations
@@ -39,6 +40,7 @@
 //!   fails with [`SolveError::NotPositiveDefinite`].
 
 mod adapt;
+mod cholesky;
 mod cut;
 mod problem;
 mod quadrature;
@@ -51,14 +53,7 @@ pub use problem::{Problem, Region};
 
 use crate::geom::predicates::signed_area_x2;
 use crate::geom::{Point, Vertex};
-use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
-use faer::sparse::linalg::SupernodalThreshold;
-use faer::sparse::linalg::cholesky::{
-    CholeskySymbolicParams, LltRef, SymmetricOrdering, factorize_symbolic_cholesky,
-};
-use faer::sparse::{FaerError, SparseColMatRef, SymbolicSparseColMatRef};
-use faer::{Conj, MatMut, Par, Side};
+use faer::sparse::FaerError;
 use quadrature::RULE;
 
 /// The magnetic constant μ0 in H/m (CODATA 2018).
@@ -412,44 +407,7 @@ fn solve_spd(n: usize, entries: Vec<(usize, usize, f64)>, mut b: Vec<f64>) -> Re
     }
     let (col_ptr, row_idx, values) = compress(n, &entries);
     drop(entries);
-    let symbolic = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
-    let a = SparseColMatRef::new(symbolic, &values);
-
-    let params = CholeskySymbolicParams {
-        // The supernodal path calls dense kernels chosen at run time by CPU features; the
-        // simplicial one is plain scalar code, so its bits do not depend on the machine.
-        supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SIMPLICIAL,
-        ..Default::default()
-    };
-    let factor = factorize_symbolic_cholesky(symbolic, Side::Lower, SymmetricOrdering::Amd, params)
-        .map_err(SolveError::Factorisation)?;
-    let mut l_values = vec![0.0; factor.len_val()];
-    let scratch = factor
-        .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default())
-        .or(factor.solve_in_place_scratch::<f64>(1, Par::Seq));
-    let mut buffer =
-        MemBuffer::try_new(scratch).map_err(|_| SolveError::Factorisation(FaerError::OutOfMemory))?;
-    let stack = MemStack::new(&mut buffer);
-    let llt: LltRef<'_, usize, f64> = factor
-        .factorize_numeric_llt(
-            &mut l_values,
-            a,
-            Side::Lower,
-            LltRegularization::default(),
-            Par::Seq,
-            stack,
-            Default::default(),
-        )
-        .map_err(|LltError::NonPositivePivot { index }| SolveError::NotPositiveDefinite {
-            pivot: index,
-            unknowns: n,
-        })?;
-    llt.solve_in_place_with_conj(
-        Conj::No,
-        MatMut::from_column_major_slice_mut(&mut b, n, 1),
-        Par::Seq,
-        stack,
-    );
+    cholesky::Cholesky::new(n, &col_ptr, &row_idx, &values)?.solve_in_place(&mut b);
     Ok(b)
 }
 

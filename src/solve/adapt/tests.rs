@@ -78,9 +78,12 @@ fn the_patch_test_holds_on_every_mesh_of_the_loop() {
             let a = adapt(&problem, Some(&linear), &settings(2000, method, indicator), &mut ()).unwrap();
             assert_eq!((a.stats.vertices, a.stats.stop), (2000, StopReason::MaxVertices));
             assert!(a.stats.solves >= 10, "{method}/{indicator:?}: {} solves", a.stats.solves);
+            // With an exact linear solution the residual indicator is rounding noise, so which
+            // needles the loop makes turns on last bits: on one set of such meshes, faer's
+            // simplicial factorisation erred up to 3.2e-12 and the supernodal one up to 1.2e-12.
             for step in &a.stats.history {
                 let e = step.max_nodal_error.unwrap();
-                assert!(e <= 1e-12, "{method}/{indicator:?} at {} vertices: {e:e}", step.vertices);
+                assert!(e <= 1e-11, "{method}/{indicator:?} at {} vertices: {e:e}", step.vertices);
             }
         }
     }

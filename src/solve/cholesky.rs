@@ -1,0 +1,558 @@
+//! Sparse Cholesky LLᵀ, supernodal, with dense kernels that give the same bits on every x86-64
+//! machine.
+//!
+//! `faer` orders the matrix (approximate minimum degree) and finds the supernodes: runs of
+//! columns of L that share one pattern below their diagonal block, stored as dense
+//! column-major panels. The numbers are computed here, left-looking: a supernode gathers its
+//! columns of A, subtracts the products of the panels below it that reach it, and factorises
+//! its panel densely. faer has the same algorithm, but its dense kernels pick AVX2 or AVX-512
+//! code and cache-sized blocks at run time, so its sums round differently on different CPUs.
+//!
+//! # Determinism
+//! Every entry of L is built by the same sequence of operations on every machine: each dot
+//! product runs over k in increasing order as a chain of `f64::mul_add` (one rounding, the same
+//! bits whether the CPU fuses it or libm computes it), and supernodes, descendants and columns
+//! are visited in index order. The AVX2+FMA build of the same code, chosen at run time when the
+//! CPU has it, only runs four lanes of independent chains at once; it cannot change a bit. The
+//! test `the_avx2_build_gives_the_portable_bits` holds it to that.
+
+use super::SolveError;
+use faer::Side;
+use faer::sparse::linalg::SupernodalThreshold;
+use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
+use faer::sparse::linalg::cholesky::{
+    CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
+    factorize_symbolic_cholesky,
+};
+use faer::sparse::{FaerError, SymbolicSparseColMatRef};
+
+/// A numeric factor P A Pᵀ = L Lᵀ of a symmetric positive definite matrix.
+pub(super) struct Cholesky {
+    symbolic: SymbolicCholesky<usize>,
+    /// The supernodes' panels, one after another (faer's `col_ptr_for_val` layout).
+    values: Vec<f64>,
+}
+
+/// Rows and columns of the register block of [`gram`]: 8 × 4 accumulators fill eight AVX2
+/// registers, leaving the rest for the loads.
+const BLOCK_ROWS: usize = 8;
+const BLOCK_COLS: usize = 4;
+
+impl Cholesky {
+    /// Factorises the n × n matrix whose lower triangle is given in compressed columns (sorted
+    /// rows, no duplicates).
+    pub(super) fn new(
+        n: usize,
+        col_ptr: &[usize],
+        row_idx: &[usize],
+        values: &[f64],
+    ) -> Result<Self, SolveError> {
+        let pattern = SymbolicSparseColMatRef::new_checked(n, n, col_ptr, None, row_idx);
+        let params = CholeskySymbolicParams {
+            // faer's FORCE_SUPERNODAL (0) loses to the flop ratio 0 of a diagonal matrix; any
+            // negative threshold always wins.
+            supernodal_flop_ratio_threshold: SupernodalThreshold(-1.0),
+            ..Default::default()
+        };
+        let symbolic = factorize_symbolic_cholesky(pattern, Side::Lower, SymmetricOrdering::Amd, params)
+            .map_err(SolveError::Factorisation)?;
+        let mut factor = Self { symbolic, values: Vec::new() };
+        let permuted = factor.permute(n, col_ptr, row_idx, values);
+        factor.values = try_zeros(factor.supernodal().len_val())?;
+        factor
+            .factorise(&permuted)
+            .map_err(|pivot| SolveError::NotPositiveDefinite { pivot, unknowns: n })?;
+        Ok(factor)
+    }
+
+    /// Overwrites b with the solution x of A x = b.
+    pub(super) fn solve_in_place(&self, b: &mut [f64]) {
+        let (fwd, inv) = self.perm();
+        let mut y: Vec<f64> = fwd.iter().map(|&old| b[old]).collect();
+        let s = self.supernodal();
+        forward(s, &self.values, &mut y);
+        backward(s, &self.values, &mut y);
+        for (old, &new) in inv.iter().enumerate() {
+            b[old] = y[new];
+        }
+    }
+
+    fn supernodal(&self) -> &SymbolicSupernodalCholesky<usize> {
+        supernodes(&self.symbolic)
+    }
+
+    /// The ordering as (new → old, old → new); faer leaves it out when it is the identity.
+    fn perm(&self) -> (std::borrow::Cow<'_, [usize]>, std::borrow::Cow<'_, [usize]>) {
+        match self.symbolic.perm() {
+            Some(p) => {
+                let (fwd, inv) = p.arrays();
+                (fwd.into(), inv.into())
+            }
+            None => {
+                let identity: Vec<usize> = (0..self.symbolic.nrows()).collect();
+                (identity.clone().into(), identity.into())
+            }
+        }
+    }
+
+    /// The lower triangle of P A Pᵀ in compressed columns, each column's rows in the order
+    /// they arrive (the scatter into the panels does not need them sorted).
+    fn permute(&self, n: usize, col_ptr: &[usize], row_idx: &[usize], values: &[f64]) -> Lower {
+        let (_, inv) = self.perm();
+        let mut start = vec![0usize; n + 1];
+        let place = |col: usize, row: usize| {
+            let (i, j) = (inv[row], inv[col]);
+            (i.max(j), i.min(j))
+        };
+        for col in 0..n {
+            for &row in &row_idx[col_ptr[col]..col_ptr[col + 1]] {
+                start[place(col, row).1 + 1] += 1;
+            }
+        }
+        for c in 0..n {
+            start[c + 1] += start[c];
+        }
+        let mut next = start.clone();
+        let mut entries = vec![(0usize, 0.0f64); row_idx.len()];
+        for col in 0..n {
+            for k in col_ptr[col]..col_ptr[col + 1] {
+                let (i, j) = place(col, row_idx[k]);
+                entries[next[j]] = (i, values[k]);
+                next[j] += 1;
+            }
+        }
+        Lower { start, entries }
+    }
+
+    /// The numeric factorisation, compiled for the best instruction set this CPU has.
+    fn factorise(&mut self, a: &Lower) -> Result<(), usize> {
+        self.factorise_on(pulp::Arch::new(), a)
+    }
+
+    fn factorise_on(&mut self, arch: pulp::Arch, a: &Lower) -> Result<(), usize> {
+        arch.dispatch(Numeric { symbolic: supernodes(&self.symbolic), l: &mut self.values, a })
+    }
+}
+
+fn supernodes(symbolic: &SymbolicCholesky<usize>) -> &SymbolicSupernodalCholesky<usize> {
+    match symbolic.raw() {
+        SymbolicCholeskyRaw::Supernodal(s) => s,
+        SymbolicCholeskyRaw::Simplicial(_) => unreachable!("the analysis was asked for supernodes"),
+    }
+}
+
+/// A zeroed vector, or faer's out-of-memory error where the factor does not fit.
+fn try_zeros(len: usize) -> Result<Vec<f64>, SolveError> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(len).map_err(|_| SolveError::Factorisation(FaerError::OutOfMemory))?;
+    v.resize(len, 0.0);
+    Ok(v)
+}
+
+/// A lower triangle by columns: column j's (row, value) pairs are `entries[start[j]..start[j + 1]]`.
+struct Lower {
+    start: Vec<usize>,
+    entries: Vec<(usize, f64)>,
+}
+
+/// [`numeric`] as a [`pulp::WithSimd`] operation: pulp compiles it once per instruction set
+/// (every callee is `#[inline(always)]`) and runs the one this CPU has.
+struct Numeric<'a> {
+    symbolic: &'a SymbolicSupernodalCholesky<usize>,
+    l: &'a mut [f64],
+    a: &'a Lower,
+}
+
+impl pulp::WithSimd for Numeric<'_> {
+    type Output = Result<(), usize>;
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) -> Self::Output {
+        numeric(self.symbolic, self.l, self.a)
+    }
+}
+
+/// Left-looking supernodal LLᵀ into `l` (zeroed, faer's panel layout). Returns the failing
+/// pivot's (permuted) column when a pivot is not positive.
+#[inline(always)]
+fn numeric(s: &SymbolicSupernodalCholesky<usize>, l: &mut [f64], a: &Lower) -> Result<(), usize> {
+    let n = s.nrows();
+    let count = s.n_supernodes();
+    let begin = |t: usize| if t == count { n } else { s.supernode_begin()[t] };
+    let value_ptr = s.col_ptr_for_val();
+
+    // Which supernode each column is in, and for each supernode the earlier ones whose
+    // panels reach it (its descendants), ascending.
+    let mut owner = vec![0usize; n];
+    for t in 0..count {
+        owner[begin(t)..begin(t + 1)].fill(t);
+    }
+    let mut reach_start = vec![0usize; count + 1];
+    let reached_by = |visit: &mut dyn FnMut(usize, usize)| {
+        for d in 0..count {
+            let mut last = usize::MAX;
+            for &row in s.supernode(d).pattern() {
+                let t = owner[row];
+                if t != last {
+                    visit(t, d);
+                    last = t;
+                }
+            }
+        }
+    };
+    reached_by(&mut |t, _| reach_start[t + 1] += 1);
+    for t in 0..count {
+        reach_start[t + 1] += reach_start[t];
+    }
+    let mut next = reach_start.clone();
+    let mut descendants = vec![0usize; reach_start[count]];
+    reached_by(&mut |t, d| {
+        descendants[next[t]] = d;
+        next[t] += 1;
+    });
+
+    // Row of the current panel that each global row maps to.
+    let mut local = vec![usize::MAX; n];
+    let mut product = Vec::new();
+    for t in 0..count {
+        let (start, end) = (begin(t), begin(t + 1));
+        let pattern = s.supernode(t).pattern();
+        let cols = end - start;
+        let rows = cols + pattern.len();
+        for (i, &row) in pattern.iter().enumerate() {
+            local[row] = cols + i;
+        }
+        let (done, rest) = l.split_at_mut(value_ptr[t]);
+        let panel = &mut rest[..value_ptr[t + 1] - value_ptr[t]];
+        let to_local = |row: usize| if row < end { row - start } else { local[row] };
+
+        for j in start..end {
+            for &(row, value) in &a.entries[a.start[j]..a.start[j + 1]] {
+                panel[(j - start) * rows + to_local(row)] += value;
+            }
+        }
+
+        for &d in &descendants[reach_start[t]..reach_start[t + 1]] {
+            let (d_start, d_end) = (begin(d), begin(d + 1));
+            let d_pattern = s.supernode(d).pattern();
+            let d_cols = d_end - d_start;
+            let d_rows = d_cols + d_pattern.len();
+            let d_panel = &done[value_ptr[d]..value_ptr[d + 1]];
+            let first = d_pattern.partition_point(|&r| r < start);
+            let inside = d_pattern[first..].partition_point(|&r| r < end);
+            let below = &d_pattern[first..];
+            let m = below.len();
+            product.clear();
+            product.resize(m * inside, 0.0);
+            gram(d_panel, d_rows, d_cols + first, m, inside, d_cols, &mut product);
+            for (jj, &col) in below[..inside].iter().enumerate() {
+                let target = &mut panel[(col - start) * rows..][..rows];
+                for (i, &row) in below.iter().enumerate().skip(jj) {
+                    target[to_local(row)] -= product[jj * m + i];
+                }
+            }
+        }
+
+        factor_panel(panel, rows, cols, &mut product).map_err(|j| start + j)?;
+        for &row in pattern {
+            local[row] = usize::MAX;
+        }
+    }
+    Ok(())
+}
+
+/// Dense LLᵀ of a panel's diagonal block and the solve of the rows below it, in place, by
+/// blocks of [`BLOCK_COLS`] columns: the block first takes the product of every earlier
+/// column ([`gram`]), then is finished column by column. Returns the failing column.
+#[inline(always)]
+fn factor_panel(panel: &mut [f64], rows: usize, cols: usize, scratch: &mut Vec<f64>) -> Result<(), usize> {
+    for j0 in (0..cols).step_by(BLOCK_COLS) {
+        let width = BLOCK_COLS.min(cols - j0);
+        let m = rows - j0;
+        if j0 > 0 {
+            scratch.clear();
+            scratch.resize(m * width, 0.0);
+            gram(panel, rows, j0, m, width, j0, scratch);
+            for c in 0..width {
+                let column = &mut panel[(j0 + c) * rows + j0..][..m];
+                for (x, &p) in column.iter_mut().zip(&scratch[c * m..][..m]).skip(c) {
+                    *x -= p;
+                }
+            }
+        }
+        for j in j0..j0 + width {
+            let (left, right) = panel.split_at_mut(j * rows);
+            let column = &mut right[..rows];
+            for k in j0..j {
+                let earlier = &left[k * rows..][..rows];
+                let factor = -earlier[j];
+                for (x, &e) in column[j..].iter_mut().zip(&earlier[j..]) {
+                    *x = e.mul_add(factor, *x);
+                }
+            }
+            let pivot = column[j];
+            if !(pivot > 0.0 && pivot.is_finite()) {
+                return Err(j);
+            }
+            let diagonal = pivot.sqrt();
+            column[j] = diagonal;
+            for x in &mut column[j + 1..] {
+                *x /= diagonal;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// out[jj·m + i] = Σ_{k < depth} P[first + i, k] · P[first + jj, k] for jj < width and
+/// jj ≤ i < m, P being the column-major panel with `rows` rows; some entries above the
+/// diagonal are written too, and are not read. Each entry is one `mul_add` chain over k in
+/// increasing order, whichever block computes it.
+#[inline(always)]
+fn gram(p: &[f64], rows: usize, first: usize, m: usize, width: usize, depth: usize, out: &mut [f64]) {
+    let panel = Panel { p, rows, first, m, depth };
+    for j0 in (0..width).step_by(BLOCK_COLS) {
+        match width - j0 {
+            1 => panel.columns::<1>(j0, out),
+            2 => panel.columns::<2>(j0, out),
+            3 => panel.columns::<3>(j0, out),
+            _ => panel.columns::<BLOCK_COLS>(j0, out),
+        }
+    }
+}
+
+/// The arguments of [`gram`].
+struct Panel<'a> {
+    p: &'a [f64],
+    rows: usize,
+    first: usize,
+    m: usize,
+    depth: usize,
+}
+
+impl Panel<'_> {
+    /// [`gram`]'s columns j0..j0 + C, rows j0..m: [`BLOCK_ROWS`] rows at a time in registers,
+    /// then the rows left over one at a time.
+    #[inline(always)]
+    fn columns<const C: usize>(&self, j0: usize, out: &mut [f64]) {
+        let Self { p, rows, first, m, depth } = *self;
+        let mut i0 = j0;
+        while i0 + BLOCK_ROWS <= m {
+            let mut acc = [[0.0f64; BLOCK_ROWS]; C];
+            for k in 0..depth {
+                let column = &p[k * rows + first..];
+                let x: &[f64; BLOCK_ROWS] = column[i0..i0 + BLOCK_ROWS].try_into().expect("a full block");
+                for (c, acc) in acc.iter_mut().enumerate() {
+                    let y = column[j0 + c];
+                    for (a, &x) in acc.iter_mut().zip(x) {
+                        *a = x.mul_add(y, *a);
+                    }
+                }
+            }
+            for (c, acc) in acc.iter().enumerate() {
+                out[(j0 + c) * m + i0..][..BLOCK_ROWS].copy_from_slice(acc);
+            }
+            i0 += BLOCK_ROWS;
+        }
+        for i in i0..m {
+            let mut acc = [0.0f64; C];
+            for k in 0..depth {
+                let column = &p[k * rows + first..];
+                let x = column[i];
+                for (c, a) in acc.iter_mut().enumerate() {
+                    *a = x.mul_add(column[j0 + c], *a);
+                }
+            }
+            for (c, &a) in acc.iter().enumerate() {
+                out[(j0 + c) * m + i] = a;
+            }
+        }
+    }
+}
+
+/// L y = b in place.
+fn forward(s: &SymbolicSupernodalCholesky<usize>, l: &[f64], y: &mut [f64]) {
+    let value_ptr = s.col_ptr_for_val();
+    for t in 0..s.n_supernodes() {
+        let start = s.supernode_begin()[t];
+        let cols = s.supernode_end()[t] - start;
+        let pattern = s.supernode(t).pattern();
+        let rows = cols + pattern.len();
+        let panel = &l[value_ptr[t]..value_ptr[t + 1]];
+        for jj in 0..cols {
+            let column = &panel[jj * rows..][..rows];
+            let x = y[start + jj] / column[jj];
+            y[start + jj] = x;
+            for i in jj + 1..cols {
+                y[start + i] = column[i].mul_add(-x, y[start + i]);
+            }
+            for (&row, &v) in pattern.iter().zip(&column[cols..]) {
+                y[row] = v.mul_add(-x, y[row]);
+            }
+        }
+    }
+}
+
+/// Lᵀ x = y in place.
+fn backward(s: &SymbolicSupernodalCholesky<usize>, l: &[f64], y: &mut [f64]) {
+    let value_ptr = s.col_ptr_for_val();
+    for t in (0..s.n_supernodes()).rev() {
+        let start = s.supernode_begin()[t];
+        let cols = s.supernode_end()[t] - start;
+        let pattern = s.supernode(t).pattern();
+        let rows = cols + pattern.len();
+        let panel = &l[value_ptr[t]..value_ptr[t + 1]];
+        for jj in (0..cols).rev() {
+            let column = &panel[jj * rows..][..rows];
+            let mut sum = y[start + jj];
+            for (&row, &v) in pattern.iter().zip(&column[cols..]) {
+                sum = v.mul_add(-y[row], sum);
+            }
+            for i in jj + 1..cols {
+                sum = column[i].mul_add(-y[start + i], sum);
+            }
+            y[start + jj] = sum / column[jj];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// A lower triangle in compressed columns: column pointers, row indices, values.
+    type Columns = (Vec<usize>, Vec<usize>, Vec<f64>);
+
+    /// A sparse SPD matrix: a weighted graph Laplacian on random edges plus a positive
+    /// diagonal, as compressed lower columns.
+    fn laplacian(
+        n: usize,
+        edges: &[(usize, usize, f64)],
+        shift: &[f64],
+    ) -> (Vec<usize>, Vec<usize>, Vec<f64>) {
+        let mut dense = vec![0.0; n * n];
+        for (i, &s) in shift.iter().enumerate().take(n) {
+            dense[i * n + i] += s;
+        }
+        for &(a, b, w) in edges {
+            let (a, b) = (a % n, b % n);
+            if a == b {
+                continue;
+            }
+            dense[a * n + a] += w;
+            dense[b * n + b] += w;
+            dense[a * n + b] -= w;
+            dense[b * n + a] -= w;
+        }
+        let (mut col_ptr, mut row_idx, mut values) = (vec![0], Vec::new(), Vec::new());
+        for j in 0..n {
+            for i in j..n {
+                if dense[j * n + i] != 0.0 || i == j {
+                    row_idx.push(i);
+                    values.push(dense[j * n + i]);
+                }
+            }
+            col_ptr.push(row_idx.len());
+        }
+        (col_ptr, row_idx, values)
+    }
+
+    fn multiply(
+        n: usize,
+        (col_ptr, row_idx, values): &(Vec<usize>, Vec<usize>, Vec<f64>),
+        x: &[f64],
+    ) -> Vec<f64> {
+        let mut y = vec![0.0; n];
+        for j in 0..n {
+            for k in col_ptr[j]..col_ptr[j + 1] {
+                let i = row_idx[k];
+                y[i] += values[k] * x[j];
+                if i != j {
+                    y[j] += values[k] * x[i];
+                }
+            }
+        }
+        y
+    }
+
+    /// A 2-D grid Laplacian, big enough for supernodes of many columns.
+    fn grid(side: usize) -> (usize, Columns) {
+        let n = side * side;
+        let mut edges = Vec::new();
+        for r in 0..side {
+            for c in 0..side {
+                let v = r * side + c;
+                if c + 1 < side {
+                    edges.push((v, v + 1, 1.0 + (v % 7) as f64 * 0.1));
+                }
+                if r + 1 < side {
+                    edges.push((v, v + side, 1.0 + (v % 5) as f64 * 0.2));
+                }
+            }
+        }
+        let shift: Vec<f64> = (0..n).map(|v| if v % side == 0 { 1.0 } else { 0.0 }).collect();
+        (n, laplacian(n, &edges, &shift))
+    }
+
+    proptest! {
+        #[test]
+        fn the_solution_satisfies_the_system(
+            n in 1usize..60,
+            edges in prop::collection::vec((0usize..60, 0usize..60, 0.1f64..10.0), 0..200),
+            shift in prop::collection::vec(0.01f64..5.0, 60),
+            b in prop::collection::vec(-10.0f64..10.0, 60),
+        ) {
+            let a = laplacian(n, &edges, &shift);
+            let factor = Cholesky::new(n, &a.0, &a.1, &a.2).unwrap();
+            let mut x = b[..n].to_vec();
+            factor.solve_in_place(&mut x);
+            let ax = multiply(n, &a, &x);
+            let scale = a.2.iter().fold(0.0f64, |m, v| m.max(v.abs())) * x.iter().fold(1.0f64, |m, v| m.max(v.abs()));
+            for (got, want) in ax.iter().zip(&b[..n]) {
+                prop_assert!((got - want).abs() <= 1e-10 * scale, "{got} vs {want}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_grid_laplacian_is_solved_to_rounding() {
+        let (n, a) = grid(40);
+        let factor = Cholesky::new(n, &a.0, &a.1, &a.2).unwrap();
+        let widest = (0..factor.supernodal().n_supernodes())
+            .map(|t| factor.supernodal().supernode_end()[t] - factor.supernodal().supernode_begin()[t])
+            .max();
+        assert!(widest > Some(2 * BLOCK_COLS), "the blocked paths are exercised: {widest:?}");
+        let want: Vec<f64> = (0..n).map(|v| (v as f64 * 0.37).sin()).collect();
+        let mut x = multiply(n, &a, &want);
+        factor.solve_in_place(&mut x);
+        for (got, want) in x.iter().zip(&want) {
+            assert!((got - want).abs() < 1e-9, "{got} vs {want}");
+        }
+    }
+
+    #[test]
+    fn a_matrix_that_is_not_positive_definite_names_its_pivot() {
+        // [[1, 2], [2, 1]] has eigenvalues 3 and −1.
+        let err = Cholesky::new(2, &[0, 2, 3], &[0, 1, 1], &[1.0, 2.0, 1.0]).err().unwrap();
+        assert!(matches!(err, SolveError::NotPositiveDefinite { unknowns: 2, .. }), "{err:?}");
+    }
+
+    #[test]
+    fn the_avx2_build_gives_the_portable_bits() {
+        let arch = pulp::Arch::new();
+        if matches!(arch, pulp::Arch::Scalar) {
+            return;
+        }
+        let (n, a) = grid(30);
+        let mut factors = [(); 2].map(|_| Cholesky::new(n, &a.0, &a.1, &a.2).unwrap());
+        let lower = factors[0].permute(n, &a.0, &a.1, &a.2);
+        for (factor, arch) in factors.iter_mut().zip([pulp::Arch::Scalar, arch]) {
+            factor.values.fill(0.0);
+            factor.factorise_on(arch, &lower).unwrap();
+        }
+        let bits = |f: &Cholesky| f.values.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&factors[0]), bits(&factors[1]));
+        assert!(factors[0].values.iter().any(|&v| v != 0.0));
+    }
+}
