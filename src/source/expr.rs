@@ -103,6 +103,86 @@ enum Op {
     Atan2,
     Max(u32),
     Min(u32),
+    /// `v + c`, `v − c`, `v · c`, `v / c`, `c − v` and `c / v` for the value v on top and a
+    /// constant c: one operation where the program pushed the constant and then combined it
+    /// ([`fuse`]). `c + v` and `c · v` become `v + c` and `v · c`, the same bits (IEEE
+    /// addition and multiplication commute, and a constant is never NaN).
+    AddConst(f64),
+    SubConst(f64),
+    MulConst(f64),
+    DivConst(f64),
+    ConstSub(f64),
+    ConstDiv(f64),
+}
+
+impl Op {
+    /// How many values it takes off the stack (each operation pushes one).
+    fn pops(self) -> usize {
+        match self {
+            Op::Const(_) | Op::X | Op::Y => 0,
+            Op::Add | Op::Sub | Op::Mul | Op::Div | Op::Rem | Op::Pow | Op::Atan2 => 2,
+            Op::Max(n) | Op::Min(n) => n as usize,
+            _ => 1,
+        }
+    }
+
+    /// The operation that combines the top with constant `c` on its right (`right`) or left.
+    fn with_const(self, c: f64, right: bool) -> Option<Self> {
+        Some(match (self, right) {
+            (Op::Add, _) => Op::AddConst(c),
+            (Op::Mul, _) => Op::MulConst(c),
+            (Op::Sub, true) => Op::SubConst(c),
+            (Op::Div, true) => Op::DivConst(c),
+            (Op::Sub, false) => Op::ConstSub(c),
+            (Op::Div, false) => Op::ConstDiv(c),
+            _ => return None,
+        })
+    }
+}
+
+/// `program` with each constant operand of `+ − · /` folded into its operator, on either
+/// side: Franke's function goes from 78 operations to 54, each a pass over a batch's lanes,
+/// and every value is computed by the same operation as before.
+fn fuse(program: Vec<Op>) -> Vec<Op> {
+    let mut out: Vec<Op> = Vec::with_capacity(program.len());
+    // Where in `out` each value on the stack begins (its operand's first operation).
+    let mut starts: Vec<usize> = Vec::new();
+    for op in program {
+        let pops = op.pops();
+        let at = starts.len() - pops;
+        let start = starts.get(at).copied().unwrap_or(out.len());
+        if pops == 2 {
+            let (left, right) = (starts[at], starts[at + 1]);
+            let constant = |i: usize| match out[i] {
+                Op::Const(c) => Some(c),
+                _ => None,
+            };
+            // The right operand is a lone constant, or the left one is (a removal that moves
+            // only the right operand, at most MAX_DEPTH levels deep).
+            let fused = if right + 1 == out.len() {
+                constant(right).and_then(|c| op.with_const(c, true)).map(|f| (right, f))
+            } else {
+                None
+            };
+            let fused = fused.or_else(|| {
+                (left + 1 == right)
+                    .then(|| constant(left).and_then(|c| op.with_const(c, false)))
+                    .flatten()
+                    .map(|f| (left, f))
+            });
+            if let Some((removed, f)) = fused {
+                out.remove(removed);
+                out.push(f);
+                starts.truncate(at);
+                starts.push(left);
+                continue;
+            }
+        }
+        out.push(op);
+        starts.truncate(at);
+        starts.push(start);
+    }
+    out
 }
 
 /// A parsed expression F(x, y).
@@ -215,7 +295,7 @@ impl Expression {
             };
             ExprError { column: column(index), kind: ExprErrorKind::Unbalanced(what) }
         })?;
-        let program = compile(&rpn).map_err(|kind| ExprError { column: 1, kind })?;
+        let program = fuse(compile(&rpn).map_err(|kind| ExprError { column: 1, kind })?);
         let scalar = closures::build(&program).map(Arc::from);
         Ok(Self { text: text.to_owned(), program, scalar })
     }
@@ -257,6 +337,12 @@ impl Expression {
                 Op::Neg => stack[sp - 1] = -stack[sp - 1],
                 Op::Square => stack[sp - 1] *= stack[sp - 1],
                 Op::Call(f, _) => stack[sp - 1] = f(stack[sp - 1]),
+                Op::AddConst(c) => stack[sp - 1] += c,
+                Op::SubConst(c) => stack[sp - 1] -= c,
+                Op::MulConst(c) => stack[sp - 1] *= c,
+                Op::DivConst(c) => stack[sp - 1] /= c,
+                Op::ConstSub(c) => stack[sp - 1] = c - stack[sp - 1],
+                Op::ConstDiv(c) => stack[sp - 1] = c / stack[sp - 1],
                 Op::Add | Op::Sub | Op::Mul | Op::Div | Op::Rem | Op::Pow | Op::Atan2 => {
                     sp -= 1;
                     let (l, r) = (stack[sp - 1], stack[sp]);
@@ -344,6 +430,12 @@ impl Expression {
                 }
                 Op::Neg => stack[sp - 1][..n].iter_mut().for_each(|v| *v = -*v),
                 Op::Square => stack[sp - 1][..n].iter_mut().for_each(|v| *v *= *v),
+                Op::AddConst(c) => stack[sp - 1][..n].iter_mut().for_each(|v| *v += c),
+                Op::SubConst(c) => stack[sp - 1][..n].iter_mut().for_each(|v| *v -= c),
+                Op::MulConst(c) => stack[sp - 1][..n].iter_mut().for_each(|v| *v *= c),
+                Op::DivConst(c) => stack[sp - 1][..n].iter_mut().for_each(|v| *v /= c),
+                Op::ConstSub(c) => stack[sp - 1][..n].iter_mut().for_each(|v| *v = c - *v),
+                Op::ConstDiv(c) => stack[sp - 1][..n].iter_mut().for_each(|v| *v = c / *v),
                 Op::Call(_, Some(lanes)) => lanes(&mut stack[sp - 1][..n]),
                 Op::Call(f, None) => stack[sp - 1][..n].iter_mut().for_each(|v| *v = f(*v)),
                 Op::Add | Op::Sub | Op::Mul | Op::Div | Op::Rem | Op::Pow | Op::Atan2 => {
@@ -640,7 +732,49 @@ mod tests {
         })
     }
 
+    /// `text` compiled without [`fuse`] and with it, both run by the stack program.
+    fn unfused_and_fused(text: &str) -> [Expression; 2] {
+        let rpn = to_rpn(&tokenize(text).unwrap()).unwrap();
+        let unfused = compile(&rpn).unwrap();
+        [unfused.clone(), fuse(unfused)].map(|program| Expression {
+            text: text.to_owned(),
+            program,
+            scalar: None,
+        })
+    }
+
+    #[test]
+    fn franke_loses_its_constants_to_fusing() {
+        let franke = "0.75*exp(-((9*x-2)^2 + (9*y-2)^2)/4) + 0.75*exp(-((9*x+1)^2)/49 - (9*y+1)/10) \
+                      + 0.5*exp(-((9*x-7)^2 + (9*y-3)^2)/4) - 0.2*exp(-((9*x-4)^2) - (9*y-7)^2)";
+        let [unfused, fused] = unfused_and_fused(franke);
+        let consts = |e: &Expression| e.program.iter().filter(|op| matches!(op, Op::Const(_))).count();
+        assert_eq!((unfused.program.len(), consts(&unfused)), (78, 24));
+        assert_eq!((fused.program.len(), consts(&fused)), (54, 0));
+        let p = Point::new(0.3, 0.7);
+        assert_eq!(unfused.eval(p).to_bits(), fused.eval(p).to_bits());
+    }
+
     proptest! {
+        #[test]
+        fn fused_programs_give_the_unfused_bits(
+            text in expression(),
+            points in prop::collection::vec((-3.0..3.0f64, -3.0..3.0f64), 1..40),
+        ) {
+            let [unfused, fused] = unfused_and_fused(&text);
+            let points: Vec<Point> = points.into_iter().map(|(x, y)| Point::new(x, y)).collect();
+            let mut batches = [vec![0.0; points.len()], vec![0.0; points.len()]];
+            for (e, out) in [&unfused, &fused].into_iter().zip(&mut batches) {
+                e.eval_many(&points, out);
+            }
+            for (i, p) in points.iter().enumerate() {
+                let (a, b) = (unfused.eval(*p), fused.eval(*p));
+                prop_assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()), "{text} at {p:?}: {a} vs {b}");
+                let (a, b) = (batches[0][i], batches[1][i]);
+                prop_assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()), "{text} batched at {p:?}: {a} vs {b}");
+            }
+        }
+
         #[test]
         fn compiled_program_agrees_with_meval(text in expression(), x in -3.0..3.0f64, y in -3.0..3.0f64) {
             let ours = Expression::parse(&text).unwrap().eval_xy(x, y);
