@@ -26,9 +26,15 @@ use faer::sparse::linalg::cholesky::{
 };
 use faer::sparse::{FaerError, SymbolicSparseColMatRef};
 
+/// A lower triangle in compressed columns: column pointers, row indices, values.
+pub(super) type Compressed = (Vec<usize>, Vec<usize>, Vec<f64>);
+
 /// A numeric factor P A Pᵀ = L Lᵀ of a symmetric positive definite matrix.
 pub(super) struct Cholesky {
     symbolic: SymbolicCholesky<usize>,
+    /// The ordering, new → old and old → new.
+    fwd: Vec<usize>,
+    inv: Vec<usize>,
     /// The supernodes' panels, one after another (faer's `col_ptr_for_val` layout).
     values: Vec<f64>,
 }
@@ -56,8 +62,16 @@ impl Cholesky {
         };
         let symbolic = factorize_symbolic_cholesky(pattern, Side::Lower, SymmetricOrdering::Amd, params)
             .map_err(SolveError::Factorisation)?;
-        let mut factor = Self { symbolic, values: Vec::new() };
-        let permuted = factor.permute(n, col_ptr, row_idx, values);
+        let (fwd, inv) = match symbolic.perm() {
+            Some(p) => {
+                let (fwd, inv) = p.arrays();
+                (fwd.to_vec(), inv.to_vec())
+            }
+            // faer leaves the ordering out when it is the identity.
+            None => ((0..n).collect(), (0..n).collect()),
+        };
+        let mut factor = Self { symbolic, fwd, inv, values: Vec::new() };
+        let permuted = factor.permute(col_ptr, row_idx, values);
         factor.values = try_zeros(factor.supernodal().len_val())?;
         factor
             .factorise(&permuted)
@@ -67,12 +81,11 @@ impl Cholesky {
 
     /// Overwrites b with the solution x of A x = b.
     pub(super) fn solve_in_place(&self, b: &mut [f64]) {
-        let (fwd, inv) = self.perm();
-        let mut y: Vec<f64> = fwd.iter().map(|&old| b[old]).collect();
+        let mut y: Vec<f64> = self.fwd.iter().map(|&old| b[old]).collect();
         let s = self.supernodal();
         forward(s, &self.values, &mut y);
         backward(s, &self.values, &mut y);
-        for (old, &new) in inv.iter().enumerate() {
+        for (old, &new) in self.inv.iter().enumerate() {
             b[old] = y[new];
         }
     }
@@ -81,55 +94,24 @@ impl Cholesky {
         supernodes(&self.symbolic)
     }
 
-    /// The ordering as (new → old, old → new); faer leaves it out when it is the identity.
-    fn perm(&self) -> (std::borrow::Cow<'_, [usize]>, std::borrow::Cow<'_, [usize]>) {
-        match self.symbolic.perm() {
-            Some(p) => {
-                let (fwd, inv) = p.arrays();
-                (fwd.into(), inv.into())
-            }
-            None => {
-                let identity: Vec<usize> = (0..self.symbolic.nrows()).collect();
-                (identity.clone().into(), identity.into())
-            }
-        }
-    }
-
-    /// The lower triangle of P A Pᵀ in compressed columns, each column's rows in the order
-    /// they arrive (the scatter into the panels does not need them sorted).
-    fn permute(&self, n: usize, col_ptr: &[usize], row_idx: &[usize], values: &[f64]) -> Lower {
-        let (_, inv) = self.perm();
-        let mut start = vec![0usize; n + 1];
-        let place = |col: usize, row: usize| {
-            let (i, j) = (inv[row], inv[col]);
-            (i.max(j), i.min(j))
-        };
-        for col in 0..n {
-            for &row in &row_idx[col_ptr[col]..col_ptr[col + 1]] {
-                start[place(col, row).1 + 1] += 1;
-            }
-        }
-        for c in 0..n {
-            start[c + 1] += start[c];
-        }
-        let mut next = start.clone();
-        let mut entries = vec![(0usize, 0.0f64); row_idx.len()];
-        for col in 0..n {
+    /// The lower triangle of P A Pᵀ, compressed as A's was.
+    fn permute(&self, col_ptr: &[usize], row_idx: &[usize], values: &[f64]) -> Compressed {
+        let mut entries = Vec::with_capacity(row_idx.len());
+        for col in 0..self.inv.len() {
             for k in col_ptr[col]..col_ptr[col + 1] {
-                let (i, j) = place(col, row_idx[k]);
-                entries[next[j]] = (i, values[k]);
-                next[j] += 1;
+                let (i, j) = (self.inv[row_idx[k]], self.inv[col]);
+                entries.push((i.min(j), i.max(j), values[k]));
             }
         }
-        Lower { start, entries }
+        super::compress(self.inv.len(), &entries)
     }
 
     /// The numeric factorisation, compiled for the best instruction set this CPU has.
-    fn factorise(&mut self, a: &Lower) -> Result<(), usize> {
+    fn factorise(&mut self, a: &Compressed) -> Result<(), usize> {
         self.factorise_on(pulp::Arch::new(), a)
     }
 
-    fn factorise_on(&mut self, arch: pulp::Arch, a: &Lower) -> Result<(), usize> {
+    fn factorise_on(&mut self, arch: pulp::Arch, a: &Compressed) -> Result<(), usize> {
         arch.dispatch(Numeric { symbolic: supernodes(&self.symbolic), l: &mut self.values, a })
     }
 }
@@ -149,10 +131,34 @@ fn try_zeros(len: usize) -> Result<Vec<f64>, SolveError> {
     Ok(v)
 }
 
-/// A lower triangle by columns: column j's (row, value) pairs are `entries[start[j]..start[j + 1]]`.
-struct Lower {
-    start: Vec<usize>,
-    entries: Vec<(usize, f64)>,
+/// Supernode t of the factor: columns `start..start + cols`, one dense column-major panel of
+/// `cols + pattern.len()` rows in `values` (its diagonal block, then its pattern's rows).
+struct Node<'a> {
+    start: usize,
+    cols: usize,
+    pattern: &'a [usize],
+    values: std::ops::Range<usize>,
+}
+
+impl<'a> Node<'a> {
+    fn of(s: &'a SymbolicSupernodalCholesky<usize>, t: usize) -> Self {
+        let start = s.supernode_begin()[t];
+        let value_ptr = s.col_ptr_for_val();
+        Self {
+            start,
+            cols: s.supernode_end()[t] - start,
+            pattern: s.supernode(t).pattern(),
+            values: value_ptr[t]..value_ptr[t + 1],
+        }
+    }
+
+    fn end(&self) -> usize {
+        self.start + self.cols
+    }
+
+    fn rows(&self) -> usize {
+        self.cols + self.pattern.len()
+    }
 }
 
 /// [`numeric`] as a [`pulp::WithSimd`] operation: pulp compiles it once per instruction set
@@ -160,7 +166,7 @@ struct Lower {
 struct Numeric<'a> {
     symbolic: &'a SymbolicSupernodalCholesky<usize>,
     l: &'a mut [f64],
-    a: &'a Lower,
+    a: &'a Compressed,
 }
 
 impl pulp::WithSimd for Numeric<'_> {
@@ -175,17 +181,16 @@ impl pulp::WithSimd for Numeric<'_> {
 /// Left-looking supernodal LLᵀ into `l` (zeroed, faer's panel layout). Returns the failing
 /// pivot's (permuted) column when a pivot is not positive.
 #[inline(always)]
-fn numeric(s: &SymbolicSupernodalCholesky<usize>, l: &mut [f64], a: &Lower) -> Result<(), usize> {
+fn numeric(s: &SymbolicSupernodalCholesky<usize>, l: &mut [f64], a: &Compressed) -> Result<(), usize> {
     let n = s.nrows();
     let count = s.n_supernodes();
-    let begin = |t: usize| if t == count { n } else { s.supernode_begin()[t] };
-    let value_ptr = s.col_ptr_for_val();
 
     // Which supernode each column is in, and for each supernode the earlier ones whose
     // panels reach it (its descendants), ascending.
     let mut owner = vec![0usize; n];
     for t in 0..count {
-        owner[begin(t)..begin(t + 1)].fill(t);
+        let node = Node::of(s, t);
+        owner[node.start..node.end()].fill(t);
     }
     let mut reach_start = vec![0usize; count + 1];
     let reached_by = |visit: &mut dyn FnMut(usize, usize)| {
@@ -215,36 +220,34 @@ fn numeric(s: &SymbolicSupernodalCholesky<usize>, l: &mut [f64], a: &Lower) -> R
     let mut local = vec![usize::MAX; n];
     let mut product = Vec::new();
     for t in 0..count {
-        let (start, end) = (begin(t), begin(t + 1));
-        let pattern = s.supernode(t).pattern();
-        let cols = end - start;
-        let rows = cols + pattern.len();
-        for (i, &row) in pattern.iter().enumerate() {
+        let node = Node::of(s, t);
+        let (start, end, cols, rows) = (node.start, node.end(), node.cols, node.rows());
+        for (i, &row) in node.pattern.iter().enumerate() {
             local[row] = cols + i;
         }
-        let (done, rest) = l.split_at_mut(value_ptr[t]);
-        let panel = &mut rest[..value_ptr[t + 1] - value_ptr[t]];
+        let (done, rest) = l.split_at_mut(node.values.start);
+        let panel = &mut rest[..node.values.len()];
         let to_local = |row: usize| if row < end { row - start } else { local[row] };
 
+        let (col_ptr, row_idx, values) = a;
         for j in start..end {
-            for &(row, value) in &a.entries[a.start[j]..a.start[j + 1]] {
-                panel[(j - start) * rows + to_local(row)] += value;
+            for k in col_ptr[j]..col_ptr[j + 1] {
+                panel[(j - start) * rows + to_local(row_idx[k])] += values[k];
             }
         }
 
         for &d in &descendants[reach_start[t]..reach_start[t + 1]] {
-            let (d_start, d_end) = (begin(d), begin(d + 1));
-            let d_pattern = s.supernode(d).pattern();
-            let d_cols = d_end - d_start;
-            let d_rows = d_cols + d_pattern.len();
-            let d_panel = &done[value_ptr[d]..value_ptr[d + 1]];
-            let first = d_pattern.partition_point(|&r| r < start);
-            let inside = d_pattern[first..].partition_point(|&r| r < end);
-            let below = &d_pattern[first..];
+            let d = Node::of(s, d);
+            let d_panel = &done[d.values.clone()];
+            let first = d.pattern.partition_point(|&r| r < start);
+            let inside = d.pattern[first..].partition_point(|&r| r < end);
+            let below = &d.pattern[first..];
             let m = below.len();
-            product.clear();
-            product.resize(m * inside, 0.0);
-            gram(d_panel, d_rows, d_cols + first, m, inside, d_cols, &mut product);
+            // Every entry that the scatter reads, gram writes: no need to clear.
+            if product.len() < m * inside {
+                product.resize(m * inside, 0.0);
+            }
+            gram(d_panel, d.rows(), d.cols + first, m, inside, d.cols, &mut product);
             for (jj, &col) in below[..inside].iter().enumerate() {
                 let target = &mut panel[(col - start) * rows..][..rows];
                 for (i, &row) in below.iter().enumerate().skip(jj) {
@@ -254,7 +257,7 @@ fn numeric(s: &SymbolicSupernodalCholesky<usize>, l: &mut [f64], a: &Lower) -> R
         }
 
         factor_panel(panel, rows, cols, &mut product).map_err(|j| start + j)?;
-        for &row in pattern {
+        for &row in node.pattern {
             local[row] = usize::MAX;
         }
     }
@@ -270,8 +273,9 @@ fn factor_panel(panel: &mut [f64], rows: usize, cols: usize, scratch: &mut Vec<f
         let width = BLOCK_COLS.min(cols - j0);
         let m = rows - j0;
         if j0 > 0 {
-            scratch.clear();
-            scratch.resize(m * width, 0.0);
+            if scratch.len() < m * width {
+                scratch.resize(m * width, 0.0);
+            }
             gram(panel, rows, j0, m, width, j0, scratch);
             for c in 0..width {
                 let column = &mut panel[(j0 + c) * rows + j0..][..m];
@@ -372,13 +376,10 @@ impl Panel<'_> {
 
 /// L y = b in place.
 fn forward(s: &SymbolicSupernodalCholesky<usize>, l: &[f64], y: &mut [f64]) {
-    let value_ptr = s.col_ptr_for_val();
     for t in 0..s.n_supernodes() {
-        let start = s.supernode_begin()[t];
-        let cols = s.supernode_end()[t] - start;
-        let pattern = s.supernode(t).pattern();
+        let Node { start, cols, pattern, values } = Node::of(s, t);
         let rows = cols + pattern.len();
-        let panel = &l[value_ptr[t]..value_ptr[t + 1]];
+        let panel = &l[values];
         for jj in 0..cols {
             let column = &panel[jj * rows..][..rows];
             let x = y[start + jj] / column[jj];
@@ -395,13 +396,10 @@ fn forward(s: &SymbolicSupernodalCholesky<usize>, l: &[f64], y: &mut [f64]) {
 
 /// Lᵀ x = y in place.
 fn backward(s: &SymbolicSupernodalCholesky<usize>, l: &[f64], y: &mut [f64]) {
-    let value_ptr = s.col_ptr_for_val();
     for t in (0..s.n_supernodes()).rev() {
-        let start = s.supernode_begin()[t];
-        let cols = s.supernode_end()[t] - start;
-        let pattern = s.supernode(t).pattern();
+        let Node { start, cols, pattern, values } = Node::of(s, t);
         let rows = cols + pattern.len();
-        let panel = &l[value_ptr[t]..value_ptr[t + 1]];
+        let panel = &l[values];
         for jj in (0..cols).rev() {
             let column = &panel[jj * rows..][..rows];
             let mut sum = y[start + jj];
@@ -420,9 +418,6 @@ fn backward(s: &SymbolicSupernodalCholesky<usize>, l: &[f64], y: &mut [f64]) {
 mod tests {
     use super::*;
     use proptest::prelude::*;
-
-    /// A lower triangle in compressed columns: column pointers, row indices, values.
-    type Columns = (Vec<usize>, Vec<usize>, Vec<f64>);
 
     /// A sparse SPD matrix: a weighted graph Laplacian on random edges plus a positive
     /// diagonal, as compressed lower columns.
@@ -477,7 +472,7 @@ mod tests {
     }
 
     /// A 2-D grid Laplacian, big enough for supernodes of many columns.
-    fn grid(side: usize) -> (usize, Columns) {
+    fn grid(side: usize) -> (usize, Compressed) {
         let n = side * side;
         let mut edges = Vec::new();
         for r in 0..side {
@@ -532,7 +527,7 @@ mod tests {
     }
 
     #[test]
-    fn a_matrix_that_is_not_positive_definite_names_its_pivot() {
+    fn a_matrix_that_is_not_positive_definite_is_refused() {
         // [[1, 2], [2, 1]] has eigenvalues 3 and −1.
         let err = Cholesky::new(2, &[0, 2, 3], &[0, 1, 1], &[1.0, 2.0, 1.0]).err().unwrap();
         assert!(matches!(err, SolveError::NotPositiveDefinite { unknowns: 2, .. }), "{err:?}");
@@ -546,7 +541,7 @@ mod tests {
         }
         let (n, a) = grid(30);
         let mut factors = [(); 2].map(|_| Cholesky::new(n, &a.0, &a.1, &a.2).unwrap());
-        let lower = factors[0].permute(n, &a.0, &a.1, &a.2);
+        let lower = factors[0].permute(&a.0, &a.1, &a.2);
         for (factor, arch) in factors.iter_mut().zip([pulp::Arch::Scalar, arch]) {
             factor.values.fill(0.0);
             factor.factorise_on(arch, &lower).unwrap();

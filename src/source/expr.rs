@@ -138,6 +138,20 @@ impl Op {
             _ => return None,
         })
     }
+
+    /// The inverse of [`Op::with_const`]: the plain operation, the constant, and whether it
+    /// stands on the right.
+    fn split_const(self) -> Option<(Self, f64, bool)> {
+        Some(match self {
+            Op::AddConst(c) => (Op::Add, c, true),
+            Op::SubConst(c) => (Op::Sub, c, true),
+            Op::MulConst(c) => (Op::Mul, c, true),
+            Op::DivConst(c) => (Op::Div, c, true),
+            Op::ConstSub(c) => (Op::Sub, c, false),
+            Op::ConstDiv(c) => (Op::Div, c, false),
+            _ => return None,
+        })
+    }
 }
 
 /// `program` with each constant operand of `+ − · /` folded into its operator, on either
@@ -153,23 +167,17 @@ fn fuse(program: Vec<Op>) -> Vec<Op> {
         let start = starts.get(at).copied().unwrap_or(out.len());
         if pops == 2 {
             let (left, right) = (starts[at], starts[at + 1]);
-            let constant = |i: usize| match out[i] {
-                Op::Const(c) => Some(c),
+            // The operand at `i` if it is one constant alone (it ends where `end` begins).
+            let lone = |i: usize, end: usize| match out[i] {
+                Op::Const(c) if i + 1 == end => Some(c),
                 _ => None,
             };
             // The right operand is a lone constant, or the left one is (a removal that moves
             // only the right operand, at most MAX_DEPTH levels deep).
-            let fused = if right + 1 == out.len() {
-                constant(right).and_then(|c| op.with_const(c, true)).map(|f| (right, f))
-            } else {
-                None
-            };
-            let fused = fused.or_else(|| {
-                (left + 1 == right)
-                    .then(|| constant(left).and_then(|c| op.with_const(c, false)))
-                    .flatten()
-                    .map(|f| (left, f))
-            });
+            let fused = lone(right, out.len())
+                .and_then(|c| op.with_const(c, true))
+                .map(|f| (right, f))
+                .or_else(|| lone(left, right).and_then(|c| op.with_const(c, false)).map(|f| (left, f)));
             if let Some((removed, f)) = fused {
                 out.remove(removed);
                 out.push(f);
@@ -532,40 +540,38 @@ fn compile(rpn: &[Token]) -> Result<Vec<Op>, ExprErrorKind> {
     let mut program = Vec::with_capacity(rpn.len());
     let mut depth = 0usize;
     for token in rpn {
-        let (op, pops) = match token {
-            Token::Number(v) => (Op::Const(*v), 0),
+        let op = match token {
+            Token::Number(v) => Op::Const(*v),
             Token::Var(name) => match name.as_str() {
-                "x" => (Op::X, 0),
-                "y" => (Op::Y, 0),
-                "pi" => (Op::Const(std::f64::consts::PI), 0),
-                "e" => (Op::Const(std::f64::consts::E), 0),
+                "x" => Op::X,
+                "y" => Op::Y,
+                "pi" => Op::Const(std::f64::consts::PI),
+                "e" => Op::Const(std::f64::consts::E),
                 other => return Err(ExprErrorKind::UnknownVariable(other.to_owned())),
             },
             Token::Unary(Operation::Plus) => continue,
-            Token::Unary(_) => (Op::Neg, 1),
-            Token::Binary(op) => {
-                let op = match op {
-                    Operation::Plus => Op::Add,
-                    Operation::Minus => Op::Sub,
-                    Operation::Times => Op::Mul,
-                    Operation::Div => Op::Div,
-                    Operation::Rem => Op::Rem,
-                    Operation::Pow => Op::Pow,
-                };
-                (op, 2)
-            }
+            Token::Unary(_) => Op::Neg,
+            Token::Binary(op) => match op {
+                Operation::Plus => Op::Add,
+                Operation::Minus => Op::Sub,
+                Operation::Times => Op::Mul,
+                Operation::Div => Op::Div,
+                Operation::Rem => Op::Rem,
+                Operation::Pow => Op::Pow,
+            },
             Token::Func(name, Some(n)) => {
                 let n = *n;
                 match (name.as_str(), unary(name)) {
-                    (_, Some(f)) if n == 1 => (Op::Call(f, over_lanes(name)), 1),
-                    ("atan2", _) if n == 2 => (Op::Atan2, 2),
-                    ("max", _) if n >= 1 => (Op::Max(n as u32), n),
-                    ("min", _) if n >= 1 => (Op::Min(n as u32), n),
+                    (_, Some(f)) if n == 1 => Op::Call(f, over_lanes(name)),
+                    ("atan2", _) if n == 2 => Op::Atan2,
+                    ("max", _) if n >= 1 => Op::Max(n as u32),
+                    ("min", _) if n >= 1 => Op::Min(n as u32),
                     _ => return Err(ExprErrorKind::UnknownFunction(name.clone())),
                 }
             }
             _ => return Err(ExprErrorKind::Unbalanced("malformed expression")),
         };
+        let pops = op.pops();
         if depth < pops {
             return Err(ExprErrorKind::Unbalanced("operator without an operand"));
         }

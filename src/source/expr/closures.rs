@@ -59,20 +59,17 @@ pub(super) fn build(program: &[Op]) -> Option<Scalar> {
                 };
                 (Value::Tree(f), h + 1)
             }
-            Op::AddConst(c) | Op::SubConst(c) | Op::MulConst(c) | Op::DivConst(c) => {
-                let (l, h) = stack.pop()?;
-                let base = match *op {
-                    Op::AddConst(_) => Op::Add,
-                    Op::SubConst(_) => Op::Sub,
-                    Op::MulConst(_) => Op::Mul,
-                    _ => Op::Div,
-                };
-                (Value::Tree(binary(base, l, Value::Const(c))), h + 1)
-            }
-            Op::ConstSub(c) | Op::ConstDiv(c) => {
-                let (r, h) = stack.pop()?;
-                let base = if matches!(*op, Op::ConstSub(_)) { Op::Sub } else { Op::Div };
-                (Value::Tree(binary(base, Value::Const(c), r)), h + 1)
+            Op::AddConst(_)
+            | Op::SubConst(_)
+            | Op::MulConst(_)
+            | Op::DivConst(_)
+            | Op::ConstSub(_)
+            | Op::ConstDiv(_) => {
+                let (base, c, right) = op.split_const()?;
+                let (a, h) = stack.pop()?;
+                let tree =
+                    if right { binary(base, a, Value::Const(c)) } else { binary(base, Value::Const(c), a) };
+                (Value::Tree(tree), h + 1)
             }
             Op::Add | Op::Sub | Op::Mul | Op::Div | Op::Rem | Op::Pow | Op::Atan2 => {
                 let (r, hr) = stack.pop()?;
