@@ -29,7 +29,7 @@ struct Cli {
 enum Command {
     /// Serve the HTTP API (the default). Flags override MESHFIT_* variables.
     Serve(Box<ServeArgs>),
-    /// Refine a mesh for F and write it as JSON to stdout.
+    /// Refine a mesh for F and write it to stdout or --output: JSON by default, or any --format.
     Mesh(MeshArgs),
     /// Solve a boundary value problem on an adaptive mesh: FILE holds the JSON body of
     /// POST /v1/solutions ("-" reads stdin); the solution document goes to stdout.
@@ -227,8 +227,8 @@ struct MeshArgs {
     #[arg(long, value_name = "ENCODING", requires = "grid", value_parser = parse_encoding)]
     encoding: Option<Encoding>,
     /// The rectangle a,b,c,d = [a,b]×[c,d]; default [0,1]² for a function, a GeoTIFF's own
-    /// rectangle, else [0,nx−1]×[0,ny−1] for a grid. Write negative bounds as --domain=-3,3,-3,3.
-    #[arg(long, value_name = "a,b,c,d", value_parser = parse_domain)]
+    /// rectangle, else [0,nx−1]×[0,ny−1] for a grid. Negative bounds may lead: -3,3,-3,3.
+    #[arg(long, value_name = "a,b,c,d", value_parser = parse_domain, allow_hyphen_values = true)]
     domain: Option<Rect>,
     /// The vertex budget n (at least 4).
     #[arg(long, value_name = "N", default_value_t = 10_000)]
@@ -440,6 +440,13 @@ fn mesh(args: &MeshArgs) -> Result<()> {
     args.output.write(MeshResult::from(result), format)
 }
 
+/// Whether `e` comes from writing to a pipe whose reader has closed it.
+fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>().is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+    })
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let outcome = match &cli.command {
@@ -450,6 +457,8 @@ fn main() -> ExitCode {
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,
+        // The reader went away (`meshfit mesh … | head`): what it read is what it wanted.
+        Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
             ExitCode::FAILURE

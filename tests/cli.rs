@@ -55,12 +55,32 @@ fn mesh_writes_vertices_triangles_and_stats_for_an_expression() {
 #[test]
 fn mesh_reads_a_grid_file_and_accepts_negative_domain_bounds() {
     let grid = temp_file("grid_3x2.json", r#"{"nx": 3, "ny": 2, "values": [0, 1, 4, 1, 2, 5]}"#);
-    let doc =
-        document(&["mesh", "--grid", grid.to_str().unwrap(), "--domain=-3,3,-1,1", "--max-vertices", "40"]);
+    let grid = grid.to_str().unwrap();
+    // A leading minus is the value, not a flag, written either way.
+    let doc = document(&["mesh", "--grid", grid, "--domain", "-3,3,-1,1", "--max-vertices", "40"]);
     let vertices = doc["vertices"].as_array().unwrap();
     assert_eq!(vertices[0], serde_json::json!([-3.0, -1.0, 0.0]));
     assert_eq!(vertices[2], serde_json::json!([3.0, 1.0, 5.0]));
     assert_eq!(doc["stats"]["delaunay"], true);
+    assert_eq!(document(&["mesh", "--grid", grid, "--domain=-3,3,-1,1", "--max-vertices", "40"]), doc);
+}
+
+#[test]
+fn a_reader_that_stops_early_ends_the_run_quietly_and_successfully() {
+    use std::io::Read;
+    // Far more output than a pipe buffers, so meshfit is still writing when the reader leaves.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_meshfit"))
+        .args(["mesh", "--function", "x*y", "--max-vertices", "20000"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("meshfit runs");
+    let mut head = [0u8; 16];
+    child.stdout.take().unwrap().read_exact(&mut head).unwrap();
+    assert_eq!(&head[..1], b"{");
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success(), "exit {:?}", out.status);
+    assert_eq!(String::from_utf8_lossy(&out.stderr), "");
 }
 
 #[test]
