@@ -315,14 +315,13 @@ impl OutputArgs {
                     .and_then(|()| out.flush())
                     .with_context(|| format!("writing {}", path.display()))
             }
-            None => {
-                let mut out = BufWriter::new(std::io::stdout().lock());
-                encoding.write_to(&mut out)?;
+            None => to_stdout(|out| {
+                encoding.write_to(out)?;
                 if format == Format::Json {
                     writeln!(out)?;
                 }
-                out.flush().context("writing to stdout")
-            }
+                Ok(())
+            }),
         }
     }
 }
@@ -360,11 +359,11 @@ fn solve(args: &SolveArgs) -> Result<()> {
     if args.stats {
         let times: Vec<f64> = adapted.times.iter().map(|t| t.as_secs_f64() * 1e3).collect();
         let result = MeshResult::solution(adapted, spec.physics);
-        let mut out = BufWriter::new(std::io::stdout().lock());
         let doc = serde_json::json!({"stats": result.stats, "solve_times_ms": times});
-        serde_json::to_writer_pretty(&mut out, &doc)?;
-        writeln!(out)?;
-        return out.flush().context("writing to stdout");
+        return to_stdout(|out| {
+            serde_json::to_writer_pretty(&mut *out, &doc)?;
+            writeln!(out)
+        });
     }
     args.output.write(MeshResult::solution(adapted, spec.physics), format)
 }
@@ -427,24 +426,29 @@ fn mesh(args: &MeshArgs) -> Result<()> {
     let format = args.output.check()?;
     let result = refine(&source, rect, &params, &mut ())?;
     if args.stats {
-        let mut out = BufWriter::new(std::io::stdout().lock());
         let document = json::StatsDocument {
             stats: &result.stats,
             error: estimate_error(&result.mesh, &source),
             elapsed_ms: result.elapsed.as_secs_f64() * 1e3,
         };
-        json::write_stats(&document, &mut out)?;
-        writeln!(out)?;
-        return out.flush().context("writing to stdout");
+        return to_stdout(|out| {
+            json::write_stats(&document, out)?;
+            writeln!(out)
+        });
     }
     args.output.write(MeshResult::from(result), format)
 }
 
-/// Whether `e` comes from writing to a pipe whose reader has closed it.
-fn is_broken_pipe(e: &anyhow::Error) -> bool {
-    e.chain().any(|c| {
-        c.downcast_ref::<std::io::Error>().is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
-    })
+/// Writes a document to stdout through `write` and flushes it. A reader that closes the pipe
+/// early (`meshfit mesh … | head`) has read what it wanted: that ends the command quietly.
+fn to_stdout(
+    write: impl FnOnce(&mut BufWriter<std::io::StdoutLock<'static>>) -> std::io::Result<()>,
+) -> Result<()> {
+    let mut out = BufWriter::new(std::io::stdout().lock());
+    match write(&mut out).and_then(|()| out.flush()) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        written => written.context("writing to stdout"),
+    }
 }
 
 fn main() -> ExitCode {
@@ -457,8 +461,6 @@ fn main() -> ExitCode {
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,
-        // The reader went away (`meshfit mesh … | head`): what it read is what it wanted.
-        Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
             ExitCode::FAILURE

@@ -219,6 +219,7 @@ fn numeric(s: &SymbolicSupernodalCholesky<usize>, l: &mut [f64], a: &Compressed)
     // Row of the current panel that each global row maps to.
     let mut local = vec![usize::MAX; n];
     let mut product = Vec::new();
+    let (col_ptr, row_idx, values) = a;
     for t in 0..count {
         let node = Node::of(s, t);
         let (start, end, cols, rows) = (node.start, node.end(), node.cols, node.rows());
@@ -229,7 +230,6 @@ fn numeric(s: &SymbolicSupernodalCholesky<usize>, l: &mut [f64], a: &Compressed)
         let panel = &mut rest[..node.values.len()];
         let to_local = |row: usize| if row < end { row - start } else { local[row] };
 
-        let (col_ptr, row_idx, values) = a;
         for j in start..end {
             for k in col_ptr[j]..col_ptr[j + 1] {
                 panel[(j - start) * rows + to_local(row_idx[k])] += values[k];
@@ -377,9 +377,9 @@ impl Panel<'_> {
 /// L y = b in place.
 fn forward(s: &SymbolicSupernodalCholesky<usize>, l: &[f64], y: &mut [f64]) {
     for t in 0..s.n_supernodes() {
-        let Node { start, cols, pattern, values } = Node::of(s, t);
-        let rows = cols + pattern.len();
-        let panel = &l[values];
+        let node = Node::of(s, t);
+        let (start, cols, pattern, rows) = (node.start, node.cols, node.pattern, node.rows());
+        let panel = &l[node.values];
         for jj in 0..cols {
             let column = &panel[jj * rows..][..rows];
             let x = y[start + jj] / column[jj];
@@ -397,9 +397,9 @@ fn forward(s: &SymbolicSupernodalCholesky<usize>, l: &[f64], y: &mut [f64]) {
 /// Lᵀ x = y in place.
 fn backward(s: &SymbolicSupernodalCholesky<usize>, l: &[f64], y: &mut [f64]) {
     for t in (0..s.n_supernodes()).rev() {
-        let Node { start, cols, pattern, values } = Node::of(s, t);
-        let rows = cols + pattern.len();
-        let panel = &l[values];
+        let node = Node::of(s, t);
+        let (start, cols, pattern, rows) = (node.start, node.cols, node.pattern, node.rows());
+        let panel = &l[node.values];
         for jj in (0..cols).rev() {
             let column = &panel[jj * rows..][..rows];
             let mut sum = y[start + jj];
