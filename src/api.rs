@@ -105,13 +105,49 @@ pub struct GridInput<'a> {
 }
 
 /// `{"x": [a, b], "y": [c, d]}`.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone)]
 pub struct DomainInput {
     /// [a, b] with a < b (a list, so a wrong length gets a clear message, not serde's).
     pub x: Vec<f64>,
     /// [c, d] with c < d.
     pub y: Vec<f64>,
+}
+
+impl<'de> Deserialize<'de> for DomainInput {
+    /// The object; a list (`[a, b, c, d]` or `[[a, b], [c, d]]`, the usual slips) is refused
+    /// with the object to write instead.
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct Object {
+            x: Vec<f64>,
+            y: Vec<f64>,
+        }
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = DomainInput;
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str(r#"an object {"x": [a, b], "y": [c, d]}"#)
+            }
+            fn visit_map<A: de::MapAccess<'de>>(self, map: A) -> Result<DomainInput, A::Error> {
+                let Object { x, y } = Object::deserialize(de::value::MapAccessDeserializer::new(map))?;
+                Ok(DomainInput { x, y })
+            }
+            fn visit_seq<A: de::SeqAccess<'de>>(self, mut seq: A) -> Result<DomainInput, A::Error> {
+                let mut items = Vec::new();
+                while let Some(item) = seq.next_element::<serde_json::Value>()? {
+                    items.push(item);
+                }
+                let write = match items.as_slice() {
+                    [a, b, c, d] => format!(r#"{{"x": [{a}, {b}], "y": [{c}, {d}]}}"#),
+                    [x, y] => format!(r#"{{"x": {x}, "y": {y}}}"#),
+                    _ => r#"{"x": [a, b], "y": [c, d]}"#.to_owned(),
+                };
+                Err(de::Error::custom(format!("the domain is an object, not a list: write {write}")))
+            }
+        }
+        d.deserialize_any(V)
+    }
 }
 
 /// `GET /v1/jobs/{id}` and the body of `POST /v1/jobs`.
@@ -212,13 +248,38 @@ pub struct SolveRequest {
 }
 
 /// A number, or a meval expression in x and y.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(untagged)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum Coefficient {
     /// A constant.
     Number(f64),
     /// An expression.
     Expression(String),
+}
+
+impl<'de> Deserialize<'de> for Coefficient {
+    /// By hand rather than `untagged`, whose error names neither what was sent nor what fits.
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl Visitor<'_> for V {
+            type Value = Coefficient;
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str("a number or an expression in x and y (a string)")
+            }
+            fn visit_f64<E>(self, v: f64) -> Result<Coefficient, E> {
+                Ok(Coefficient::Number(v))
+            }
+            fn visit_i64<E>(self, v: i64) -> Result<Coefficient, E> {
+                Ok(Coefficient::Number(v as f64))
+            }
+            fn visit_u64<E>(self, v: u64) -> Result<Coefficient, E> {
+                Ok(Coefficient::Number(v as f64))
+            }
+            fn visit_str<E>(self, v: &str) -> Result<Coefficient, E> {
+                Ok(Coefficient::Expression(v.to_owned()))
+            }
+        }
+        d.deserialize_any(V)
+    }
 }
 
 /// A region of a boundary value problem: an axis-aligned rectangle with constant values.
@@ -237,4 +298,108 @@ pub struct RegionInput {
     pub mu_r: Option<f64>,
     /// Current density J_z inside, in A/m² (magnetostatic; default 0).
     pub current_density: Option<f64>,
+}
+
+/// Why a JSON body is not the request it should be, and where.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum JsonError {
+    /// Not JSON at all: a syntax error at a line and column of the body.
+    #[error("{message} at line {line} column {column}")]
+    Syntax {
+        /// serde_json's message, without the position.
+        message: String,
+        /// 1-based line.
+        line: usize,
+        /// 1-based column, in bytes.
+        column: usize,
+    },
+    /// JSON of the wrong shape: a wrong type, an unknown or a missing field.
+    #[error("{}{message}", if path.is_empty() { String::new() } else { format!("{path}: ") })]
+    Shape {
+        /// The value at fault as it reads in a message (`domain.x[1]`); empty for the body.
+        path: String,
+        /// What is wrong with it.
+        message: String,
+    },
+}
+
+impl JsonError {
+    /// The value at fault as an RFC 6901 JSON pointer (`/domain/x/1`; `""` for the whole
+    /// body); none for a syntax error.
+    pub fn pointer(&self) -> Option<String> {
+        match self {
+            JsonError::Syntax { .. } => None,
+            JsonError::Shape { path, .. } => Some(pointer(path)),
+        }
+    }
+}
+
+/// The JSON pointer of a field as messages spell it: `regions[1].bh[2]` is `/regions/1/bh/2`.
+/// Request fields are plain names, so `.` and `[` only ever separate.
+pub fn pointer(path: &str) -> String {
+    let mut out = String::with_capacity(path.len() + 4);
+    for part in path.split(['.', '[']).filter(|p| !p.is_empty()) {
+        out.push('/');
+        out.push_str(&part.trim_end_matches(']').replace('~', "~0").replace('/', "~1"));
+    }
+    out
+}
+
+/// Reads a request of type `T` from JSON, saying where a value does not fit: the path to it,
+/// and serde's message without a body position, which the path replaces.
+///
+/// # Errors
+/// [`JsonError::Syntax`] when the bytes are not JSON, [`JsonError::Shape`] when they are not
+/// a `T` (an array or a scalar where the request is an object, too).
+pub fn from_json<'a, T: Deserialize<'a>>(bytes: &'a [u8]) -> Result<T, JsonError> {
+    let syntax = |e: &serde_json::Error| JsonError::Syntax {
+        message: strip_position(e),
+        line: e.line(),
+        column: e.column(),
+    };
+    // serde's derived structs also take arrays (as tuples); a request is an object.
+    if bytes.iter().find(|b| !b.is_ascii_whitespace()) != Some(&b'{') {
+        return Err(match serde_json::from_slice::<de::IgnoredAny>(bytes) {
+            Err(e) if e.classify() != serde_json::error::Category::Data => syntax(&e),
+            _ => JsonError::Shape { path: String::new(), message: "the body must be a JSON object".into() },
+        });
+    }
+    let mut de = serde_json::Deserializer::from_slice(bytes);
+    let value = serde_path_to_error::deserialize(&mut de).map_err(|e| {
+        let inner = e.inner();
+        if inner.classify() != serde_json::error::Category::Data {
+            return syntax(inner);
+        }
+        // Rust's type names mean nothing to a caller.
+        let message = strip_position(inner).replace("expected f64", "expected a number");
+        JsonError::Shape { path: readable(e.path()), message }
+    })?;
+    de.end().map_err(|e| syntax(&e))?;
+    Ok(value)
+}
+
+/// `domain.x[1]` for serde_path_to_error's path (which writes `.` for the whole body).
+fn readable(path: &serde_path_to_error::Path) -> String {
+    use serde_path_to_error::Segment;
+    let mut out = String::new();
+    for segment in path {
+        match segment {
+            Segment::Seq { index } => out.push_str(&format!("[{index}]")),
+            Segment::Map { key } | Segment::Enum { variant: key } => {
+                if !out.is_empty() {
+                    out.push('.');
+                }
+                out.push_str(key);
+            }
+            Segment::Unknown => {}
+        }
+    }
+    out
+}
+
+/// serde_json's message without the " at line L column C" it appends.
+fn strip_position(e: &serde_json::Error) -> String {
+    let message = e.to_string();
+    let suffix = format!(" at line {} column {}", e.line(), e.column());
+    message.strip_suffix(&suffix).map_or(message.clone(), str::to_owned)
 }

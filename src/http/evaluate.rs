@@ -1,7 +1,7 @@
 //! `POST /v1/jobs/{id}/evaluate`: F_n, the mesh's piecewise linear surrogate, at given points.
 
 use super::AppState;
-use super::extract::{Body, parse_json};
+use super::extract::{Body, Media, Takes, media, parse_json};
 use super::jobs::finished_result;
 use super::problem::ApiError;
 use crate::geom::Point;
@@ -51,10 +51,7 @@ pub async fn jobs_evaluate(
     body: Body,
 ) -> Result<Response, ApiError> {
     let (result, _) = finished_result(&state, &id).await?;
-    let binary = headers
-        .get(header::CONTENT_TYPE)
-        .and_then(|v| v.to_str().ok())
-        .is_some_and(|v| v.split(';').next().unwrap_or("").trim().eq_ignore_ascii_case(OCTET_STREAM));
+    let binary = media(&headers, &body.bytes, Takes::Binary)? == Media::Binary;
     let locators = state.locators.clone();
     crate::cpu::spawn(move || {
         let locator = match locators.get(&id) {

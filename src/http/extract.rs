@@ -4,6 +4,7 @@
 use super::AppState;
 use super::problem::ApiError;
 use crate::jobs::{Charge, OverBudget};
+use crate::source::signed_kind;
 use axum::body::Bytes;
 use axum::extract::{FromRequest, Request};
 use axum::http::{HeaderMap, header};
@@ -77,21 +78,96 @@ impl FromRequest<AppState> for Body {
     }
 }
 
-/// Parses JSON, telling syntax errors (400) from shape errors (422), each with its place.
+/// Parses JSON, telling syntax errors (400, at a line and column) from shape errors (422, at
+/// a field).
 pub fn parse_json<'a, T: Deserialize<'a>>(bytes: &'a [u8]) -> Result<T, ApiError> {
     if bytes.iter().all(u8::is_ascii_whitespace) {
         return Err(ApiError::MalformedJson("the body is empty; send a JSON object".into()));
     }
-    let malformed = |e: serde_json::Error| match e.classify() {
-        serde_json::error::Category::Data => ApiError::InvalidRequest(e.to_string()),
-        _ => ApiError::MalformedJson(e.to_string()),
-    };
-    // serde's derived structs also take arrays (as tuples); a request is an object.
-    if bytes.iter().find(|b| !b.is_ascii_whitespace()) != Some(&b'{') {
-        serde_json::from_slice::<serde::de::IgnoredAny>(bytes).map_err(malformed)?;
-        return Err(ApiError::InvalidRequest("the body must be a JSON object".into()));
+    crate::api::from_json(bytes).map_err(|e| match signed_kind(bytes) {
+        Some(kind) => ApiError::MalformedJson(format!(
+            "the body is a {kind} file, not JSON; a grid file goes as multipart/form-data: {UPLOAD}"
+        )),
+        None => ApiError::Json(e),
+    })
+}
+
+/// How a grid file is sent, for messages.
+const UPLOAD: &str = "curl -F grid=@FILE [-F request='{...}']";
+
+/// The media types a route takes besides JSON.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Takes {
+    /// `application/json` only.
+    Json,
+    /// Also `multipart/form-data`: a grid file with its request.
+    Upload,
+    /// Also `application/octet-stream`: packed little-endian f64s.
+    Binary,
+}
+
+impl Takes {
+    /// The media types, for the 415 answer.
+    pub fn types(self) -> &'static [&'static str] {
+        match self {
+            Takes::Json => &["application/json"],
+            Takes::Upload => &["application/json", "multipart/form-data"],
+            Takes::Binary => &["application/json", "application/octet-stream"],
+        }
     }
-    serde_json::from_slice(bytes).map_err(malformed)
+}
+
+/// What a body is, by its content type.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Media {
+    /// JSON.
+    Json,
+    /// `multipart/form-data` with this boundary.
+    Multipart(String),
+    /// `application/octet-stream`.
+    Binary,
+}
+
+/// What `body` is, of the types the route takes.
+///
+/// JSON is `application/json`, any `application/*+json`, or no content type at all;
+/// `application/x-www-form-urlencoded` (what curl's `-d` names whatever it sends) is read as
+/// JSON when the body is an object.
+///
+/// # Errors
+/// 415 `unsupported-media-type` for any other type (with a hint when the body is a grid file
+/// sent raw), 400 for a multipart type without a boundary.
+pub fn media(headers: &HeaderMap, body: &[u8], takes: Takes) -> Result<Media, ApiError> {
+    let Some(value) = headers.get(header::CONTENT_TYPE) else { return Ok(Media::Json) };
+    let text = value.to_str().unwrap_or_default();
+    let essence = text.split(';').next().unwrap_or_default().trim().to_ascii_lowercase();
+    let object = body.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{');
+    let json = essence == "application/json"
+        || (essence.starts_with("application/") && essence.ends_with("+json"))
+        || (essence == "application/x-www-form-urlencoded" && object);
+    match (essence.as_str(), takes) {
+        _ if json => return Ok(Media::Json),
+        ("multipart/form-data", Takes::Upload) => {
+            let boundary =
+                multer::parse_boundary(text).map_err(|e| ApiError::MalformedMultipart(e.to_string()))?;
+            return Ok(Media::Multipart(boundary));
+        }
+        ("application/octet-stream", Takes::Binary) => return Ok(Media::Binary),
+        _ => {}
+    }
+    let raw_grid = signed_kind(body).is_some()
+        || essence == "application/octet-stream"
+        || essence.starts_with("image/")
+        || essence == "application/x-npy"
+        || essence == "multipart/form-data";
+    let hint = match (raw_grid, takes) {
+        (true, Takes::Upload) => format!("; a grid file goes as multipart/form-data: {UPLOAD}"),
+        (true, Takes::Json) => "; grid files are for POST /v1/meshes and POST /v1/jobs".into(),
+        _ => String::new(),
+    };
+    let types: Vec<String> = takes.types().iter().map(|t| format!("`{t}`")).collect();
+    let detail = format!("this route takes {}, not `{essence}`{hint}", types.join(" or "));
+    Err(ApiError::UnsupportedMediaType { detail, accepted: takes.types() })
 }
 
 /// A job request as sent: a JSON body, or `multipart/form-data` with a `request` part (the
@@ -109,15 +185,16 @@ pub enum JobBody {
 }
 
 impl JobBody {
-    /// Splits `body` by its content type. The whole body is already in memory, bounded by the
-    /// body limit; multer (the parser behind axum's own multipart extractor) finds the parts.
+    /// Splits `body` by its content type (see [`media`]). The whole body is already in
+    /// memory, bounded by the body limit; multer (the parser behind axum's own multipart
+    /// extractor) finds the parts.
     ///
     /// # Errors
-    /// 400 `malformed-multipart` for a multipart body that does not parse; 422 for a missing `grid` part, a part
-    /// sent twice or a part of another name.
-    pub async fn from_parts(headers: &HeaderMap, body: Bytes) -> Result<Self, ApiError> {
-        let content_type = headers.get(header::CONTENT_TYPE).and_then(|v| v.to_str().ok()).unwrap_or("");
-        let Ok(boundary) = multer::parse_boundary(content_type) else {
+    /// 415 for a content type the route does not take; 400 `malformed-multipart` for a
+    /// multipart body that does not parse; 422 for a missing `grid` part, a part sent twice or
+    /// a part of another name.
+    pub async fn from_parts(headers: &HeaderMap, body: Bytes, takes: Takes) -> Result<Self, ApiError> {
+        let Media::Multipart(boundary) = media(headers, &body, takes)? else {
             return Ok(JobBody::Json(body));
         };
         let malformed = |e: multer::Error| ApiError::MalformedMultipart(e.to_string());

@@ -1,11 +1,11 @@
 //! Handlers for meshes and jobs: create (synchronous or streamed), show, stream, fetch, cancel.
 
 use super::AppState;
-use super::extract::{Body, JobBody, parse_json};
+use super::extract::{Body, JobBody, Takes, parse_json};
 use super::negotiate::{self, Wanted};
 use super::problem::ApiError;
 use super::sse;
-use crate::api::{JobRequest, JobStatus, Links, SolveRequest};
+use crate::api::{JobRequest, JobStatus, JsonError, Links, SolveRequest};
 use crate::cluster::Request;
 use crate::jobs::{
     Client, Found, JobError, JobKeys, JobSpec, Limits, Outcome, Record, Snapshot, Status, Ticket, Waiter,
@@ -43,6 +43,16 @@ enum Kind {
     Any,
 }
 
+impl Kind {
+    /// The media types a route of this kind takes: a boundary value problem is JSON only.
+    fn takes(self) -> Takes {
+        match self {
+            Kind::Solution => Takes::Json,
+            Kind::Mesh | Kind::Any => Takes::Upload,
+        }
+    }
+}
+
 /// Whether a JSON body has a top-level `physics` field (false when it does not parse: the
 /// mesh parser then says what is wrong).
 ///
@@ -66,11 +76,12 @@ fn parse_body(body: JobBody, kind: Kind, limits: &Limits) -> Result<(JobKeys, Jo
         JobBody::Json(json) if kind == Kind::Solution || (kind == Kind::Any && names_physics(&json)) => {
             JobSpec::from_solve_request(parse_json::<SolveRequest>(&json)?, limits)?
         }
-        JobBody::Json(json) => JobSpec::from_request(parse_json::<JobRequest>(&json)?, limits)?,
-        JobBody::Upload { .. } if kind == Kind::Solution => {
-            let detail = "a boundary value problem is a JSON body; grid files are for meshes";
-            return Err(ApiError::InvalidRequest(detail.into()));
+        JobBody::Json(json) if names_physics(&json) => {
+            let message = "`physics` names a boundary value problem: send it to POST /v1/solutions \
+                           (or POST /v1/jobs); this route meshes a function or a grid";
+            return Err(ApiError::Json(JsonError::Shape { path: "physics".into(), message: message.into() }));
         }
+        JobBody::Json(json) => JobSpec::from_request(parse_json::<JobRequest>(&json)?, limits)?,
         JobBody::Upload { request, grid } => {
             JobSpec::from_upload(parse_json::<JobRequest>(&request)?, &grid, limits)?
         }
@@ -89,7 +100,7 @@ async fn prepare(
     let limits = state.limits;
     // The bytes are shared, not copied.
     let kept = state.jobs.redis().is_some().then(|| body.bytes.clone());
-    let body = JobBody::from_parts(headers, body.bytes).await?;
+    let body = JobBody::from_parts(headers, body.bytes, kind.takes()).await?;
     let inline = matches!(&body, JobBody::Json(json) if json.len() <= INLINE_BODY_BYTES);
     // A small JSON body parses in microseconds, less than a trip to the blocking pool; a grid
     // takes real CPU and goes there.
@@ -135,8 +146,9 @@ impl Wire for Replicas {
             if let Ok(value) = HeaderValue::from_str(&request.content_type) {
                 headers.insert(header::CONTENT_TYPE, value);
             }
-            let body =
-                JobBody::from_parts(&headers, request.body).await.map_err(|e| e.to_json().to_string())?;
+            let body = JobBody::from_parts(&headers, request.body, kind.takes())
+                .await
+                .map_err(|e| e.to_json().to_string())?;
             crate::cpu::spawn(move || parse_body(body, kind, &limits))
                 .await
                 .map_err(|e| e.to_string())?

@@ -1,5 +1,6 @@
 //! ApiError: every failure the API reports, written as RFC 9457 `application/problem+json`.
 
+use crate::api::{JsonError, pointer};
 use crate::jobs::{JobError, SpecError, SubmitError};
 use crate::output::Format;
 use crate::refine::RefineError;
@@ -19,10 +20,22 @@ pub enum ApiError {
     MalformedJson(String),
     /// 400 `malformed-multipart`: a `multipart/form-data` body that does not parse.
     MalformedMultipart(String),
-    /// 422 `invalid-request`: JSON of the wrong shape (a wrong type, an unknown field).
+    /// 400 `malformed-json` for a syntax error, 422 `invalid-request` (with the field's
+    /// pointer) for JSON of the wrong shape: a wrong type, an unknown or a missing field.
+    Json(JsonError),
+    /// 422 `invalid-request`: a request of the wrong shape outside a JSON body (the query
+    /// string, the multipart parts).
     InvalidRequest(String),
     /// 422 (or the variant's own): the request is well-formed but not a valid job.
     Spec(SpecError),
+    /// 415 `unsupported-media-type`: a body whose content type the route does not take; the
+    /// detail names the type (and how to send a grid file, for one sent raw).
+    UnsupportedMediaType {
+        /// What is wrong, and how to send the body instead.
+        detail: String,
+        /// The media types the route takes.
+        accepted: &'static [&'static str],
+    },
     /// 413 `limit-exceeded`: the body is larger than `MESHFIT_MAX_BODY_BYTES`.
     BodyTooLarge(usize),
     /// 414 `limit-exceeded`: the request target (path and query) is longer than this.
@@ -129,8 +142,20 @@ impl ApiError {
                 "Body is not valid multipart/form-data",
                 d.clone(),
             ),
+            ApiError::Json(e @ JsonError::Syntax { .. }) => {
+                (StatusCode::BAD_REQUEST, "malformed-json", "Body is not valid JSON", e.to_string())
+            }
+            ApiError::Json(e @ JsonError::Shape { .. }) => {
+                ext.insert("field".into(), json!(e.pointer()));
+                (unprocessable, "invalid-request", "Request does not match the schema", e.to_string())
+            }
             ApiError::InvalidRequest(d) => {
                 (unprocessable, "invalid-request", "Request does not match the schema", d.clone())
+            }
+            ApiError::UnsupportedMediaType { detail, accepted } => {
+                ext.insert("accepted".into(), json!(accepted));
+                let status = StatusCode::UNSUPPORTED_MEDIA_TYPE;
+                (status, "unsupported-media-type", "Content type not supported", detail.clone())
             }
             ApiError::BodyTooLarge(limit) => {
                 ext.insert("limit".into(), json!({"name": "MESHFIT_MAX_BODY_BYTES", "value": limit}));
@@ -155,6 +180,9 @@ impl ApiError {
                     .into(),
             ),
             ApiError::Spec(e) => {
+                if let Some(field) = e.field() {
+                    ext.insert("field".into(), json!(pointer(field)));
+                }
                 let (slug, title) = match e {
                     SpecError::Source(_) => ("invalid-source", "Give exactly one of function and grid"),
                     SpecError::Expression(x) => {
@@ -168,15 +196,11 @@ impl ApiError {
                         ("invalid-grid", "Grid is malformed")
                     }
                     SpecError::Domain(_) => ("invalid-domain", "Domain is not a rectangle"),
-                    SpecError::Coefficient { field, error } => {
-                        ext.insert("field".into(), json!(field));
+                    SpecError::Coefficient { error, .. } => {
                         ext.insert("column".into(), json!(error.column));
                         ("invalid-expression", "Expression does not parse")
                     }
-                    SpecError::Problem { field, .. } => {
-                        ext.insert("field".into(), json!(field));
-                        ("invalid-problem", "Boundary value problem is invalid")
-                    }
+                    SpecError::Problem { .. } => ("invalid-problem", "Boundary value problem is invalid"),
                     SpecError::Parameter(_) => ("invalid-parameter", "Parameter out of range"),
                     SpecError::Limit { setting, limit, .. } => {
                         ext.insert("limit".into(), json!({"name": setting, "value": limit}));
@@ -198,7 +222,7 @@ impl ApiError {
                     SolveError::Overflow { x, y, .. } => ("f", x, y),
                     _ => ("", f64::NAN, f64::NAN),
                 };
-                ext.insert("field".into(), json!(field));
+                ext.insert("field".into(), json!(pointer(field)));
                 ext.insert("point".into(), json!([x, y]));
                 (unprocessable, "invalid-problem", "Boundary value problem is invalid", e.to_string())
             }

@@ -1,9 +1,9 @@
 //! SolveSpec: a boundary value problem request, validated and in canonical form.
 
-use super::spec::{Limits, SpecError, at_most, domain_of};
+use super::spec::{Limits, SpecError, at_most, budget, domain_of};
 use crate::api::{Coefficient, RegionInput, SolveRequest};
 use crate::geom::Rect;
-use crate::refine::{Observer, Params};
+use crate::refine::Observer;
 use crate::solve::{Adapted, Exact, MU_0, Physics, Problem, Region, Settings, SolveError, adapt};
 use crate::source::Expression;
 use std::time::Duration;
@@ -67,10 +67,10 @@ fn coefficient(
     match input {
         None => Ok(Coef::Constant(default)),
         Some(Coefficient::Number(v)) if v.is_finite() => Ok(Coef::Constant(v + 0.0)),
-        Some(Coefficient::Number(v)) => Err(invalid(field, format!("{field} must be finite, got {v}"))),
+        Some(Coefficient::Number(v)) => Err(invalid(field, format!("must be finite, got {v}"))),
         Some(Coefficient::Expression(text)) => {
             let len = text.chars().count() as u64;
-            at_most("expression length", "MESHFIT_MAX_EXPRESSION_LEN", limits.max_expression_len, len)?;
+            at_most((field, " length"), "MESHFIT_MAX_EXPRESSION_LEN", limits.max_expression_len, len)?;
             Expression::parse(&text)
                 .map(Coef::Expression)
                 .map_err(|error| SpecError::Coefficient { field, error })
@@ -83,13 +83,13 @@ fn positive(field: &str, v: f64) -> Result<f64, SpecError> {
     if v.is_finite() && v > 0.0 {
         Ok(v)
     } else {
-        Err(invalid(field, format!("{field} must be finite and > 0, got {v}")))
+        Err(invalid(field, format!("must be finite and > 0, got {v}")))
     }
 }
 
 /// A finite value of field `field`.
 fn finite(field: &str, v: f64) -> Result<f64, SpecError> {
-    if v.is_finite() { Ok(v + 0.0) } else { Err(invalid(field, format!("{field} must be finite, got {v}"))) }
+    if v.is_finite() { Ok(v + 0.0) } else { Err(invalid(field, format!("must be finite, got {v}"))) }
 }
 
 /// Region `i`, inside `domain`, with k and f for `physics`.
@@ -161,9 +161,7 @@ impl SolveSpec {
                     if given {
                         return Err(invalid(
                             field,
-                            format!(
-                                "{field} is not allowed with physics magnetostatic: regions give mu_r and current_density"
-                            ),
+                            "not allowed with physics magnetostatic: regions give mu_r and current_density",
                         ));
                     }
                 }
@@ -181,16 +179,14 @@ impl SolveSpec {
         let regions = (request.regions.into_iter().enumerate())
             .map(|(i, r)| region(i, r, domain, physics))
             .collect::<Result<Vec<_>, _>>()?;
-        let max_vertices = request.max_vertices.unwrap_or(super::DEFAULT_MAX_VERTICES);
-        at_most("max_vertices", "MESHFIT_MAX_VERTICES", limits.max_vertices, max_vertices)?;
-        // The engine's own checks of the budget and the tolerance, as for a mesh.
-        let mut params = Params::new(max_vertices as usize).map_err(SpecError::Parameter)?;
+        // The checks of the budget and the tolerance, as for a mesh.
+        let mut params = budget(request.max_vertices, limits)?;
         if let Some(t) = request.tolerance {
             params = params.with_tolerance(t + 0.0).map_err(SpecError::Parameter)?;
         }
         let growth = request.growth.unwrap_or(DEFAULT_GROWTH);
         if !(growth > 1.0 && growth <= MAX_GROWTH) {
-            return Err(invalid("growth", format!("growth must be in (1, {MAX_GROWTH}], got {growth}")));
+            return Err(invalid("growth", format!("must be in (1, {MAX_GROWTH}], got {growth}")));
         }
         let requested_time_limit = request.time_limit_ms.map(Duration::from_millis);
         let settings = Settings {

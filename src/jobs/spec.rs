@@ -108,10 +108,12 @@ pub enum SpecError {
     #[error("{0}")]
     Parameter(ParamsError),
     /// A server limit is exceeded.
-    #[error("{name} is {value}, above this server's limit of {limit}")]
+    #[error("{name}{measure} is {value}, above this server's limit of {limit}")]
     Limit {
         /// The request field.
         name: &'static str,
+        /// What of it is measured, as a suffix of the name (" length"); empty for a number.
+        measure: &'static str,
         /// The configuration variable that sets the limit.
         setting: &'static str,
         /// The limit.
@@ -121,24 +123,59 @@ pub enum SpecError {
     },
 }
 
-/// `Err(SpecError::Limit)` when `value` is above `limit`.
+/// `Err(SpecError::Limit)` when `value`, the `measure` of field `name`, is above `limit`.
 pub(super) fn at_most(
-    name: &'static str,
+    (name, measure): (&'static str, &'static str),
     setting: &'static str,
     limit: usize,
     value: u64,
 ) -> Result<(), SpecError> {
     if value > limit as u64 {
-        return Err(SpecError::Limit { name, setting, limit: limit as u64, value });
+        return Err(SpecError::Limit { name, measure, setting, limit: limit as u64, value });
     }
     Ok(())
+}
+
+impl SpecError {
+    /// The request field at fault as messages spell it (`regions[1].mu_r`); none when no one
+    /// field is (neither `function` nor `grid` given, say).
+    pub fn field(&self) -> Option<&str> {
+        Some(match self {
+            SpecError::Source(_) => return None,
+            SpecError::Expression(_) => "function",
+            SpecError::Grid { .. } => "grid",
+            SpecError::Domain(_) => "domain",
+            SpecError::Coefficient { field, .. } => field,
+            SpecError::Problem { field, .. } => field,
+            SpecError::Parameter(e) => match e {
+                ParamsError::MaxVertices { .. } => "max_vertices",
+                ParamsError::Tolerance(_) => "tolerance",
+                ParamsError::MinAngle(_) | ParamsError::MinAngleCriterion => "min_angle",
+            },
+            SpecError::Limit { name, .. } => name,
+        })
+    }
+}
+
+/// The engine's parameters for a request's vertex budget (the default when it names none),
+/// checked against this server's limit rather than the engine's.
+pub(super) fn budget(max_vertices: Option<u64>, limits: &Limits) -> Result<Params, SpecError> {
+    let max_vertices = max_vertices.unwrap_or(DEFAULT_MAX_VERTICES);
+    at_most(("max_vertices", ""), "MESHFIT_MAX_VERTICES", limits.max_vertices, max_vertices)?;
+    Params::new(max_vertices as usize).map_err(|e| match e {
+        ParamsError::MaxVertices { got, .. } => {
+            SpecError::Parameter(ParamsError::MaxVertices { got, max: limits.max_vertices as u64 })
+        }
+        e => SpecError::Parameter(e),
+    })
 }
 
 /// A grid that does not decode: over the limit, or malformed (naming the value at fault).
 fn grid_error(e: GridFileError) -> SpecError {
     match e {
         GridFileError::TooManyPoints { requested, allowed, .. } => SpecError::Limit {
-            name: "grid nx*ny",
+            name: "grid",
+            measure: " nx*ny",
             setting: "MESHFIT_MAX_GRID_POINTS",
             limit: allowed as u64,
             value: requested,
@@ -241,7 +278,12 @@ impl JobSpec {
             (Some(_), Some(_), None) => return Err(SpecError::Source(", not both")),
             (Some(text), None, None) => {
                 let len = text.chars().count() as u64;
-                at_most("function length", "MESHFIT_MAX_EXPRESSION_LEN", limits.max_expression_len, len)?;
+                at_most(
+                    ("function", " length"),
+                    "MESHFIT_MAX_EXPRESSION_LEN",
+                    limits.max_expression_len,
+                    len,
+                )?;
                 Source::Expression(Expression::parse(&text).map_err(SpecError::Expression)?)
             }
             (None, Some(grid), None) => {
@@ -267,12 +309,9 @@ impl JobSpec {
             Some(d) => domain_of(&d)?,
         };
         let source = source.with_domain(domain);
-        let max_vertices = request.max_vertices.unwrap_or(DEFAULT_MAX_VERTICES);
-        at_most("max_vertices", "MESHFIT_MAX_VERTICES", limits.max_vertices, max_vertices)?;
         let requested_time_limit = request.time_limit_ms.map(Duration::from_millis);
         let time_limit = requested_time_limit.map_or(limits.job_time_limit, |t| t.min(limits.job_time_limit));
-        let mut params = Params::new(max_vertices as usize)
-            .map_err(SpecError::Parameter)?
+        let mut params = budget(request.max_vertices, limits)?
             .with_method(request.method.unwrap_or_default())
             .with_criterion(request.criterion.unwrap_or_default())
             .with_time_limit(time_limit);

@@ -57,9 +57,15 @@ pub const MAX_MIN_ANGLE: f64 = 30.0;
 /// A parameter out of range.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ParamsError {
-    /// The budget is below 4 (the corners) or above [`MAX_VERTICES`].
-    #[error("max_vertices must be between 4 and {MAX_VERTICES}, got {0}")]
-    MaxVertices(usize),
+    /// The budget is below 4 (the corners) or above `max`: [`MAX_VERTICES`], or a server's
+    /// lower limit.
+    #[error("max_vertices must be between 4 and {max}, got {got}")]
+    MaxVertices {
+        /// The budget asked for.
+        got: u64,
+        /// The largest allowed.
+        max: u64,
+    },
     /// The tolerance is negative or not finite.
     #[error("tolerance must be a finite number >= 0, got {0}")]
     Tolerance(f64),
@@ -78,7 +84,7 @@ impl Params {
     /// When `max_vertices` is below 4 or above [`MAX_VERTICES`].
     pub fn new(max_vertices: usize) -> Result<Self, ParamsError> {
         if !(4..=MAX_VERTICES).contains(&max_vertices) {
-            return Err(ParamsError::MaxVertices(max_vertices));
+            return Err(ParamsError::MaxVertices { got: max_vertices as u64, max: MAX_VERTICES as u64 });
         }
         Ok(Self {
             method: Method::default(),
@@ -190,7 +196,7 @@ mod tests {
 
     #[test]
     fn out_of_range_parameters_are_refused() {
-        assert_eq!(Params::new(3), Err(ParamsError::MaxVertices(3)));
+        assert_eq!(Params::new(3), Err(ParamsError::MaxVertices { got: 3, max: MAX_VERTICES as u64 }));
         assert!(Params::new(4).is_ok());
         assert!(Params::new(MAX_VERTICES + 1).is_err());
         let p = Params::new(10).unwrap();

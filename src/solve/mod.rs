@@ -93,7 +93,7 @@ impl Position for Vertex {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum SolveError {
     /// k is zero, negative or not finite at a quadrature point.
-    #[error("k = {value} at ({x}, {y}) in triangle {triangle}; k must be finite and positive")]
+    #[error("k = {value} at ({x}, {y}); k must be finite and positive")]
     InvalidK {
         /// Abscissa of the quadrature point.
         x: f64,
@@ -101,11 +101,11 @@ pub enum SolveError {
         y: f64,
         /// The value found.
         value: f64,
-        /// The triangle's index.
+        /// The triangle's index (for library callers; messages name the point).
         triangle: usize,
     },
     /// f is not finite at a quadrature point.
-    #[error("f = {value} at ({x}, {y}) in triangle {triangle} is not finite")]
+    #[error("f = {value} at ({x}, {y}) is not finite")]
     NonFiniteF {
         /// Abscissa of the quadrature point.
         x: f64,
@@ -117,7 +117,7 @@ pub enum SolveError {
         triangle: usize,
     },
     /// g is not finite at a boundary vertex.
-    #[error("g = {value} at vertex {vertex} ({x}, {y}) is not finite")]
+    #[error("g = {value} at boundary point ({x}, {y}) is not finite")]
     NonFiniteG {
         /// Abscissa of the vertex.
         x: f64,
@@ -130,7 +130,7 @@ pub enum SolveError {
     },
     /// The error estimate of a triangle overflows f64: k, f or the solution is too large.
     #[error(
-        "the error estimate of triangle {triangle} near ({x}, {y}) overflows: k, f or the \
+        "the error estimate near ({x}, {y}) overflows: k, f or the \
          solution is too large for 64-bit floats; scale the problem"
     )]
     Overflow {

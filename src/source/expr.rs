@@ -19,6 +19,7 @@ use std::fmt;
 use std::sync::Arc;
 
 mod closures;
+mod hint;
 mod lanes;
 
 /// The most values an expression may hold pending at once while evaluating; deeper nesting
@@ -27,12 +28,14 @@ pub const MAX_DEPTH: usize = 64;
 
 /// A parse error and the 1-based column (in characters) where it was found.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("{kind} at column {column}")]
+#[error("{kind} at column {column}{}", hint.as_ref().map_or(String::new(), |h| format!("; {h}")))]
 pub struct ExprError {
     /// 1-based character column; one past the end for errors at the end of the text.
     pub column: usize,
     /// What is wrong.
     pub kind: ExprErrorKind,
+    /// What to write instead, for a common slip (`2x`, `x**2`, `log`, `|x|`, an open `(`).
+    pub hint: Option<String>,
 }
 
 /// What is wrong with an expression.
@@ -268,20 +271,31 @@ impl Expression {
     /// # Errors
     /// A syntax error, an unknown name or a wrong number of arguments, with its column.
     pub fn parse(text: &str) -> Result<Self, ExprError> {
+        Self::parse_unhinted(text).map_err(|mut e| {
+            e.hint = hint::hint(text, &e);
+            e
+        })
+    }
+
+    fn parse_unhinted(text: &str) -> Result<Self, ExprError> {
         let at_end = text.chars().count() + 1;
         if text.trim().is_empty() {
-            return Err(ExprError { column: 1, kind: ExprErrorKind::Empty });
+            return Err(ExprError { column: 1, kind: ExprErrorKind::Empty, hint: None });
         }
         let tokens = tokenize(text).map_err(|e| match e {
             ParseError::UnexpectedToken(byte) => {
                 let column = column_of(text, byte);
                 let found = text[byte..].chars().next().map_or_else(String::new, String::from);
-                ExprError { column, kind: ExprErrorKind::UnexpectedToken(found) }
+                ExprError { column, kind: ExprErrorKind::UnexpectedToken(found), hint: None }
             }
-            ParseError::MissingRParen(n) => {
-                ExprError { column: at_end, kind: ExprErrorKind::MissingClosingParens(n.max(1) as usize) }
+            ParseError::MissingRParen(n) => ExprError {
+                column: at_end,
+                kind: ExprErrorKind::MissingClosingParens(n.max(1) as usize),
+                hint: None,
+            },
+            ParseError::MissingArgument => {
+                ExprError { column: at_end, kind: ExprErrorKind::MissingOperand, hint: None }
             }
-            ParseError::MissingArgument => ExprError { column: at_end, kind: ExprErrorKind::MissingOperand },
         })?;
         let starts = token_starts(text);
         // Our scanner mirrors meval's; should they ever disagree, point at the start.
@@ -292,7 +306,11 @@ impl Expression {
                 1
             }
         };
-        check_names(&tokens).map_err(|(index, kind)| ExprError { column: column(index), kind })?;
+        check_names(&tokens).map_err(|(index, kind)| ExprError {
+            column: column(index),
+            kind,
+            hint: None,
+        })?;
         let rpn = to_rpn(&tokens).map_err(|e| {
             let (index, what) = match e {
                 RPNError::MismatchedLParen(i) => (i, "unmatched `(`"),
@@ -301,9 +319,9 @@ impl Expression {
                 RPNError::NotEnoughOperands(i) => (i, "operator without an operand"),
                 RPNError::TooManyOperands => (0, "operands without an operator"),
             };
-            ExprError { column: column(index), kind: ExprErrorKind::Unbalanced(what) }
+            ExprError { column: column(index), kind: ExprErrorKind::Unbalanced(what), hint: None }
         })?;
-        let program = fuse(compile(&rpn).map_err(|kind| ExprError { column: 1, kind })?);
+        let program = fuse(compile(&rpn).map_err(|kind| ExprError { column: 1, kind, hint: None })?);
         let scalar = closures::build(&program).map(Arc::from);
         Ok(Self { text: text.to_owned(), program, scalar })
     }

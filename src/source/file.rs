@@ -308,6 +308,26 @@ pub enum GridFileError {
         /// What it is: "null", "a string", "a boolean", "an array" or "an object".
         found: &'static str,
     },
+    /// A JSON grid's values nested as rows: they are one flat list.
+    #[error(
+        "values is a list of {rows} lists; send one flat list of nx*ny numbers, bottom row first \
+         and x fastest (values[j*nx + i])"
+    )]
+    Nested {
+        /// How many lists were sent.
+        rows: u64,
+    },
+    /// A JSON grid's number beyond the range of f64 (`1e400`).
+    #[error(
+        "values[{index}]{} is beyond the range of a 64-bit float (magnitude above 1.8e308)",
+        at.map_or(String::new(), |[i, j]| format!(" (index [{i}, {j}])"))
+    )]
+    OutOfRange {
+        /// Position in `values`.
+        index: u64,
+        /// [i, j], when nx is known.
+        at: Option<[usize; 2]>,
+    },
     /// A NaN or infinite sample.
     #[error("{kind} sample at index [{i}, {j}] (file row {row}, column {i}) is not finite")]
     NonFinite {
@@ -363,6 +383,7 @@ impl GridFileError {
             | GridFileError::Transparent { i, j, .. }
             | GridFileError::NotANumber { i, j, .. }
             | GridFileError::NonFinite { i, j, .. } => Some([i, j]),
+            GridFileError::OutOfRange { at, .. } => at,
             _ => None,
         }
     }
@@ -413,17 +434,25 @@ pub fn decode_grid(bytes: &[u8], hints: &GridHints, max_points: usize) -> Result
 
 const PNG_SIGNATURE: &[u8] = b"\x89PNG\r\n\x1a\n";
 
-/// The format of `bytes`, from its first bytes (and, for `{`, the raw hints).
-fn sniff(bytes: &[u8], hints: &GridHints) -> GridFileKind {
+/// The format of a file that says what it is in its first bytes: NPY, PNG or TIFF.
+pub fn signed_kind(bytes: &[u8]) -> Option<GridFileKind> {
     if bytes.starts_with(b"\x93NUMPY") {
-        return GridFileKind::Npy;
+        return Some(GridFileKind::Npy);
     }
     if bytes.starts_with(PNG_SIGNATURE) {
-        return GridFileKind::Png;
+        return Some(GridFileKind::Png);
     }
     // Classic TIFF has 42 ('*') after the byte order, BigTIFF 43 ('+').
     if [b"II*\0", b"MM\0*", b"II+\0", b"MM\0+"].iter().any(|m| bytes.starts_with(*m)) {
-        return GridFileKind::Tiff;
+        return Some(GridFileKind::Tiff);
+    }
+    None
+}
+
+/// The format of `bytes`, from its first bytes (and, for `{`, the raw hints).
+fn sniff(bytes: &[u8], hints: &GridHints) -> GridFileKind {
+    if let Some(kind) = signed_kind(bytes) {
+        return kind;
     }
     if raw_size(hints) == Some(bytes.len() as u64) {
         return GridFileKind::Raw;

@@ -8,6 +8,7 @@ mod grid;
 pub use expr::{ExprError, ExprErrorKind, Expression};
 pub use file::{
     DecodedGrid, Encoding, GridFileError, GridFileKind, GridHints, RawType, decode_grid, decode_values,
+    signed_kind,
 };
 pub use grid::{BLOCK, Grid, GridError};
 

@@ -50,21 +50,25 @@ async fn a_page_of_another_origin_cannot_submit_jobs_unless_listed() {
     let config = Config { cors_origins: vec!["https://app.example".into()], ..test_config() };
     let app = spawn_with(config).await;
     let body = r#"{"function": "x+y", "max_vertices": 50}"#;
-    let from = |origin: &str| {
-        // What a form or fetch without preflight sends: text/plain, with the page's origin.
-        let request = app.client.post(app.url("/v1/jobs")).header("content-type", "text/plain");
+    let from = |origin: &str, content_type: &str| {
+        let request = app.client.post(app.url("/v1/jobs")).header("content-type", content_type);
         request.header("origin", origin).body(body).send()
     };
-    let foreign = from("https://evil.example").await.unwrap();
+    // What a form or fetch without preflight sends: text/plain, with the page's origin. It is
+    // refused for its origin before its content type is looked at.
+    let foreign = from("https://evil.example", "text/plain").await.unwrap();
     assert_eq!(foreign.status(), 403);
     assert_eq!(foreign.json::<Value>().await.unwrap()["type"], "/problems/cross-origin");
     assert_eq!(app.metric("meshfit_cache_misses_total").await, 0.0, "no job was looked up or made");
 
-    let listed = from("https://app.example").await.unwrap();
+    // A listed origin passes; its body is JSON, and a text/plain one is refused as such.
+    let plain = from("https://app.example", "text/plain").await.unwrap();
+    assert_eq!(plain.status(), 415);
+    let listed = from("https://app.example", "application/json").await.unwrap();
     assert_eq!(listed.status(), 202);
     assert_eq!(listed.headers()["access-control-allow-origin"], "https://app.example");
     assert!(listed.headers()["access-control-expose-headers"].to_str().unwrap().contains("location"));
-    let own = from(&format!("http://{}", app.addr)).await.unwrap();
+    let own = from(&format!("http://{}", app.addr), "application/json").await.unwrap();
     // The server's own page: the same job, joined (202) or finished (200), never refused.
     assert!(matches!(own.status().as_u16(), 200 | 202), "{}", own.status());
 

@@ -58,6 +58,64 @@ fn cases() -> Vec<Case> {
             .detail("expected a string"),
         case("unknown field", r#"{"function": "x", "max_vertcies": 10}"#, 422, "invalid-request")
             .detail("max_vertcies"),
+        case(
+            "a budget sent as a string",
+            r#"{"function": "x", "max_vertices": "100"}"#,
+            422,
+            "invalid-request",
+        )
+        .field("/field", json!("/max_vertices")),
+        case(
+            "a domain sent as a list",
+            r#"{"function": "x", "domain": [0, 1, 0, 1]}"#,
+            422,
+            "invalid-request",
+        )
+        .field("/field", json!("/domain"))
+        .detail(r#"write {"x": [0, 1], "y": [0, 1]}"#),
+        case(
+            "a wrong domain bound",
+            r#"{"function": "x", "domain": {"x": [0, 1], "y": [0, "1"]}}"#,
+            422,
+            "invalid-request",
+        )
+        .field("/field", json!("/domain/y/1")),
+        case(
+            "an unknown grid field",
+            r#"{"grid": {"nx": 2, "ny": 2, "values": [1, 2, 3, 4], "nz": 1}}"#,
+            422,
+            "invalid-request",
+        )
+        .field("/field", json!("/grid/nz")),
+        case("a problem sent to meshes", r#"{"physics": "poisson", "f": 1}"#, 422, "invalid-request")
+            .field("/field", json!("/physics"))
+            .detail("POST /v1/solutions"),
+        case(
+            "a budget below the corners",
+            r#"{"function": "x", "max_vertices": 3}"#,
+            422,
+            "invalid-parameter",
+        )
+        .field("/field", json!("/max_vertices"))
+        .detail("between 4 and 2000000"),
+        case("implicit multiplication", r#"{"function": "2x + y"}"#, 422, "invalid-expression")
+            .field("/field", json!("/function"))
+            .detail("write `2*x`"),
+        case(
+            "grid values nested as rows",
+            r#"{"grid": {"nx": 2, "ny": 2, "values": [[1, 2], [3, 4]]}}"#,
+            422,
+            "invalid-grid",
+        )
+        .detail("one flat list"),
+        case(
+            "grid value beyond f64",
+            r#"{"grid": {"nx": 2, "ny": 2, "values": [1, 2, 1e400, 4]}}"#,
+            422,
+            "invalid-grid",
+        )
+        .field("/index", json!([0, 1]))
+        .detail("beyond the range of a 64-bit float"),
         case("unknown variable", r#"{"function": "x + z"}"#, 422, "invalid-expression")
             .field("/column", json!(5)),
         case("unclosed parenthesis", r#"{"function": "sin(x"}"#, 422, "invalid-expression")
@@ -214,5 +272,37 @@ async fn wrong_methods_and_routes_get_problems_too() {
     assert_eq!(response.status(), 404);
     let problem: Value = response.json().await.unwrap();
     assert_eq!(problem["type"], "/problems/not-found");
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_body_of_a_type_the_route_does_not_take_is_415_naming_the_ones_it_does() {
+    let app = spawn_app().await;
+    let body = r#"{"function": "x*y", "max_vertices": 10}"#;
+    let send = |path: &'static str, content_type: &'static str, body: Vec<u8>| {
+        app.client.post(app.url(path)).header("content-type", content_type).body(body).send()
+    };
+    for content_type in ["text/plain", "application/xml"] {
+        let r = send("/v1/meshes", content_type, body.into()).await.unwrap();
+        assert_eq!(r.status(), 415, "{content_type}");
+        let p: Value = r.json().await.unwrap();
+        assert_eq!(p["type"], "/problems/unsupported-media-type");
+        assert_eq!(p["accepted"], json!(["application/json", "multipart/form-data"]), "{p}");
+    }
+    // curl's -d names form data whatever it sends: a JSON object under it is read as JSON.
+    let r = send("/v1/meshes", "application/x-www-form-urlencoded", body.into()).await.unwrap();
+    assert_eq!(r.status(), 200);
+    // A grid file sent raw is told how to send it.
+    let png = std::fs::read("examples/tiles/jacksboro-terrarium.png").unwrap();
+    let r = send("/v1/meshes", "application/x-www-form-urlencoded", png.clone()).await.unwrap();
+    assert_eq!(r.status(), 415);
+    assert!(r.text().await.unwrap().contains("-F grid=@"));
+    let r = send("/v1/meshes", "application/json", png).await.unwrap();
+    assert_eq!(r.status(), 400);
+    assert!(r.text().await.unwrap().contains("PNG file, not JSON"));
+    // A boundary value problem is JSON only.
+    let r = send("/v1/solutions", "multipart/form-data; boundary=x", b"--x--".to_vec()).await.unwrap();
+    assert_eq!(r.status(), 415);
+    assert_eq!(r.json::<Value>().await.unwrap()["accepted"], json!(["application/json"]));
     app.shutdown().await;
 }

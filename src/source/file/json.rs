@@ -8,14 +8,19 @@
 use super::{GridFileError, GridFileKind, Rows, check_size, detail, into_grid};
 use crate::source::Grid;
 use serde::de::{self, DeserializeSeed, MapAccess, SeqAccess, Visitor};
+use std::cell::Cell;
 use std::fmt;
 
 const KIND: GridFileKind = GridFileKind::Json;
 
 pub(super) fn decode(bytes: &[u8], max_points: usize) -> Result<Grid, GridFileError> {
-    let corrupt = |e: serde_json::Error| GridFileError::Corrupt { kind: KIND, detail: detail(e) };
+    let overflow = Cell::new(None);
+    let corrupt = |e: serde_json::Error| match overflow.get() {
+        Some(index) => GridFileError::OutOfRange { index, at: None },
+        None => GridFileError::Corrupt { kind: KIND, detail: detail(e) },
+    };
     let mut de = serde_json::Deserializer::from_slice(bytes);
-    let file = FileSeed { limit: max_points }.deserialize(&mut de).map_err(corrupt)?;
+    let file = FileSeed { limit: max_points, overflow: &overflow }.deserialize(&mut de).map_err(corrupt)?;
     de.end().map_err(corrupt)?;
     let shape = check_size(file.nx, file.ny, max_points)?;
     grid_of(shape, file.values)
@@ -29,15 +34,26 @@ pub(super) fn decode(bytes: &[u8], max_points: usize) -> Result<Grid, GridFileEr
 /// match, an element that is not a number or a value that is not finite (naming its (i, j)).
 pub fn decode_values(values: &str, nx: u64, ny: u64, max_points: usize) -> Result<Grid, GridFileError> {
     let shape = check_size(nx, ny, max_points)?;
-    let corrupt = |e: serde_json::Error| GridFileError::Corrupt { kind: KIND, detail: detail(e) };
+    let overflow = Cell::new(None);
+    let corrupt = |e: serde_json::Error| match overflow.get() {
+        Some(index) => {
+            let at = [(index % shape.nx as u64) as usize, (index / shape.nx as u64) as usize];
+            GridFileError::OutOfRange { index, at: Some(at) }
+        }
+        None => GridFileError::Corrupt { kind: KIND, detail: detail(e) },
+    };
     let mut de = serde_json::Deserializer::from_str(values);
-    let values = ValuesSeed { limit: max_points }.deserialize(&mut de).map_err(corrupt)?;
+    let values =
+        ValuesSeed { limit: max_points, overflow: &overflow }.deserialize(&mut de).map_err(corrupt)?;
     de.end().map_err(corrupt)?;
     grid_of(shape, values)
 }
 
 fn grid_of(shape: super::Shape, values: Values) -> Result<Grid, GridFileError> {
     let expected = shape.points() as u64;
+    if let Some((0, "an array")) = values.first_bad {
+        return Err(GridFileError::Nested { rows: values.count });
+    }
     if values.count != expected {
         let (unit, from, got) = ("values", "nx and ny", values.count);
         return Err(GridFileError::SizeMismatch { kind: KIND, unit, from, expected, got });
@@ -72,11 +88,12 @@ enum Field {
     Values,
 }
 
-struct FileSeed {
+struct FileSeed<'c> {
     limit: usize,
+    overflow: &'c Cell<Option<u64>>,
 }
 
-impl<'de> DeserializeSeed<'de> for FileSeed {
+impl<'de> DeserializeSeed<'de> for FileSeed<'_> {
     type Value = File;
 
     fn deserialize<D: de::Deserializer<'de>>(self, d: D) -> Result<File, D::Error> {
@@ -84,7 +101,7 @@ impl<'de> DeserializeSeed<'de> for FileSeed {
     }
 }
 
-impl<'de> Visitor<'de> for FileSeed {
+impl<'de> Visitor<'de> for FileSeed<'_> {
     type Value = File;
 
     fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -101,7 +118,10 @@ impl<'de> Visitor<'de> for FileSeed {
                 Field::Values if values.is_some() => return Err(de::Error::duplicate_field("values")),
                 Field::Nx => nx = Some(map.next_value()?),
                 Field::Ny => ny = Some(map.next_value()?),
-                Field::Values => values = Some(map.next_value_seed(ValuesSeed { limit: self.limit })?),
+                Field::Values => {
+                    let seed = ValuesSeed { limit: self.limit, overflow: self.overflow };
+                    values = Some(map.next_value_seed(seed)?);
+                }
             }
         }
         let nx = nx.ok_or_else(|| de::Error::missing_field("nx"))?;
@@ -111,11 +131,14 @@ impl<'de> Visitor<'de> for FileSeed {
     }
 }
 
-struct ValuesSeed {
+/// The values, with where a number out of f64's range was met (serde_json fails on it, and
+/// its error says neither which value nor why).
+struct ValuesSeed<'c> {
     limit: usize,
+    overflow: &'c Cell<Option<u64>>,
 }
 
-impl<'de> DeserializeSeed<'de> for ValuesSeed {
+impl<'de> DeserializeSeed<'de> for ValuesSeed<'_> {
     type Value = Values;
 
     fn deserialize<D: de::Deserializer<'de>>(self, d: D) -> Result<Self::Value, D::Error> {
@@ -123,7 +146,7 @@ impl<'de> DeserializeSeed<'de> for ValuesSeed {
     }
 }
 
-impl<'de> Visitor<'de> for ValuesSeed {
+impl<'de> Visitor<'de> for ValuesSeed<'_> {
     type Value = Values;
 
     fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -132,7 +155,17 @@ impl<'de> Visitor<'de> for ValuesSeed {
 
     fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Self::Value, A::Error> {
         let mut values = Values { kept: Vec::new(), count: 0, first_bad: None };
-        while let Some(element) = seq.next_element::<Element>()? {
+        loop {
+            let element = match seq.next_element::<Element>() {
+                Ok(Some(element)) => element,
+                Ok(None) => break,
+                Err(e) => {
+                    if e.to_string().starts_with("number out of range") {
+                        self.overflow.set(Some(values.count));
+                    }
+                    return Err(e);
+                }
+            };
             let v = match element {
                 Element::Number(v) => v,
                 Element::Bad(kind) => {
