@@ -7,7 +7,7 @@ use crate::source::{Encoding, RawType};
 use serde::de::{self, Deserializer, Visitor};
 use serde::{Deserialize, Serialize};
 use serde_json::value::RawValue;
-use std::fmt;
+use std::fmt::{self, Write};
 
 /// The body of `POST /v1/meshes` and `POST /v1/jobs`. Unknown fields are rejected, so a typo
 /// never falls back to a default silently. A grid's values stay unparsed text borrowed from
@@ -384,7 +384,7 @@ fn readable(path: &serde_path_to_error::Path) -> String {
     let mut out = String::new();
     for segment in path {
         match segment {
-            Segment::Seq { index } => out.push_str(&format!("[{index}]")),
+            Segment::Seq { index } => write!(out, "[{index}]").expect("a String takes every write"),
             Segment::Map { key } | Segment::Enum { variant: key } => {
                 if !out.is_empty() {
                     out.push('.');
@@ -399,7 +399,10 @@ fn readable(path: &serde_path_to_error::Path) -> String {
 
 /// serde_json's message without the " at line L column C" it appends.
 fn strip_position(e: &serde_json::Error) -> String {
-    let message = e.to_string();
+    let mut message = e.to_string();
     let suffix = format!(" at line {} column {}", e.line(), e.column());
-    message.strip_suffix(&suffix).map_or(message.clone(), str::to_owned)
+    if let Some(kept) = message.strip_suffix(&suffix).map(str::len) {
+        message.truncate(kept);
+    }
+    message
 }

@@ -67,6 +67,19 @@ fn names_physics(json: &[u8]) -> bool {
         && serde_json::from_slice::<Probe>(json).is_ok_and(|p| p.physics.is_some())
 }
 
+/// A mesh request; one that names `physics` (which only problems have) is pointed to the
+/// route for problems. Looked at only when the parse fails, so a mesh body is read once.
+fn mesh_request(json: &[u8]) -> Result<JobRequest<'_>, ApiError> {
+    parse_json(json).map_err(|e| match e {
+        ApiError::Json(JsonError::Shape { path, .. }) if path == "physics" => {
+            let message = "`physics` names a boundary value problem: send it to POST /v1/solutions \
+                           (or POST /v1/jobs); this route meshes a function or a grid";
+            ApiError::Json(JsonError::Shape { path, message: message.into() })
+        }
+        e => e,
+    })
+}
+
 /// JSON bodies up to this size are parsed on the async worker that read them.
 const INLINE_BODY_BYTES: usize = 16 << 10;
 
@@ -76,15 +89,8 @@ fn parse_body(body: JobBody, kind: Kind, limits: &Limits) -> Result<(JobKeys, Jo
         JobBody::Json(json) if kind == Kind::Solution || (kind == Kind::Any && names_physics(&json)) => {
             JobSpec::from_solve_request(parse_json::<SolveRequest>(&json)?, limits)?
         }
-        JobBody::Json(json) if names_physics(&json) => {
-            let message = "`physics` names a boundary value problem: send it to POST /v1/solutions \
-                           (or POST /v1/jobs); this route meshes a function or a grid";
-            return Err(ApiError::Json(JsonError::Shape { path: "physics".into(), message: message.into() }));
-        }
-        JobBody::Json(json) => JobSpec::from_request(parse_json::<JobRequest>(&json)?, limits)?,
-        JobBody::Upload { request, grid } => {
-            JobSpec::from_upload(parse_json::<JobRequest>(&request)?, &grid, limits)?
-        }
+        JobBody::Json(json) => JobSpec::from_request(mesh_request(&json)?, limits)?,
+        JobBody::Upload { request, grid } => JobSpec::from_upload(mesh_request(&request)?, &grid, limits)?,
     };
     Ok((job_keys(&spec), spec))
 }

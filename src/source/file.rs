@@ -513,6 +513,11 @@ impl Shape {
     fn points(self) -> usize {
         self.nx * self.ny
     }
+
+    /// [i, j] of the sample at row-major position `index` (x fastest).
+    fn at(self, index: u64) -> [usize; 2] {
+        [(index % self.nx as u64) as usize, (index / self.nx as u64) as usize]
+    }
 }
 
 /// Checks a declared size before anything is allocated for it.

@@ -37,7 +37,7 @@ fn unexpected(chars: &[char], at: usize, found: char) -> Option<String> {
             let end = before? + 1;
             let operand = |c: &char| c.is_alphanumeric() || *c == '.' || *c == '_';
             let start = match c {
-                ')' => matching_open(chars, end - 1)?,
+                ')' => partner(chars, end - 1)?,
                 _ => chars[..end].iter().rposition(|c| !operand(c)).map_or(0, |i| i + 1),
             };
             let left: String = chars[start..end].iter().collect();
@@ -45,7 +45,7 @@ fn unexpected(chars: &[char], at: usize, found: char) -> Option<String> {
                 return Some(format!("a function's argument goes in parentheses: `{left}(…)`"));
             }
             let next = match f {
-                '(' => at + matching_close(chars, at).map_or(1, |close| close - at + 1),
+                '(' => partner(chars, at).map_or(at + 1, |close| close + 1),
                 _ => at + chars[at..].iter().take_while(|c| operand(c)).count(),
             };
             let right: String = chars[at..next].iter().collect();
@@ -106,38 +106,22 @@ fn unclosed(chars: &[char]) -> Option<usize> {
     open.pop()
 }
 
-/// The `(` that the `)` at `close` closes.
-fn matching_open(chars: &[char], close: usize) -> Option<usize> {
+/// The index of the parenthesis that pairs with the one at `at`: forward from a `(`,
+/// backward from a `)`.
+fn partner(chars: &[char], at: usize) -> Option<usize> {
+    let (same, step) = if chars[at] == '(' { ('(', 1) } else { (')', -1) };
     let mut depth = 0usize;
-    for i in (0..=close).rev() {
-        match chars[i] {
-            ')' => depth += 1,
-            '(' => {
-                depth -= 1;
-                if depth == 0 {
-                    return Some(i);
-                }
+    let mut i = at as isize;
+    while let Some(&c) = usize::try_from(i).ok().and_then(|i| chars.get(i)) {
+        if c == same {
+            depth += 1;
+        } else if c == '(' || c == ')' {
+            depth -= 1;
+            if depth == 0 {
+                return Some(i as usize);
             }
-            _ => {}
         }
-    }
-    None
-}
-
-/// The `)` that closes the `(` at `open`.
-fn matching_close(chars: &[char], open: usize) -> Option<usize> {
-    let mut depth = 0usize;
-    for (i, &c) in chars.iter().enumerate().skip(open) {
-        match c {
-            '(' => depth += 1,
-            ')' => {
-                depth -= 1;
-                if depth == 0 {
-                    return Some(i);
-                }
-            }
-            _ => {}
-        }
+        i += step;
     }
     None
 }

@@ -36,10 +36,7 @@ pub fn decode_values(values: &str, nx: u64, ny: u64, max_points: usize) -> Resul
     let shape = check_size(nx, ny, max_points)?;
     let overflow = Cell::new(None);
     let corrupt = |e: serde_json::Error| match overflow.get() {
-        Some(index) => {
-            let at = [(index % shape.nx as u64) as usize, (index / shape.nx as u64) as usize];
-            GridFileError::OutOfRange { index, at: Some(at) }
-        }
+        Some(index) => GridFileError::OutOfRange { index, at: Some(shape.at(index)) },
         None => GridFileError::Corrupt { kind: KIND, detail: detail(e) },
     };
     let mut de = serde_json::Deserializer::from_str(values);
@@ -59,7 +56,7 @@ fn grid_of(shape: super::Shape, values: Values) -> Result<Grid, GridFileError> {
         return Err(GridFileError::SizeMismatch { kind: KIND, unit, from, expected, got });
     }
     if let Some((index, found)) = values.first_bad {
-        let (i, j) = ((index % shape.nx as u64) as usize, (index / shape.nx as u64) as usize);
+        let [i, j] = shape.at(index);
         return Err(GridFileError::NotANumber { i, j, index, found });
     }
     into_grid(KIND, shape, Rows::BottomFirst, values.kept, None)
