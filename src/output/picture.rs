@@ -2,13 +2,15 @@
 //! the text itself, each triangle's colour and which triangle draws which edge.
 //!
 //! ```text
-//!  ┌──────────────────────────────────────┐
-//!  │  ┌────────────────────────┐ ┌─┐ max  │
-//!  │  │ the mesh from above,   │ │ │      │
-//!  │  │ north up, to scale     │ │ │      │
-//!  │  └────────────────────────┘ └─┘ min  │
-//!  │  10000 vertices · 19681 triangles ·  │
-//!  └──────────────────────────────────────┘
+//!  ┌──────────────────────────────────────────┐
+//!  │    1 ┤┌────────────────────────┐ ┌─┐ max  │
+//!  │      ││ the mesh from above,   │ │ │      │
+//!  │  0.5 ┤│ north up, to scale     │ │ │      │
+//!  │    0 ┤└────────────────────────┘ └─┘ min  │
+//!  │       ┬    ┬    ┬    ┬    ┬    ┬          │
+//!  │       0   0.2  0.4  0.6  0.8   1          │
+//!  │  10000 vertices · 19681 triangles ·      │
+//!  └──────────────────────────────────────────┘
 //! ```
 //! Lengths are in picture units: pixels for png, view-box units for svg.
 
@@ -56,6 +58,10 @@ pub(crate) struct Layout {
     pub bar: Frame,
     /// The colour bar's labels: text, left and top.
     pub labels: [(String, f64, f64); 2],
+    /// The axes' tick marks, from the plot's edge outward: x1, y1, x2, y2.
+    pub ticks: Vec<[f64; 4]>,
+    /// The ticks' labels: text, left and top; x's under the plot, y's to its left.
+    pub tick_labels: Vec<(String, f64, f64)>,
     /// The stats line, wrapped to the width, and the top of its first line.
     pub lines: Vec<String>,
     pub text_top: f64,
@@ -106,13 +112,34 @@ impl Layout {
         let label_gap = (8.0 * unit).round().max(1.0);
         let label_width = label_chars * text.char_width;
         let beside = gap + bar_width + label_gap + label_width;
-        let box_width = (width - 2.0 * margin - beside).max(width / 4.0);
+        // The y axis's labels go left of the plot, the x axis's under it.
+        let tick_length = (6.0 * unit).round().max(2.0);
+        let (x_ticks, y_ticks) = (ticks(bounds[0], bounds[1]), ticks(bounds[2], bounds[3]));
+        let y_label_chars = y_ticks.iter().map(|(_, l)| l.chars().count()).max().unwrap_or(0) as f64;
+        let before = y_label_chars * text.char_width + tick_length + label_gap;
+        let box_width = (width - 2.0 * margin - beside - before).max(width / 4.0);
         // A tall domain fits a square box rather than making the picture taller than wide.
         let scale = (box_width / dx).min(box_width / dy);
         let (plot_width, plot_height) = (dx * scale, dy * scale);
         // Centred as a group, so a narrow plot does not leave the bar at the far left.
-        let left = ((width - plot_width - beside) / 2.0).round().max(margin);
+        let left = ((width - before - plot_width - beside) / 2.0).round().max(margin) + before;
         let plot = Frame { left, top: margin, width: plot_width, height: plot_height };
+        let mut tick_marks = Vec::new();
+        let mut tick_labels = Vec::new();
+        for (x, label) in x_ticks {
+            let at = plot.left + (x - bounds[0]) * scale;
+            tick_marks.push([at, plot.bottom(), at, plot.bottom() + tick_length]);
+            let label_left = at - label.chars().count() as f64 * text.char_width / 2.0;
+            tick_labels.push((label, label_left, plot.bottom() + tick_length + label_gap / 2.0));
+        }
+        for (y, label) in y_ticks {
+            let at = plot.top + (bounds[3] - y) * scale;
+            tick_marks.push([plot.left, at, plot.left - tick_length, at]);
+            let label_left =
+                plot.left - tick_length - label_gap - label.chars().count() as f64 * text.char_width;
+            tick_labels.push((label, label_left, at - text.char_height / 2.0));
+        }
+        let x_labels_bottom = plot.bottom() + tick_length + label_gap / 2.0 + text.char_height;
         // A flat plot still gets a bar tall enough for its two labels.
         let bar_height = plot_height.max(3.0 * text.line_height).round();
         let bar =
@@ -123,7 +150,7 @@ impl Layout {
 
         let per_line = ((width - 2.0 * margin) / text.char_width).floor().max(1.0) as usize;
         let lines = wrap(&stats_segments(result), per_line);
-        let text_top = (bar.bottom() + 0.75 * margin).round();
+        let text_top = (bar.bottom().max(x_labels_bottom) + 0.75 * margin).round();
         let height = (text_top + lines.len() as f64 * text.line_height + 0.75 * margin).ceil();
         Self {
             width,
@@ -131,6 +158,8 @@ impl Layout {
             plot,
             bar,
             labels,
+            ticks: tick_marks,
+            tick_labels,
             lines,
             text_top,
             line_height: text.line_height,
@@ -227,6 +256,28 @@ fn wrap(segments: &[String], per_line: usize) -> Vec<String> {
     lines
 }
 
+/// Round numbers from `lo` to `hi` for an axis, about five of them, 1, 2 or 5 × 10^k apart,
+/// each with its label written to the step's precision (`0.2`, `500000`).
+pub(crate) fn ticks(lo: f64, hi: f64) -> Vec<(f64, String)> {
+    const ABOUT: f64 = 5.0;
+    let raw = (hi - lo) / ABOUT;
+    if !(raw > 0.0 && raw.is_finite()) {
+        return Vec::new();
+    }
+    let magnitude = 10f64.powf(raw.log10().floor());
+    let step = [1.0, 2.0, 5.0, 10.0].map(|m| m * magnitude).into_iter().find(|&s| s >= raw).unwrap_or(raw);
+    let decimals = (-step.log10().floor()).max(0.0) as usize;
+    // A hair of slack, so that an end on a multiple of the step (1e-3 / 2e-4) keeps its tick.
+    let (first, last) = ((lo / step - 1e-9).ceil() as i64, (hi / step + 1e-9).floor() as i64);
+    (first..=last)
+        .map(|k| {
+            let v = k as f64 * step;
+            // `+ 0.0` writes a zero tick as 0, not -0.
+            (v, format!("{:.decimals$}", v + 0.0))
+        })
+        .collect()
+}
+
 /// `v` with three significant digits, in plain notation from 0.001 to 99999, else as `2.47e-5`.
 pub(crate) fn short(v: f64) -> String {
     if v == 0.0 || !v.is_finite() {
@@ -285,6 +336,43 @@ mod tests {
         assert!((right - layout.plot.right()).abs() < 1e-9 && (bottom - layout.plot.bottom()).abs() < 1e-9);
         assert!(layout.bar.left > layout.plot.right() && layout.labels[0].1 + 40.0 < layout.width);
         assert!(layout.text_top > layout.plot.bottom() && layout.text_top + 24.0 < layout.height);
+    }
+
+    #[test]
+    fn axes_tick_round_numbers_written_to_their_steps_precision() {
+        let labels = |lo, hi| ticks(lo, hi).into_iter().map(|(_, l)| l).collect::<Vec<_>>();
+        assert_eq!(labels(0.0, 1.0), ["0.0", "0.2", "0.4", "0.6", "0.8", "1.0"]);
+        assert_eq!(labels(0.0, 3.0), ["0", "1", "2", "3"]);
+        assert_eq!(labels(-1.0, 1.0), ["-1.0", "-0.5", "0.0", "0.5", "1.0"]);
+        assert_eq!(labels(500_015.0, 507_665.0), ["502000", "504000", "506000"]);
+        assert_eq!(labels(0.0, 255.0), ["0", "100", "200"]);
+        assert_eq!(labels(1e-3, 2e-3), ["0.0010", "0.0012", "0.0014", "0.0016", "0.0018", "0.0020"]);
+        assert!(ticks(1.0, 1.0).is_empty());
+    }
+
+    #[test]
+    fn tick_marks_sit_on_the_plots_edges_at_their_values_with_labels_outside() {
+        let result = sample(50, Criterion::Variation);
+        let layout = Layout::new(&result, 1024.0, TEXT);
+        let [x0, x1, y0, y1] = result.bounds();
+        let plot = layout.plot;
+        let x_count = ticks(x0, x1).len();
+        assert_eq!(layout.ticks.len(), x_count + ticks(y0, y1).len());
+        for (i, &[ax, ay, bx, by]) in layout.ticks.iter().enumerate() {
+            let (label, left, top) = &layout.tick_labels[i];
+            let value: f64 = label.parse().unwrap();
+            if i < x_count {
+                assert!((ax - layout.to_picture(value, y0).0).abs() < 1e-9 && ax == bx);
+                assert!(ay == plot.bottom() && by > ay && *top >= by, "{label}");
+                assert!(*left > 0.0 && left + label.len() as f64 * TEXT.char_width < layout.width);
+            } else {
+                assert!((ay - layout.to_picture(x0, value).1).abs() < 1e-9 && ay == by);
+                assert!(ax == plot.left && bx < ax, "{label}");
+                assert!(*left >= 0.0 && left + label.len() as f64 * TEXT.char_width < bx, "{label}");
+            }
+        }
+        let below = layout.tick_labels[..x_count].iter().map(|l| l.2 + TEXT.char_height).fold(0.0, f64::max);
+        assert!(layout.text_top > below, "the stats line clears the x labels");
     }
 
     #[test]

@@ -36,10 +36,11 @@ fn render(result: &MeshResult, width: u32) -> Vec<u8> {
     fill_triangles(&mut pixmap, result, &layout, layout.z_range);
     draw_edges(&mut pixmap, result, &layout);
     draw_bar(&mut pixmap, &layout, layout.z_range);
+    draw_ticks(&mut pixmap, &layout);
 
     let style = MonoTextStyle::new(font, Rgb888::new(INK[0], INK[1], INK[2]));
     let mut canvas = Canvas { pixmap: &mut pixmap, left: 0, top: 0, scale };
-    for (label, left, top) in &layout.labels {
+    for (label, left, top) in layout.labels.iter().chain(&layout.tick_labels) {
         canvas.write(label, *left, *top, style);
     }
     for (i, line) in layout.lines.iter().enumerate() {
@@ -172,6 +173,18 @@ fn draw_bar(pixmap: &mut Pixmap, layout: &Layout, (lo, hi): (f64, f64)) {
         let stroke = Stroke { width: layout.line_width as f32, ..Stroke::default() };
         pixmap.stroke_path(&PathBuilder::from_rect(frame), &paint, &stroke, Transform::identity(), None);
     }
+}
+
+/// The axes' tick marks.
+fn draw_ticks(pixmap: &mut Pixmap, layout: &Layout) {
+    let mut path = PathBuilder::new();
+    for &[x1, y1, x2, y2] in &layout.ticks {
+        path.move_to(x1 as f32, y1 as f32);
+        path.line_to(x2 as f32, y2 as f32);
+    }
+    let Some(path) = path.finish() else { return };
+    let stroke = Stroke { width: layout.line_width as f32, ..Stroke::default() };
+    pixmap.stroke_path(&path, &line_paint(INK, 1.0), &stroke, Transform::identity(), None);
 }
 
 /// Anti-aliased paint of `rgb` at `opacity`, for lines.
@@ -371,7 +384,11 @@ mod tests {
         };
         let text_bottom = layout.text_top + layout.line_height * layout.lines.len() as f64;
         assert!(dark(layout.text_top, text_bottom) > 500, "{}", dark(layout.text_top, text_bottom));
-        assert_eq!(dark(layout.bar.bottom() + 2.0, layout.text_top), 0);
+        // Between the plot and the stats line: the ticks and their labels, then nothing.
+        let labels_top = layout.plot.bottom() + 1.0;
+        let labels_bottom = layout.tick_labels.iter().map(|l| l.2 + layout.line_height).fold(0.0, f64::max);
+        assert!(dark(labels_top, labels_bottom) > 50, "the x axis's labels");
+        assert_eq!(dark(labels_bottom, layout.text_top), 0);
     }
 
     #[test]

@@ -93,7 +93,7 @@ pub fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoding {
     Encoding::new(parts)
 }
 
-/// The colour bar, its labels and the stats line.
+/// The axes' ticks, the colour bar, their labels and the stats line.
 fn trailer(layout: &Layout, (lo, hi): (f64, f64)) -> String {
     let mut s = String::from("<defs><linearGradient id=\"scale\" x1=\"0\" y1=\"1\" x2=\"0\" y2=\"0\">");
     for i in 0..=BAR_STOPS {
@@ -101,10 +101,17 @@ fn trailer(layout: &Layout, (lo, hi): (f64, f64)) -> String {
         let colour = hex(super::colour::of(lo + t * (hi - lo), lo, hi));
         let _ = write!(s, "<stop offset=\"{t}\" stop-color=\"{colour}\"/>");
     }
+    s.push_str("</linearGradient></defs>\n");
+    let _ =
+        write!(s, "<path id=\"ticks\" stroke=\"{}\" stroke-width=\"{}\" d=\"", hex(INK), layout.line_width);
+    for &[x1, y1, x2, y2] in &layout.ticks {
+        let _ = write!(s, "M{} {}L{} {}", round(x1), round(y1), round(x2), round(y2));
+    }
+    s.push_str("\"/>\n");
     let bar = layout.bar;
     let _ = write!(
         s,
-        "</linearGradient></defs>\n\
+        "\
          <rect id=\"bar\" x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"url(#scale)\" stroke=\"{}\" \
          stroke-width=\"{}\"/>\n\
          <g fill=\"{}\" font-family=\"DejaVu Sans Mono, Menlo, Consolas, monospace\" font-size=\"{FONT_SIZE}\">\n",
@@ -116,7 +123,7 @@ fn trailer(layout: &Layout, (lo, hi): (f64, f64)) -> String {
         layout.line_width,
         hex(INK)
     );
-    for (text, left, top) in &layout.labels {
+    for (text, left, top) in layout.labels.iter().chain(&layout.tick_labels) {
         let _ = writeln!(
             s,
             "<text x=\"{left}\" y=\"{}\">{}</text>",

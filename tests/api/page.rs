@@ -169,6 +169,10 @@ async fn shared_address(app: &TestApp, client: &Client) {
     let (ink, colours) = canvas_ink(client, "flat").await;
     assert!(ink > 200_000, "the 800×800 canvas has {ink} drawn pixels");
     assert!(colours > 40, "a mesh filled by value has many colours, got {colours}");
+    // Its axes tick the domain [0, 2] × [0, 1] at round numbers.
+    let flat = client.find(Locator::Id("flat")).await.unwrap();
+    assert_eq!(flat.attr("data-x-ticks").await.unwrap().as_deref(), Some("0.0 0.5 1.0 1.5 2.0"));
+    assert_eq!(flat.attr("data-y-ticks").await.unwrap().as_deref(), Some("0.0 0.2 0.4 0.6 0.8 1.0"));
     let (plot, _) = canvas_ink(client, "convergence").await;
     assert!(plot > 2_000, "the convergence plot drew {plot} pixels");
 
@@ -249,6 +253,20 @@ async fn shared_address(app: &TestApp, client: &Client) {
     wait_until(client, "#legend[data-mode=error]").await;
     let legend = client.find(Locator::Id("legend")).await.unwrap().text().await.unwrap();
     assert!(legend.starts_with("log10 error per triangle"), "{legend}");
+    // Its colour bar runs over the errors themselves, smallest first.
+    let bar: Value = client
+        .execute(
+            r#"const b = document.getElementById("colourbar");
+               return [b.hidden, ...[".what", ".lo", ".hi"].map(c => b.querySelector(c).textContent)];"#,
+            vec![],
+        )
+        .await
+        .unwrap();
+    assert_eq!(bar[0], false, "{bar}");
+    assert_eq!(bar[1], "error per triangle (log scale)");
+    let (lo, hi): (f64, f64) =
+        (bar[2].as_str().unwrap().parse().unwrap(), bar[3].as_str().unwrap().parse().unwrap());
+    assert!(0.0 < lo && lo < hi, "{bar}");
     let (ink, colours) = canvas_ink(client, "flat").await;
     assert!(ink > 200_000 && colours > 40, "error view: {ink} pixels, {colours} colours");
     screenshot(client, "page-error").await;
@@ -341,6 +359,10 @@ async fn grid_file(app: &TestApp, client: &Client) {
     client.goto(&app.url(&share)).await.unwrap();
     wait_until(client, "body[data-state=done]").await;
     assert_eq!(page_stats(client).await.get("vertices"), Some(&json!(500)));
+    // The page says that the form is not the job's request, and offers a fresh one.
+    let notice = client.find(Locator::Id("job-notice")).await.unwrap();
+    assert!(notice.is_displayed().await.unwrap());
+    assert!(notice.text().await.unwrap().contains(&id), "the notice names the job");
     let (ink, _) = canvas_ink(client, "flat").await;
     assert!(ink > 100_000, "the shared job is drawn: {ink} pixels");
 }

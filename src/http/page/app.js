@@ -208,6 +208,7 @@ async function run(req) {
   const abort = new AbortController();
   view.abort = abort;
   clearErrors();
+  $("job-notice").hidden = true;
   Object.assign(view, { id: null, points: [], doc: null, status: null, errors: null });
   view.domain = req.domain ? [...req.domain.x, ...req.domain.y] : view.kind === "solution" ? [0, 1, 0, 1] : null;
   $("stats").hidden = true;
@@ -302,6 +303,10 @@ function progress(p) {
 
 // `/?job=ID`: shows a job that exists, running or finished, as its events tell.
 async function openJob(id) {
+  // The job's request is not known here (a file cannot travel in an address): say plainly
+  // that the form is not it.
+  $("job-shown").textContent = id;
+  $("job-notice").hidden = false;
   view.id = id;
   view.request = { job: id };
   $("curl").textContent = curlLine(view.request);
@@ -422,19 +427,81 @@ function draw() {
   else drawFlat();
 }
 
-// Maps the domain onto the canvas, keeping its aspect ratio.
+// Maps the domain onto the canvas, keeping its aspect ratio, with room for the axes' labels
+// on the left and below.
+const AXIS_LEFT = 64, AXIS_BELOW = 30;
 function frame(canvas, d) {
   const pad = 12;
-  const [w, h] = [canvas.width - 2 * pad, canvas.height - 2 * pad];
+  const [w, h] = [canvas.width - 2 * pad - AXIS_LEFT, canvas.height - 2 * pad - AXIS_BELOW];
   const scale = Math.min(w / (d[1] - d[0] || 1), h / (d[3] - d[2] || 1));
-  const ox = pad + (w - scale * (d[1] - d[0])) / 2;
-  const oy = pad + (h - scale * (d[3] - d[2])) / 2;
+  const ox = pad + AXIS_LEFT + (w - scale * (d[1] - d[0])) / 2;
+  const oy = pad + AXIS_BELOW + (h - scale * (d[3] - d[2])) / 2;
   return {
     x: (x) => ox + (x - d[0]) * scale,
     y: (y) => canvas.height - (oy + (y - d[2]) * scale),
     back: (px, py) => [d[0] + (px - ox) / scale, d[2] + (canvas.height - py - oy) / scale],
     rect: [ox, canvas.height - oy - scale * (d[3] - d[2]), scale * (d[1] - d[0]), scale * (d[3] - d[2])],
   };
+}
+
+// Round numbers from lo to hi, about five, 1, 2 or 5 × 10^k apart, labelled to the step's
+// precision: the rule of the svg and png pictures (output/picture.rs).
+function ticks(lo, hi) {
+  const raw = (hi - lo) / 5;
+  if (!(raw > 0 && Number.isFinite(raw))) return [];
+  const magnitude = 10 ** Math.floor(Math.log10(raw));
+  const step = [1, 2, 5, 10].map((m) => m * magnitude).find((s) => s >= raw) || raw;
+  const decimals = Math.max(0, -Math.floor(Math.log10(step)));
+  const out = [];
+  for (let k = Math.ceil(lo / step - 1e-9); k <= Math.floor(hi / step + 1e-9); k++) {
+    const v = k * step;
+    out.push([v, (v + 0).toFixed(decimals)]);
+  }
+  return out;
+}
+
+// Tick marks and labels along the plot's bottom (x) and left side (y).
+function drawAxes(g, f, d) {
+  const [left, top, width, height] = f.rect;
+  g.strokeStyle = "#4a5160";
+  g.fillStyle = "#4a5160";
+  g.lineWidth = 1;
+  g.font = "12px system-ui, sans-serif";
+  g.beginPath();
+  g.textAlign = "center";
+  g.textBaseline = "top";
+  const [xs, ys] = [ticks(d[0], d[1]), ticks(d[2], d[3])];
+  // The labels drawn, for the browser test to read.
+  g.canvas.dataset.xTicks = xs.map(([, label]) => label).join(" ");
+  g.canvas.dataset.yTicks = ys.map(([, label]) => label).join(" ");
+  for (const [x, label] of xs) {
+    const at = f.x(x);
+    g.moveTo(at, top + height);
+    g.lineTo(at, top + height + 5);
+    g.fillText(label, at, top + height + 8);
+  }
+  g.textAlign = "right";
+  g.textBaseline = "middle";
+  for (const [y, label] of ys) {
+    const at = f.y(y);
+    g.moveTo(left, at);
+    g.lineTo(left - 5, at);
+    g.fillText(label, left - 8, at);
+  }
+  g.stroke();
+}
+
+// The colour bar under the picture: viridis from lo to hi, with what it measures; `null` hides
+// it (nothing coloured).
+function colourBar(lo, hi, what) {
+  const bar = $("colourbar");
+  bar.hidden = what === null;
+  if (what === null) return;
+  const stops = Array.from({ length: 11 }, (_, i) => rgb(viridis(i / 10)));
+  bar.querySelector(".scale").style.background = `linear-gradient(to right, ${stops.join(", ")})`;
+  bar.querySelector(".lo").textContent = fmt(lo);
+  bar.querySelector(".hi").textContent = fmt(hi);
+  bar.querySelector(".what").textContent = what;
 }
 
 function domainOf(vertices) {
@@ -489,7 +556,9 @@ function drawFlat() {
   g.strokeStyle = "#9aa1ad";
   g.lineWidth = 1;
   g.strokeRect(...f.rect);
+  drawAxes(g, f, d);
   if (!view.doc) {
+    colourBar(0, 0, null);
     drawPoints(g, f);
     if (view.kind === "solution") drawRegions(g, f);
     return;
@@ -497,6 +566,7 @@ function drawFlat() {
   const tv = triangleValues();
   if (!tv) {
     const loaded = view.errors && view.errors.id === view.doc.id;
+    colourBar(0, 0, null);
     legend(loaded ? "no per-triangle error for this mesh (criterion variation)" : "loading the per-triangle errors…");
     return;
   }
@@ -536,6 +606,9 @@ function drawFlat() {
     g.stroke(edges);
   }
   if (view.kind === "solution" && view.doc.flux_density && $("arrows").checked) drawArrows(g, f);
+  // The error view colours log10 of the errors: its bar is labelled with the errors themselves.
+  const logScale = view.mode === "error";
+  colourBar(logScale ? 10 ** lo : lo, logScale ? 10 ** hi : hi, logScale ? "error per triangle (log scale)" : tv.label);
   legend(`${tv.label}: ${fmt(lo)} … ${fmt(hi)}, ${V.length} vertices, ${T.length} triangles`, tv.label);
 }
 
@@ -566,6 +639,7 @@ function drawPoints(g, f) {
     g.fillStyle = rgb(viridis((P[i + 2] - lo) / (hi - lo || 1)));
     g.fillRect(f.x(P[i]) - size / 2, f.y(P[i + 1]) - size / 2, size, size);
   }
+  colourBar(lo, hi, "F at the vertices so far");
   legend(`${P.length / 3} vertices so far: F ${fmt(lo)} … ${fmt(hi)}`);
 }
 
@@ -629,6 +703,7 @@ function drawSurface() {
   gl.uniformMatrix4fv(gl.getUniformLocation(program, "turn"), false, rotation(turn.yaw, turn.pitch));
   gl.drawArrays(gl.TRIANGLES, 0, T.length * 3);
   buffers.forEach((b) => gl.deleteBuffer(b));
+  colourBar(zlo, zhi, view.kind === "solution" ? "u" : "F");
   legend(`surface of ${V.length} vertices; drag to turn it`, "surface");
 }
 
@@ -938,6 +1013,8 @@ function wire() {
     if (!p.physics) p.physics = "poisson";
     run(p);
   });
+  // A fresh page: the form's defaults, nothing shown.
+  $("job-new").addEventListener("click", () => location.assign("/"));
   $("cancel").addEventListener("click", async () => {
     if (view.id) await fetch(`/v1/jobs/${view.id}`, { method: "DELETE", headers: authHeaders() });
     if (view.abort) view.abort.abort();
