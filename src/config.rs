@@ -4,8 +4,9 @@
 //! [`Config`] the typed values. Nothing downstream parses a string.
 
 use crate::http::access::{ApiKeys, MIN_KEY_LEN};
+use ipnet::IpNet;
 use std::collections::BTreeMap;
-use std::net::SocketAddr;
+use std::net::{IpAddr, SocketAddr};
 use std::num::NonZeroUsize;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -30,7 +31,7 @@ pub struct Config {
     pub queue: usize,
     /// Largest `max_vertices` a request may ask for (`MESHFIT_MAX_VERTICES`, default 2,000,000).
     pub max_vertices: usize,
-    /// Largest nx·ny of a grid (`MESHFIT_MAX_GRID_POINTS`, default 16,777,216).
+    /// Largest nx·ny of a grid (`MESHFIT_MAX_GRID_POINTS`, default 16,785,409: 4097 × 4097).
     pub max_grid_points: usize,
     /// Largest request body (`MESHFIT_MAX_BODY_BYTES`, default 256 MiB: a 4097 × 4097 grid
     /// written with up to 14 characters per value; raise it for full-precision grids).
@@ -78,6 +79,10 @@ pub struct Config {
     /// The share of the workers and of the queue one client (key, or address without keys)
     /// may hold (`MESHFIT_CLIENT_SHARE`, in (0, 1], default 0.5).
     pub client_share: f64,
+    /// Proxies whose `Forwarded` or `X-Forwarded-For` header names the client, for shares
+    /// without keys (`MESHFIT_TRUSTED_PROXIES`, comma-separated addresses or CIDR ranges).
+    /// Default none: a client is the address that connects.
+    pub trusted_proxies: Vec<IpNet>,
     /// Replicas share results and jobs through this Redis (`MESHFIT_REDIS_URL`,
     /// `redis://host:port/db`; unset: this process serves alone), with the settings below.
     pub redis_url: Option<String>,
@@ -117,6 +122,7 @@ impl Default for Config {
             api_keys: ApiKeys::default(),
             cors_origins: Vec::new(),
             client_share: 0.5,
+            trusted_proxies: Vec::new(),
             redis_url: None,
             redis_ttl: Duration::from_secs(24 * 3600),
             redis_max_bytes: 256 << 20,
@@ -127,24 +133,66 @@ impl Default for Config {
 
 /// The settings as strings, keyed by variable name, before validation.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub struct RawConfig(pub BTreeMap<String, String>);
+pub struct RawConfig {
+    /// Values by variable name.
+    values: BTreeMap<String, String>,
+    /// The flag that gave a value, by variable name.
+    flags: BTreeMap<String, &'static str>,
+}
 
 impl RawConfig {
     /// Every `MESHFIT_*` variable of the process environment.
     pub fn from_env() -> Self {
-        Self(std::env::vars().filter(|(k, _)| k.starts_with("MESHFIT_")).collect())
+        std::env::vars().filter(|(k, _)| k.starts_with("MESHFIT_")).collect()
     }
 
-    /// Sets one variable (for command-line flags, which override the environment).
+    /// Sets one variable.
     pub fn set(&mut self, name: &str, value: impl Into<String>) {
-        self.0.insert(name.to_owned(), value.into());
+        self.values.insert(name.to_owned(), value.into());
+        self.flags.remove(name);
+    }
+
+    /// Sets one variable from the command-line flag `flag` (flags override the environment),
+    /// so that a bad value is reported under the flag the user typed.
+    pub fn set_from_flag(&mut self, name: &str, flag: &'static str, value: impl Into<String>) {
+        self.set(name, value);
+        self.flags.insert(name.to_owned(), flag);
     }
 }
 
-/// Every invalid setting, each naming its variable and value.
+impl FromIterator<(String, String)> for RawConfig {
+    fn from_iter<I: IntoIterator<Item = (String, String)>>(pairs: I) -> Self {
+        Self { values: pairs.into_iter().collect(), flags: BTreeMap::new() }
+    }
+}
+
+/// One invalid setting: where it came from, its value (or `<hidden>` for a secret) and why.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ConfigProblem {
+    /// The variable, e.g. `MESHFIT_WORKERS`.
+    pub name: String,
+    /// The flag it was given with, e.g. `--workers`, if it was.
+    pub flag: Option<&'static str>,
+    /// The value as given, quoted, or `<hidden>`.
+    pub shown: String,
+    /// What is wrong with it.
+    pub why: String,
+}
+
+impl std::fmt::Display for ConfigProblem {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let Self { name, flag, shown, why } = self;
+        match flag {
+            Some(flag) => write!(f, "{flag} {shown} ({name}): {why}"),
+            None => write!(f, "{name}={shown}: {why}"),
+        }
+    }
+}
+
+/// Every invalid setting, each naming its variable (or flag) and value.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("invalid configuration:\n  {}", .0.join("\n  "))]
-pub struct ConfigError(pub Vec<String>);
+#[error("invalid configuration:\n  {}", .0.iter().map(ToString::to_string).collect::<Vec<_>>().join("\n  "))]
+pub struct ConfigError(pub Vec<ConfigProblem>);
 
 impl TryFrom<RawConfig> for Config {
     type Error = ConfigError;
@@ -152,16 +200,14 @@ impl TryFrom<RawConfig> for Config {
     fn try_from(raw: RawConfig) -> Result<Self, ConfigError> {
         let mut config = Config::default();
         let mut problems = Vec::new();
-        for (name, value) in &raw.0 {
+        for (name, value) in &raw.values {
             let v = value.trim();
             let number = || v.replace('_', "").parse::<u64>().map_err(|_| "expected a whole number");
             let millis = || {
                 number().and_then(|n| (n >= 1).then(|| Duration::from_millis(n)).ok_or("must be at least 1"))
             };
             let outcome: Result<(), &str> = match name.as_str() {
-                "MESHFIT_ADDR" => {
-                    v.parse().map(|a| config.addr = a).map_err(|_| "expected host:port, e.g. 0.0.0.0:8080")
-                }
+                "MESHFIT_ADDR" => listen_addr(v).map(|a| config.addr = a),
                 "MESHFIT_WORKERS" => number().and_then(|n| {
                     NonZeroUsize::new(n as usize).map(|n| config.workers = n).ok_or("must be at least 1")
                 }),
@@ -216,7 +262,8 @@ impl TryFrom<RawConfig> for Config {
                         &mut config.api_keys,
                     ),
                     Err(e) => {
-                        problems.push(format!("{name}={value:?}: cannot read the file: {e}"));
+                        let why = format!("cannot read the file: {e}");
+                        problems.push(problem(&raw, name, format!("{value:?}"), why));
                         Ok(())
                     }
                 },
@@ -238,6 +285,17 @@ impl TryFrom<RawConfig> for Config {
                     }
                     _ => Err("expected a number in (0, 1], e.g. 0.5"),
                 },
+                "MESHFIT_TRUSTED_PROXIES" => v
+                    .split(',')
+                    .map(str::trim)
+                    .filter(|p| !p.is_empty())
+                    .map(|p| {
+                        p.parse::<IpNet>().or_else(|_| p.parse::<IpAddr>().map(IpNet::from)).map_err(
+                            |_| "expected addresses or CIDR ranges, comma-separated: 10.0.0.0/8, ::1",
+                        )
+                    })
+                    .collect::<Result<_, _>>()
+                    .map(|proxies| config.trusted_proxies = proxies),
                 // TLS (rediss://) would need one of redis-rs's TLS features, which are not built.
                 "MESHFIT_REDIS_URL" => match redis::parse_redis_url(v).filter(|u| u.scheme() == "redis") {
                     Some(_) => {
@@ -261,23 +319,44 @@ impl TryFrom<RawConfig> for Config {
                 // A key, or a URL with a password, is a secret: name the variable, not its value.
                 let secret = matches!(name.as_str(), "MESHFIT_API_KEYS" | "MESHFIT_REDIS_URL");
                 let shown = if secret { "<hidden>".to_owned() } else { format!("{value:?}") };
-                problems.push(format!("{name}={shown}: {why}"));
+                problems.push(problem(&raw, name, shown, why.to_owned()));
             }
         }
         // The cache is part of the budget; a default cache larger than half of it shrinks,
         // a configured one is an error.
         if config.cache_bytes > config.memory_bytes / 2 {
-            if raw.0.contains_key("MESHFIT_CACHE_BYTES") {
-                problems.push(format!(
-                    "MESHFIT_CACHE_BYTES={}: must be at most half of MESHFIT_MEMORY_BYTES ({})",
-                    config.cache_bytes, config.memory_bytes
-                ));
+            if let Some(value) = raw.values.get("MESHFIT_CACHE_BYTES") {
+                let why = format!("must be at most half of MESHFIT_MEMORY_BYTES ({})", config.memory_bytes);
+                problems.push(problem(&raw, "MESHFIT_CACHE_BYTES", format!("{value:?}"), why));
             } else {
                 config.cache_bytes = config.memory_bytes / 2;
             }
         }
         if problems.is_empty() { Ok(config) } else { Err(ConfigError(problems)) }
     }
+}
+
+/// A problem with variable `name`, under the flag that set it if one did.
+fn problem(raw: &RawConfig, name: &str, shown: String, why: String) -> ConfigProblem {
+    ConfigProblem { name: name.to_owned(), flag: raw.flags.get(name).copied(), shown, why }
+}
+
+/// `host:port` to listen on: an address (`0.0.0.0:8080`, `[::]:8080`) or a host name
+/// (`localhost:8080`), resolved once here; the first address found is taken.
+///
+/// # Errors
+/// When `v` is not `host:port` or its host does not resolve, saying what it takes.
+pub fn listen_addr(v: &str) -> Result<SocketAddr, &'static str> {
+    use std::net::ToSocketAddrs;
+    const EXPECTED: &str = "expected host:port, e.g. 0.0.0.0:8080 or localhost:8080";
+    if let Ok(addr) = v.parse() {
+        return Ok(addr);
+    }
+    let (host, port) = v.rsplit_once(':').ok_or(EXPECTED)?;
+    if host.is_empty() || port.parse::<u16>().is_err() {
+        return Err(EXPECTED);
+    }
+    v.to_socket_addrs().ok().and_then(|mut addrs| addrs.next()).ok_or("the host name does not resolve")
 }
 
 /// Adds each non-blank key; every key must be long enough to be a secret.
@@ -302,7 +381,11 @@ mod tests {
     use super::*;
 
     fn raw(pairs: &[(&str, &str)]) -> RawConfig {
-        RawConfig(pairs.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect())
+        let mut raw = RawConfig::default();
+        for (k, v) in pairs {
+            raw.set(k, *v);
+        }
+        raw
     }
 
     #[test]
@@ -347,7 +430,7 @@ mod tests {
         ]))
         .unwrap_err();
         assert_eq!(err.0.len(), 2, "{err}");
-        assert!(err.0.iter().any(|p| p.starts_with("MESHFIT_REDIS_URL=<hidden>")), "{err}");
+        assert!(err.0.iter().any(|p| p.to_string().starts_with("MESHFIT_REDIS_URL=<hidden>")), "{err}");
         assert!(!err.to_string().contains("s3cret"), "{err}");
     }
 
@@ -361,8 +444,35 @@ mod tests {
         ]))
         .unwrap_err();
         assert_eq!(err.0.len(), 4, "{err}");
-        assert!(err.0.iter().any(|p| p.starts_with("MESHFIT_WORKERS=\"0\"")), "{err}");
-        assert!(err.0.iter().any(|p| p.contains("MESHFIT_QEUE") && p.contains("unknown")), "{err}");
+        assert!(err.0.iter().any(|p| p.to_string().starts_with("MESHFIT_WORKERS=\"0\"")), "{err}");
+        assert!(err.0.iter().any(|p| p.name == "MESHFIT_QEUE" && p.why == "unknown setting"), "{err}");
+    }
+
+    #[test]
+    fn the_address_may_name_a_host_and_a_bad_one_says_what_it_takes() {
+        let c = Config::try_from(raw(&[("MESHFIT_ADDR", "localhost:9001")])).unwrap();
+        assert!(c.addr.ip().is_loopback() && c.addr.port() == 9001, "{}", c.addr);
+        let c = Config::try_from(raw(&[("MESHFIT_ADDR", "[::1]:9002")])).unwrap();
+        assert_eq!(c.addr.to_string(), "[::1]:9002");
+        for bad in ["localhost", ":8080", "localhost:http", "localhost:99999"] {
+            let err = Config::try_from(raw(&[("MESHFIT_ADDR", bad)])).unwrap_err();
+            assert!(err.0[0].why.contains("localhost:8080"), "{bad}: {err}");
+        }
+    }
+
+    #[test]
+    fn a_setting_given_as_a_flag_is_reported_under_the_flag() {
+        let mut r = raw(&[("MESHFIT_QUEUE", "many")]);
+        r.set_from_flag("MESHFIT_WORKERS", "--workers", "0");
+        let err = Config::try_from(r).unwrap_err();
+        let text = err.to_string();
+        assert!(text.contains("--workers \"0\" (MESHFIT_WORKERS): must be at least 1"), "{text}");
+        assert!(text.contains("MESHFIT_QUEUE=\"many\": expected a whole number"), "{text}");
+        // The environment's value, replaced by a later `set`, is no longer the flag's.
+        let mut r = RawConfig::default();
+        r.set_from_flag("MESHFIT_WORKERS", "--workers", "0");
+        r.set("MESHFIT_WORKERS", "0");
+        assert_eq!(Config::try_from(r).unwrap_err().0[0].flag, None);
     }
 
     #[test]
@@ -374,8 +484,11 @@ mod tests {
             ("MESHFIT_API_KEYS_FILE", dir.to_str().unwrap()),
             ("MESHFIT_CORS_ORIGINS", "https://app.example, http://localhost:3000"),
             ("MESHFIT_CLIENT_SHARE", "0.25"),
+            ("MESHFIT_TRUSTED_PROXIES", "10.0.0.0/8, 172.17.0.1"),
         ]))
         .unwrap();
+        let proxies: Vec<String> = c.trusted_proxies.iter().map(ToString::to_string).collect();
+        assert_eq!(proxies, ["10.0.0.0/8", "172.17.0.1/32"]);
         std::fs::remove_file(&dir).unwrap();
         assert_eq!(c.api_keys.len(), 3);
         assert_eq!(c.cors_origins, ["https://app.example", "http://localhost:3000"]);
@@ -386,9 +499,10 @@ mod tests {
             ("MESHFIT_API_KEYS_FILE", "/no/such/file"),
             ("MESHFIT_CORS_ORIGINS", "app.example/path"),
             ("MESHFIT_CLIENT_SHARE", "0"),
+            ("MESHFIT_TRUSTED_PROXIES", "nginx"),
         ]))
         .unwrap_err();
-        assert_eq!(err.0.len(), 4, "{err}");
+        assert_eq!(err.0.len(), 5, "{err}");
         assert!(!err.to_string().contains("short\""), "a bad key is not echoed: {err}");
     }
 }

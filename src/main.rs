@@ -6,12 +6,15 @@ use clap::{Args, Parser, Subcommand};
 use meshfit::api::SolveRequest;
 use meshfit::config::{Config, RawConfig};
 use meshfit::geom::Rect;
-use meshfit::jobs::{Limits, SolveSpec};
+use meshfit::jobs::{
+    Limits, SOLUTION_BYTES_PER_VERTEX, SolveSpec, available_memory, cli_mesh_bytes_per_vertex,
+};
 use meshfit::output::{self, Format, Options, json};
 use meshfit::refine::{Criterion, MAX_VERTICES, Method, Params, estimate_error, refine};
 use meshfit::result::MeshResult;
 use meshfit::source::{Encoding, Expression, GridHints, RawType, Source, decode_grid};
 use std::io::{BufWriter, Write};
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -34,6 +37,51 @@ enum Command {
     /// Solve a boundary value problem on an adaptive mesh: FILE holds the JSON body of
     /// POST /v1/solutions ("-" reads stdin); the solution document goes to stdout.
     Solve(SolveArgs),
+    /// Ask the server at MESHFIT_ADDR (or --addr) for GET /healthz: exit 0 when it answers 200
+    /// within 3 s, 1 otherwise. For a container's HEALTHCHECK, which then follows the address.
+    Health(HealthArgs),
+}
+
+#[derive(Args)]
+struct HealthArgs {
+    /// The server's address, as MESHFIT_ADDR takes it; a wildcard address (0.0.0.0, [::]) is
+    /// asked on loopback [default: MESHFIT_ADDR, else 0.0.0.0:8080].
+    #[arg(long, value_name = "HOST:PORT")]
+    addr: Option<String>,
+}
+
+/// How long `meshfit health` waits for the connection and for the answer, each.
+const HEALTH_TIMEOUT: Duration = Duration::from_secs(3);
+
+/// One GET /healthz over a plain socket: the binary carries no HTTP client (reqwest is for
+/// tests), and the check needs no more than a status line.
+fn health(args: &HealthArgs) -> Result<()> {
+    use std::io::Read;
+    use std::net::{IpAddr, Ipv4Addr, Ipv6Addr, TcpStream};
+    let text = args.addr.clone().or_else(|| std::env::var("MESHFIT_ADDR").ok());
+    let text = text.unwrap_or_else(|| Config::default().addr.to_string());
+    let flag = if args.addr.is_some() { "--addr" } else { "MESHFIT_ADDR" };
+    let mut addr =
+        meshfit::config::listen_addr(&text).map_err(|why| anyhow::anyhow!("{flag} {text:?}: {why}"))?;
+    if addr.ip().is_unspecified() {
+        addr.set_ip(match addr.ip() {
+            IpAddr::V4(_) => IpAddr::V4(Ipv4Addr::LOCALHOST),
+            IpAddr::V6(_) => IpAddr::V6(Ipv6Addr::LOCALHOST),
+        });
+    }
+    let mut stream = TcpStream::connect_timeout(&addr, HEALTH_TIMEOUT)
+        .with_context(|| format!("no server answers at {addr}"))?;
+    stream.set_read_timeout(Some(HEALTH_TIMEOUT))?;
+    stream.set_write_timeout(Some(HEALTH_TIMEOUT))?;
+    write!(stream, "GET /healthz HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n")?;
+    let mut head = [0u8; 64];
+    let n = stream.read(&mut head).with_context(|| format!("the server at {addr} did not answer"))?;
+    let status_line = String::from_utf8_lossy(&head[..n]);
+    let status_line = status_line.lines().next().unwrap_or("");
+    match status_line.split(' ').nth(1) {
+        Some("200") => Ok(()),
+        _ => bail!("GET http://{addr}/healthz answered {status_line:?}"),
+    }
 }
 
 /// Each flag sets the MESHFIT_* variable named in its help; see the README's table.
@@ -108,6 +156,10 @@ struct ServeArgs {
     /// [default: 0.5].
     #[arg(long, value_name = "FRACTION")]
     client_share: Option<String>,
+    /// MESHFIT_TRUSTED_PROXIES: proxies (addresses or CIDR ranges) whose Forwarded or
+    /// X-Forwarded-For header names the client [default: none].
+    #[arg(long, value_name = "RANGES")]
+    trusted_proxies: Option<String>,
     /// MESHFIT_REDIS_URL: share results and jobs with other replicas through this Redis
     /// [default: unset, this process serves alone]. A password in it would show in the
     /// process list: give that one as the variable.
@@ -130,35 +182,36 @@ impl ServeArgs {
     fn config(&self) -> Result<Config> {
         let mut raw = RawConfig::from_env();
         let flags = [
-            ("MESHFIT_ADDR", &self.addr),
-            ("MESHFIT_WORKERS", &self.workers),
-            ("MESHFIT_QUEUE", &self.queue),
-            ("MESHFIT_MAX_VERTICES", &self.max_vertices),
-            ("MESHFIT_MAX_GRID_POINTS", &self.max_grid_points),
-            ("MESHFIT_MAX_BODY_BYTES", &self.max_body_bytes),
-            ("MESHFIT_MAX_EXPRESSION_LEN", &self.max_expression_len),
-            ("MESHFIT_JOB_TIME_LIMIT_MS", &self.job_time_limit_ms),
-            ("MESHFIT_MEMORY_BYTES", &self.memory_bytes),
-            ("MESHFIT_CACHE_BYTES", &self.cache_bytes),
-            ("MESHFIT_CACHE_DIR", &self.cache_dir),
-            ("MESHFIT_CACHE_DIR_BYTES", &self.cache_dir_bytes),
-            ("MESHFIT_SHUTDOWN_GRACE_MS", &self.shutdown_grace_ms),
-            ("MESHFIT_LOG_FORMAT", &self.log_format),
-            ("MESHFIT_MAX_CONNECTIONS", &self.max_connections),
-            ("MESHFIT_HEADER_TIMEOUT_MS", &self.header_timeout_ms),
-            ("MESHFIT_BODY_TIMEOUT_MS", &self.body_timeout_ms),
-            ("MESHFIT_WRITE_TIMEOUT_MS", &self.write_timeout_ms),
-            ("MESHFIT_API_KEYS_FILE", &self.api_keys_file),
-            ("MESHFIT_CORS_ORIGINS", &self.cors_origins),
-            ("MESHFIT_CLIENT_SHARE", &self.client_share),
-            ("MESHFIT_REDIS_URL", &self.redis_url),
-            ("MESHFIT_REDIS_TTL_MS", &self.redis_ttl_ms),
-            ("MESHFIT_REDIS_MAX_BYTES", &self.redis_max_bytes),
-            ("MESHFIT_REDIS_LEASE_MS", &self.redis_lease_ms),
+            ("MESHFIT_ADDR", "--addr", &self.addr),
+            ("MESHFIT_WORKERS", "--workers", &self.workers),
+            ("MESHFIT_QUEUE", "--queue", &self.queue),
+            ("MESHFIT_MAX_VERTICES", "--max-vertices", &self.max_vertices),
+            ("MESHFIT_MAX_GRID_POINTS", "--max-grid-points", &self.max_grid_points),
+            ("MESHFIT_MAX_BODY_BYTES", "--max-body-bytes", &self.max_body_bytes),
+            ("MESHFIT_MAX_EXPRESSION_LEN", "--max-expression-len", &self.max_expression_len),
+            ("MESHFIT_JOB_TIME_LIMIT_MS", "--job-time-limit-ms", &self.job_time_limit_ms),
+            ("MESHFIT_MEMORY_BYTES", "--memory-bytes", &self.memory_bytes),
+            ("MESHFIT_CACHE_BYTES", "--cache-bytes", &self.cache_bytes),
+            ("MESHFIT_CACHE_DIR", "--cache-dir", &self.cache_dir),
+            ("MESHFIT_CACHE_DIR_BYTES", "--cache-dir-bytes", &self.cache_dir_bytes),
+            ("MESHFIT_SHUTDOWN_GRACE_MS", "--shutdown-grace-ms", &self.shutdown_grace_ms),
+            ("MESHFIT_LOG_FORMAT", "--log-format", &self.log_format),
+            ("MESHFIT_MAX_CONNECTIONS", "--max-connections", &self.max_connections),
+            ("MESHFIT_HEADER_TIMEOUT_MS", "--header-timeout-ms", &self.header_timeout_ms),
+            ("MESHFIT_BODY_TIMEOUT_MS", "--body-timeout-ms", &self.body_timeout_ms),
+            ("MESHFIT_WRITE_TIMEOUT_MS", "--write-timeout-ms", &self.write_timeout_ms),
+            ("MESHFIT_API_KEYS_FILE", "--api-keys-file", &self.api_keys_file),
+            ("MESHFIT_CORS_ORIGINS", "--cors-origins", &self.cors_origins),
+            ("MESHFIT_CLIENT_SHARE", "--client-share", &self.client_share),
+            ("MESHFIT_TRUSTED_PROXIES", "--trusted-proxies", &self.trusted_proxies),
+            ("MESHFIT_REDIS_URL", "--redis-url", &self.redis_url),
+            ("MESHFIT_REDIS_TTL_MS", "--redis-ttl-ms", &self.redis_ttl_ms),
+            ("MESHFIT_REDIS_MAX_BYTES", "--redis-max-bytes", &self.redis_max_bytes),
+            ("MESHFIT_REDIS_LEASE_MS", "--redis-lease-ms", &self.redis_lease_ms),
         ];
-        for (name, value) in flags {
+        for (name, flag, value) in flags {
             if let Some(v) = value {
-                raw.set(name, v.clone());
+                raw.set_from_flag(name, flag, v.clone());
             }
         }
         Ok(Config::try_from(raw)?)
@@ -174,9 +227,45 @@ fn serve(args: &ServeArgs) -> Result<()> {
         let listener = tokio::net::TcpListener::bind(config.addr)
             .await
             .with_context(|| format!("cannot listen on {}", config.addr))?;
-        tracing::info!(addr = %listener.local_addr()?, workers = config.workers, queue = config.queue, "meshfit listening");
+        let addr = listener.local_addr()?;
+        let url = page_url(addr);
+        tracing::info!(
+            open = %url,
+            %addr,
+            workers = config.workers,
+            queue = config.queue,
+            api_keys = if config.api_keys.is_empty() { "off: the API is open" } else { "on" },
+            cache_dir = config.cache_dir.as_ref().map_or("none: memory only".into(), |d| d.display().to_string()),
+            memory_budget = %Bytes(config.memory_bytes),
+            cache = %Bytes(config.cache_bytes),
+            "meshfit listening"
+        );
         meshfit::serve(listener, config, shutdown_signal()).await.context("serving")
     })
+}
+
+/// The address a person opens for a server listening on `addr`: a wildcard address listens
+/// on every interface, loopback included.
+fn page_url(addr: SocketAddr) -> String {
+    let ip = if addr.ip().is_unspecified() { "localhost".to_owned() } else { addr.ip().to_string() };
+    let host = if addr.is_ipv6() && ip != "localhost" { format!("[{ip}]") } else { ip };
+    format!("http://{host}:{}/", addr.port())
+}
+
+/// Bytes as a person reads them: 11.7 GiB.
+struct Bytes(u64);
+
+impl std::fmt::Display for Bytes {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let units = ["B", "KiB", "MiB", "GiB", "TiB"];
+        let mut value = self.0 as f64;
+        let mut unit = 0;
+        while value >= 1024.0 && unit + 1 < units.len() {
+            value /= 1024.0;
+            unit += 1;
+        }
+        if unit == 0 { write!(f, "{} B", self.0) } else { write!(f, "{value:.1} {}", units[unit]) }
+    }
 }
 
 /// Ctrl-C or SIGTERM.
@@ -345,8 +434,8 @@ fn solve(args: &SolveArgs) -> Result<()> {
     } else {
         std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?
     };
-    let request: SolveRequest =
-        serde_json::from_str(&text).with_context(|| format!("{} is not a valid request", path.display()))?;
+    let request: SolveRequest = meshfit::api::from_json(text.as_bytes())
+        .with_context(|| format!("{} is not a valid request", path.display()))?;
     let limits = Limits {
         max_vertices: MAX_VERTICES,
         max_grid_points: usize::MAX,
@@ -355,6 +444,7 @@ fn solve(args: &SolveArgs) -> Result<()> {
     };
     let (spec, _) = SolveSpec::from_request(request, &limits)?;
     let format = args.output.check()?;
+    check_memory(spec.settings.max_vertices, SOLUTION_BYTES_PER_VERTEX, available_memory())?;
     let adapted = spec.solve(&mut ())?;
     if args.stats {
         let times: Vec<f64> = adapted.times.iter().map(|t| t.as_secs_f64() * 1e3).collect();
@@ -424,6 +514,7 @@ fn mesh(args: &MeshArgs) -> Result<()> {
         params = params.with_time_limit(Duration::from_millis(ms));
     }
     let format = args.output.check()?;
+    check_memory(params.max_vertices(), cli_mesh_bytes_per_vertex(args.criterion), available_memory())?;
     let result = refine(&source, rect, &params, &mut ())?;
     if args.stats {
         let document = json::StatsDocument {
@@ -437,6 +528,21 @@ fn mesh(args: &MeshArgs) -> Result<()> {
         });
     }
     args.output.write(MeshResult::from(result), format)
+}
+
+/// Refuses a run of `vertices` vertices at `per_vertex` peak bytes each when that is more than
+/// the `available` memory, before it starts: the kernel would kill it when it got there.
+fn check_memory(vertices: usize, per_vertex: u64, available: Option<u64>) -> Result<()> {
+    let needed = (vertices as u64).saturating_mul(per_vertex);
+    match available {
+        Some(available) if needed > available => bail!(
+            "max_vertices {vertices}: a run this size needs about {} ({per_vertex} bytes a vertex), more \
+             than the {} of memory available; lower the budget",
+            Bytes(needed),
+            Bytes(available)
+        ),
+        _ => Ok(()),
+    }
 }
 
 /// Writes a document to stdout through `write` and flushes it. A reader that closes the pipe
@@ -458,6 +564,7 @@ fn main() -> ExitCode {
         Some(Command::Serve(args)) => serve(args),
         Some(Command::Mesh(args)) => mesh(args),
         Some(Command::Solve(args)) => solve(args),
+        Some(Command::Health(args)) => health(args),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,

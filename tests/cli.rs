@@ -259,6 +259,92 @@ fn solve_names_the_field_and_column_of_a_bad_expression() {
 }
 
 #[test]
+fn solve_names_the_field_of_a_value_of_the_wrong_type() {
+    let path = temp_file("solve_wrong_type.json", r#"{"domain": {"x": [0, 1], "y": [0, "1"]}}"#);
+    let err = stderr_of_failure(&["solve", path.to_str().unwrap()]);
+    assert!(err.contains("domain.y[1]: invalid type") && !err.contains("column"), "{err}");
+}
+
+#[test]
+fn a_run_larger_than_the_memory_available_is_refused_before_it_starts() {
+    // 4·10^8 vertices (the engine's limit) need about 90 GB: more than any test machine has.
+    let err = stderr_of_failure(&["mesh", "--function", "x", "--max-vertices", "400000000"]);
+    assert!(err.contains("needs about") && err.contains("224 bytes a vertex"), "{err}");
+    assert!(err.contains("of memory available; lower the budget"), "{err}");
+}
+
+#[test]
+fn serve_names_the_flag_of_a_bad_setting_and_the_variable_it_sets() {
+    let out = Command::new(env!("CARGO_BIN_EXE_meshfit"))
+        .args(["serve", "--workers", "0"])
+        .env("MESHFIT_QUEUE", "lots")
+        .output()
+        .expect("meshfit runs");
+    assert!(!out.status.success());
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(stderr.contains(r#"--workers "0" (MESHFIT_WORKERS): must be at least 1"#), "{stderr}");
+    assert!(stderr.contains(r#"MESHFIT_QUEUE="lots": expected a whole number"#), "{stderr}");
+}
+
+/// A port that was free a moment ago.
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
+}
+
+/// Runs `meshfit health` with `args`.
+fn health(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_meshfit")).arg("health").args(args).output().expect("meshfit runs")
+}
+
+#[test]
+fn health_answers_for_a_server_at_the_configured_address_and_fails_without_one() {
+    let port = free_port();
+    let addr = format!("localhost:{port}");
+    let down = health(&["--addr", &addr]);
+    assert!(!down.status.success());
+    let stderr = String::from_utf8_lossy(&down.stderr);
+    assert!(stderr.contains("no server answers at"), "{stderr}");
+
+    // MESHFIT_ADDR with a host name, as a container sets it; the start-up line names the page.
+    let mut server = Command::new(env!("CARGO_BIN_EXE_meshfit"))
+        .arg("serve")
+        .env("MESHFIT_ADDR", &addr)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("meshfit serves");
+    let mut lines = std::io::BufRead::lines(std::io::BufReader::new(server.stderr.take().unwrap()));
+    let started = lines.next().expect("a start-up line").unwrap();
+    let up = Command::new(env!("CARGO_BIN_EXE_meshfit"))
+        .arg("health")
+        .env("MESHFIT_ADDR", &addr)
+        .output()
+        .expect("meshfit runs");
+    server.kill().unwrap();
+    server.wait().unwrap();
+    assert!(up.status.success(), "{}", String::from_utf8_lossy(&up.stderr));
+    // localhost is 127.0.0.1 or ::1, as the resolver lists it.
+    let opened = [format!("open=http://127.0.0.1:{port}/"), format!("open=http://[::1]:{port}/")];
+    assert!(opened.iter().any(|url| started.contains(url)), "{started}");
+    assert!(started.contains("api_keys=\"off: the API is open\""), "{started}");
+    assert!(
+        started.contains("memory_budget=") && started.contains("cache_dir=\"none: memory only\""),
+        "{started}"
+    );
+}
+
+#[test]
+fn health_of_a_wildcard_address_asks_on_loopback_and_a_bad_address_is_named() {
+    // Nothing listens on a fresh port: the question went to 127.0.0.1, not to 0.0.0.0.
+    let port = free_port();
+    let out = health(&["--addr", &format!("0.0.0.0:{port}")]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains(&format!("127.0.0.1:{port}")), "{stderr}");
+    let out = health(&["--addr", "8080"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains(r#"--addr "8080": expected host:port"#), "{stderr}");
+}
+
+#[test]
 fn serve_stops_at_start_up_naming_a_cache_directory_it_cannot_use() {
     // A regular file where the directory should be: it can be neither created nor listed.
     let file = temp_file("not-a-directory", "x");
@@ -272,4 +358,30 @@ fn serve_stops_at_start_up_naming_a_cache_directory_it_cannot_use() {
     let stderr = String::from_utf8(out.stderr).unwrap();
     let named = format!("MESHFIT_CACHE_DIR={}", file.display());
     assert!(stderr.contains(&named) && stderr.contains("cannot use it"), "{stderr}");
+}
+
+#[test]
+fn the_quick_starts_sample_grids_hold_the_tiles_heights() {
+    use meshfit::source::{Encoding, GridHints, RawType, decode_grid};
+    let examples = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples");
+    let read = |name: &str| std::fs::read(examples.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+    let decode = |name: &str, hints: GridHints| decode_grid(&read(name), &hints, usize::MAX).unwrap();
+    let terrarium = GridHints { encoding: Some(Encoding::Terrarium), ..GridHints::default() };
+    let tile = decode("tiles/jacksboro-terrarium.png", terrarium).grid;
+    let raw = GridHints { nx: Some(256), ny: Some(256), dtype: Some(RawType::F32), ..GridHints::default() };
+    for (name, hints) in [
+        ("grids/dem.tif", GridHints::default()),
+        ("grids/heightmap.png", GridHints::default()),
+        ("grids/heights.npy", GridHints::default()),
+        ("grids/heights.f32", raw),
+    ] {
+        let decoded = decode(name, hints);
+        assert_eq!((decoded.grid.nx(), decoded.grid.ny()), (256, 256), "{name}");
+        let same = (0..256).all(|j| decoded.grid.row(j) == tile.row(j));
+        assert!(same, "{name} holds other heights than the tile, or holds them in another order");
+    }
+    // The GeoTIFF places its pixel centres: 30 m pixels, the first one's corner at (500000, 4000000).
+    let domain = decode("grids/dem.tif", GridHints::default()).domain.expect("a georeferenced file");
+    let bounds = (domain.x0(), domain.x1(), domain.y0(), domain.y1());
+    assert_eq!(bounds, (500_015.0, 507_665.0, 3_992_335.0, 3_999_985.0));
 }

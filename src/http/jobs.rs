@@ -22,10 +22,6 @@ use futures_util::future::BoxFuture;
 use futures_util::stream;
 use std::sync::Arc;
 use std::time::Duration;
-use tokio::time::Instant;
-
-/// Progress events go out at most this often, however fast the engine reports.
-const PROGRESS_EVERY: Duration = Duration::from_millis(100);
 
 /// The most vertices one progress event carries (about 4 MB of JSON): a client that joins a
 /// large job late, or stops reading, holds at most this much in its stream; the rest comes
@@ -248,9 +244,10 @@ async fn create(
     let id = keys.id.clone();
     let ticket = state.jobs.submit_request(keys, spec, false, client, request).await?;
     let Some(wanted) = wanted else {
+        // An answer at once is the stream's one event, id 1.
         return Ok(match ticket {
-            Ticket::Cached(r) | Ticket::Prefix(r) => final_stream(&id, &Outcome::Succeeded(r)),
-            Ticket::Failed(e) => final_stream(&id, &Outcome::Failed(e)),
+            Ticket::Cached(r) | Ticket::Prefix(r) => final_stream(&id, &Outcome::Succeeded(r), 1),
+            Ticket::Failed(e) => final_stream(&id, &Outcome::Failed(e), 1),
             Ticket::Job(waiter) => job_stream(waiter, 0, false),
         });
     };
@@ -289,8 +286,14 @@ pub async fn jobs_create(
     let (code, status) = match state.jobs.submit_request(keys, spec, true, &client, request).await? {
         Ticket::Cached(f) | Ticket::Prefix(f) => (StatusCode::OK, status_body(&id, &Found::Cached(f))),
         Ticket::Failed(e) => {
-            let record =
-                Record { status: Status::Failed, progress: None, stats: None, error: Some(e), elapsed: None };
+            let record = Record {
+                status: Status::Failed,
+                progress: None,
+                stats: None,
+                error: Some(e),
+                elapsed: None,
+                last_event: 0,
+            };
             (StatusCode::OK, status_body(&id, &Found::Done(Arc::new(record))))
         }
         Ticket::Job(waiter) => (StatusCode::ACCEPTED, status_body(&id, &Found::Job(waiter.job().clone()))),
@@ -370,9 +373,22 @@ pub async fn jobs_mesh(
     negotiate::result_response(&headers, &wanted, &id, result, source, elapsed).await
 }
 
-/// The id of the final event: above every progress id, the same for every run of a job, so a
-/// client that reconnects with any earlier id still gets the result.
-const FINAL_EVENT_ID: u64 = u64::MAX;
+/// The id of a finished job's final event for a client that has seen `last_seen`, or `None`
+/// when the client has seen it. The final event's id is one more than the job's last progress
+/// event's; for a result found in the cache alone, whose events are not known, it is the one
+/// after the client's.
+fn final_event_id(found: &Found, last_seen: u64) -> Option<u64> {
+    let known = match found {
+        Found::Job(job) => Some(job.snapshot()).filter(|s| s.outcome.is_some()).map_or(0, |s| s.seq),
+        Found::Done(record) => record.last_event,
+        // Not finished (the caller looks again), or finished with no events known.
+        Found::Remote(_) | Found::Cached(_) => 0,
+    };
+    match known {
+        0 => Some(last_seen + 1),
+        id => (last_seen < id).then_some(id),
+    }
+}
 
 /// `GET /v1/jobs/{id}/events`: server-sent events; a finished job sends its final event at
 /// once. `Last-Event-ID` skips what the client has seen; once it has seen the final event,
@@ -395,15 +411,19 @@ pub async fn jobs_events(
     {
         return Ok(job_stream(waiter, last_seen, points));
     }
-    if last_seen == FINAL_EVENT_ID {
+    let Some(event_id) = final_event_id(&found, last_seen) else {
         return Ok(StatusCode::NO_CONTENT.into_response());
-    }
+    };
     if let Some((outcome, _)) = finished_outcome(&state, &id, found).await {
-        return Ok(final_stream(&id, &outcome));
+        return Ok(final_stream(&id, &outcome, event_id));
     }
     // Finished between the two looks (its record is there now), or Redis stopped answering.
-    match finished_outcome(&state, &id, find(&state, &id).await?).await {
-        Some((outcome, _)) => Ok(final_stream(&id, &outcome)),
+    let found = find(&state, &id).await?;
+    let Some(event_id) = final_event_id(&found, last_seen) else {
+        return Ok(StatusCode::NO_CONTENT.into_response());
+    };
+    match finished_outcome(&state, &id, found).await {
+        Some((outcome, _)) => Ok(final_stream(&id, &outcome, event_id)),
         None => Err(ApiError::Unreachable),
     }
 }
@@ -446,25 +466,23 @@ pub async fn jobs_cancel(
     Ok(axum::Json(status_body(&id, &Found::Job(job))).into_response())
 }
 
-/// The final event of job `id`: its result, or the problem that ended it; none for a job
-/// handed to another replica at shutdown, so that the client reconnects (with its last
-/// event's id) and follows the job there.
-fn final_event(id: &str, outcome: &Outcome) -> Box<dyn Iterator<Item = Bytes> + Send> {
+/// The final event of job `id`, with id `event_id`: its result, or the problem that ended it;
+/// none for a job handed to another replica at shutdown, so that the client reconnects (with
+/// its last event's id) and follows the job there.
+fn final_event(id: &str, outcome: &Outcome, event_id: u64) -> Box<dyn Iterator<Item = Bytes> + Send> {
     match outcome {
         Outcome::Failed(JobError::HandedBack) => Box::new(std::iter::empty()),
-        Outcome::Succeeded(r) => Box::new(sse::result(FINAL_EVENT_ID, id, r)),
+        Outcome::Succeeded(r) => Box::new(sse::result(event_id, id, r)),
         Outcome::Failed(e) => {
-            Box::new(std::iter::once(sse::error(FINAL_EVENT_ID, &ApiError::from(e.clone()).to_json())))
+            Box::new(std::iter::once(sse::error(event_id, &ApiError::from(e.clone()).to_json())))
         }
-        Outcome::Cancelled => {
-            Box::new(std::iter::once(sse::error(FINAL_EVENT_ID, &ApiError::Cancelled.to_json())))
-        }
+        Outcome::Cancelled => Box::new(std::iter::once(sse::error(event_id, &ApiError::Cancelled.to_json()))),
     }
 }
 
 /// Just the final event, for a job that has finished.
-fn final_stream(id: &str, outcome: &Outcome) -> Response {
-    sse::response(stream::iter(final_event(id, outcome)))
+fn final_stream(id: &str, outcome: &Outcome, event_id: u64) -> Response {
+    sse::response(stream::iter(final_event(id, outcome, event_id)))
 }
 
 struct Watch {
@@ -472,21 +490,20 @@ struct Watch {
     waiter: Waiter,
     rx: tokio::sync::watch::Receiver<Snapshot>,
     last_seen: u64,
-    last_progress: Option<Instant>,
     /// With `?vertices=true`: the vertices this client has been sent.
     points_sent: Option<usize>,
     /// The rest of the final event, once the job has finished.
     rest: Option<Box<dyn Iterator<Item = Bytes> + Send>>,
 }
 
-/// Progress events (throttled) and the final event of a job, skipping ids ≤ `last_seen`, with
-/// a keep-alive comment whenever the job is silent for [`sse::KEEP_ALIVE`]. With `points`,
+/// Progress events (as often as the job publishes them, a slow client skipping to the newest)
+/// and the final event of a job, skipping ids ≤ `last_seen`, with a keep-alive comment whenever the job is silent for [`sse::KEEP_ALIVE`]. With `points`,
 /// each progress event carries the vertices added since the last one this client was sent,
 /// at most [`POINTS_PER_EVENT`] (from the first: a reconnecting client starts again at 0).
 fn job_stream(waiter: Waiter, last_seen: u64, points: bool) -> Response {
     let rx = waiter.job().subscribe();
     let points_sent = points.then_some(0);
-    let watch = Watch { waiter, rx, last_seen, last_progress: None, points_sent, rest: None };
+    let watch = Watch { waiter, rx, last_seen, points_sent, rest: None };
     let events = stream::unfold(watch, |mut w| async move {
         loop {
             if let Some(rest) = &mut w.rest {
@@ -494,24 +511,14 @@ fn job_stream(waiter: Waiter, last_seen: u64, points: bool) -> Response {
             }
             let snapshot = w.rx.borrow_and_update().clone();
             if let Some(outcome) = &snapshot.outcome {
-                if w.last_seen == FINAL_EVENT_ID {
+                if w.last_seen >= snapshot.seq {
                     return None;
                 }
-                w.rest = Some(final_event(w.waiter.job().id(), outcome));
+                w.rest = Some(final_event(w.waiter.job().id(), outcome, snapshot.seq));
                 continue;
             }
             if let Some(progress) = snapshot.progress.filter(|_| snapshot.seq > w.last_seen) {
-                let due = w.last_progress.map(|t| t + PROGRESS_EVERY);
-                if let Some(due) = due.filter(|&due| Instant::now() < due) {
-                    // Too soon: wait, then send the newest snapshot instead of this one.
-                    tokio::select! {
-                        () = tokio::time::sleep_until(due) => {}
-                        _ = w.rx.changed() => {}
-                    }
-                    continue;
-                }
                 w.last_seen = snapshot.seq;
-                w.last_progress = Some(Instant::now());
                 let Some(sent) = w.points_sent else {
                     return Some((sse::progress(snapshot.seq, &progress, None), w));
                 };

@@ -83,6 +83,7 @@ pub fn router(state: AppState, config: &Config) -> Router {
     let access = Arc::new(access::Access {
         keys: config.api_keys.clone(),
         origins: config.cors_origins.clone().into(),
+        trusted_proxies: config.trusted_proxies.clone().into(),
     });
     // Layers run outside-in: an unsafe request id is dropped first, then every request gets
     // one, so the trace span, every log line and every response carry it.

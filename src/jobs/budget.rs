@@ -19,6 +19,16 @@ pub const MESH_BYTES_PER_VERTEX: u64 = 256;
 /// README's magnet, 282 MB); rounded up.
 pub const SOLUTION_BYTES_PER_VERTEX: u64 = 1536;
 
+/// Peak bytes per vertex of the command line's `meshfit mesh` (no viewer copy, no trace):
+/// measured as the server's `MESH_BYTES_PER_VERTEX` is, 147 MB at 10^6 vertices with `--criterion
+/// variation` and 201 MB with `error`, the output written as JSON or PLY; rounded up.
+pub const fn cli_mesh_bytes_per_vertex(criterion: crate::refine::Criterion) -> u64 {
+    match criterion {
+        crate::refine::Criterion::Variation => 160,
+        crate::refine::Criterion::Error => 224,
+    }
+}
+
 /// Bytes per grid point once decoded (f64 samples).
 pub const GRID_BYTES_PER_POINT: u64 = 8;
 
@@ -119,16 +129,22 @@ impl Drop for Charge {
     }
 }
 
+/// A `/proc/meminfo` entry in bytes, e.g. `MemTotal`.
+fn meminfo(key: &str) -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let kib = text.lines().find_map(|l| l.strip_prefix(key)?.strip_prefix(':'))?.trim().strip_suffix("kB")?;
+    kib.trim().parse::<u64>().ok().map(|k| k * 1024)
+}
+
+/// A cgroup v2 file of the process's container as a number (`max` reads as none).
+fn cgroup(file: &str) -> Option<u64> {
+    std::fs::read_to_string(format!("/sys/fs/cgroup/{file}")).ok()?.trim().parse().ok()
+}
+
 /// The default budget: half the machine's memory, or of the container's limit when it has a
 /// smaller one (cgroup v2 `memory.max`).
 pub fn default_limit() -> u64 {
-    let total = std::fs::read_to_string("/proc/meminfo").ok().and_then(|text| {
-        let kib = text.lines().find_map(|l| l.strip_prefix("MemTotal:"))?.trim().strip_suffix("kB")?;
-        kib.trim().parse::<u64>().ok().map(|k| k * 1024)
-    });
-    let cgroup =
-        std::fs::read_to_string("/sys/fs/cgroup/memory.max").ok().and_then(|t| t.trim().parse::<u64>().ok());
-    match (total, cgroup) {
+    match (meminfo("MemTotal"), cgroup("memory.max")) {
         (Some(t), Some(c)) => t.min(c) / 2,
         (Some(m), None) | (None, Some(m)) => m / 2,
         // Not Linux, or no /proc: 2 GiB, a small machine's half.
@@ -136,10 +152,28 @@ pub fn default_limit() -> u64 {
     }
 }
 
+/// Memory a new allocation can have now: the machine's `MemAvailable`, or what is left under
+/// the container's limit when that is less; `None` where neither can be read (not Linux).
+pub fn available_memory() -> Option<u64> {
+    let container = cgroup("memory.max").map(|max| max.saturating_sub(cgroup("memory.current").unwrap_or(0)));
+    match (meminfo("MemAvailable"), container) {
+        (Some(a), Some(c)) => Some(a.min(c)),
+        (a, c) => a.or(c),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use std::sync::atomic::AtomicU64;
+
+    #[test]
+    fn the_machine_has_memory_available_and_less_than_it_has_in_all() {
+        // Linux here: both are read from /proc/meminfo.
+        let (available, total) = (available_memory().unwrap(), meminfo("MemTotal").unwrap());
+        assert!(available > 0 && available <= total, "{available} of {total}");
+        assert!(default_limit() <= total / 2);
+    }
 
     #[test]
     fn charges_count_until_dropped_and_held_bytes_count_too() {

@@ -60,6 +60,7 @@ pub(super) fn view(r: &cluster::Record) -> Record {
         stats: r.stats.clone(),
         error: r.problem.clone().map(JobError::Relayed),
         elapsed: r.elapsed_ms.map(|ms| Duration::from_secs_f64(ms / 1e3)),
+        last_event: r.seq,
     }
 }
 

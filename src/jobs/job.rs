@@ -82,11 +82,12 @@ pub enum Outcome {
     Cancelled,
 }
 
-/// A job's state as watchers see it. `seq` grows with every change, so server-sent events
-/// can carry it as their id and a reconnecting client can skip what it has seen.
+/// A job's state as watchers see it. `seq` counts the job's server-sent events (each progress
+/// report, then the outcome), so events carry it as their id, 1, 2, 3, …, and a reconnecting
+/// client can skip what it has seen.
 #[derive(Debug, Clone)]
 pub struct Snapshot {
-    /// Increases with every progress report and with the outcome.
+    /// Events so far: one per progress report, and one for the outcome.
     pub seq: u64,
     /// Where the job is.
     pub status: Status,
@@ -233,6 +234,9 @@ pub struct Record {
     pub error: Option<JobError>,
     /// How long the engine ran.
     pub elapsed: Option<Duration>,
+    /// The id of the job's last server-sent event: its final event once it has finished; 0
+    /// where that is not known (a result found in the cache alone).
+    pub last_event: u64,
 }
 
 impl Record {
@@ -243,13 +247,27 @@ impl Record {
             Some(Outcome::Failed(e)) => (None, Some(e.clone())),
             _ => (None, None),
         };
-        Self { status: snapshot.status, progress: snapshot.progress, stats, error, elapsed: snapshot.elapsed }
+        Self {
+            status: snapshot.status,
+            progress: snapshot.progress,
+            stats,
+            error,
+            elapsed: snapshot.elapsed,
+            last_event: snapshot.seq,
+        }
     }
 
     /// The view of a job whose run has taken its lease on another replica and not yet told
     /// anything more.
     pub fn queued() -> Self {
-        Self { status: Status::Queued, progress: None, stats: None, error: None, elapsed: None }
+        Self {
+            status: Status::Queued,
+            progress: None,
+            stats: None,
+            error: None,
+            elapsed: None,
+            last_event: 0,
+        }
     }
 
     /// The view of a result found in the cache with no job record (e.g. after a restart).
@@ -260,6 +278,7 @@ impl Record {
             stats: Some(result.stats.clone()),
             error: None,
             elapsed: None,
+            last_event: 0,
         }
     }
 }

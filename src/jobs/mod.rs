@@ -3,13 +3,15 @@
 //! A submitted [`JobSpec`] gets an id (its canonical hash). A cached result answers at once;
 //! a smaller request of a cached run's family is replayed from its trace; an identical job
 //! already queued or running is joined; otherwise a new job waits for one of `workers`
-//! semaphore permits and then refines on tokio's blocking pool ([`crate::cpu`], at a lower OS
+//! workers (handed out by `dispatch`) and then refines on tokio's blocking pool ([`crate::cpu`], at a lower OS
 //! priority than the async workers). The tokio docs for `spawn_blocking` recommend exactly
 //! this: the blocking pool itself is large, so CPU-bound work needs its own bound.
 //!
 //! - `job`: a job's state, its outcome, and [`Record`], the one view clients get;
 //! - `registry`: [`Jobs`], the table of jobs, the queue bound, the cache and the families;
 //! - `share`: each [`Client`]'s share of the workers and the queue;
+//! - `dispatch`: the workers, given to waiting jobs so that none idles while a job waits, a
+//!   client under its share first;
 //! - `budget`: the memory [`Budget`] that bodies and jobs are charged to before they start;
 //! - `worker`: one job's run on the blocking pool;
 //! - `cache`, `key`, `spec`, `solution`: stored results, ids, and validated requests of meshes
@@ -20,6 +22,7 @@
 
 mod budget;
 mod cache;
+mod dispatch;
 mod follow;
 mod job;
 mod key;
@@ -31,7 +34,10 @@ mod spec;
 mod takeover;
 mod worker;
 
-pub use budget::{Budget, Charge, OverBudget, default_limit as default_memory_bytes};
+pub use budget::{
+    Budget, Charge, OverBudget, SOLUTION_BYTES_PER_VERTEX, available_memory, cli_mesh_bytes_per_vertex,
+    default_limit as default_memory_bytes,
+};
 pub use cache::{Cache, Hit};
 pub use job::{Job, JobError, Outcome, Record, Snapshot, Status};
 pub use key::{ENGINE_VERSION, JobKeys, job_id, job_keys};

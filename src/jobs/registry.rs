@@ -1,6 +1,7 @@
 //! The registry: which jobs exist, who waits on them, the queue's bound and the cache in front.
 
 use super::budget::Budget;
+use super::dispatch::Dispatch;
 use super::follow::Fetched;
 use super::job::{Job, JobError, Record, Status};
 use super::share::{Charge, Client, Shares};
@@ -13,7 +14,6 @@ use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
-use tokio::sync::Semaphore;
 
 /// A client waiting on a job. When the last one leaves a job that nobody detached, the job is
 /// cancelled: a synchronous request or stream whose client hung up.
@@ -140,10 +140,10 @@ pub struct Jobs {
 }
 
 pub(super) struct Inner {
-    pub(super) permits: Arc<Semaphore>,
+    pub(super) dispatch: Arc<Dispatch>,
     pub(super) workers: usize,
     pub(super) queue: usize,
-    /// Jobs created and not yet holding a permit (some of which will get one at once).
+    /// Jobs created and not yet holding a worker (some of which will get one at once).
     pub(super) waiting: AtomicUsize,
     /// A std Mutex: held only for map operations, never across an `.await`.
     pub(super) table: Mutex<Table>,
@@ -247,13 +247,13 @@ impl Inner {
 
     /// Jobs waiting beyond the free workers: the queue proper.
     fn queued(&self) -> usize {
-        self.waiting.load(Ordering::SeqCst).saturating_sub(self.permits.available_permits())
+        self.waiting.load(Ordering::SeqCst).saturating_sub(self.dispatch.free())
     }
 
     /// Whether one more job would wait at most behind `queue` others: it either finds a free
     /// worker or a place in the queue.
     pub(super) fn has_room(&self) -> bool {
-        self.waiting.load(Ordering::SeqCst) < self.queue + self.permits.available_permits()
+        self.waiting.load(Ordering::SeqCst) < self.queue + self.dispatch.free()
     }
 
     /// Seconds until one of `lanes` busy workers is likely free, at the mean time a job has
@@ -398,9 +398,10 @@ impl Jobs {
     ) -> Self {
         let cached = cache.clone();
         let budget = Budget::new(memory_bytes, move || cached.memory_bytes_estimate());
+        let shares = Shares::new(share, workers, queue);
         Self {
             inner: Arc::new(Inner {
-                permits: Arc::new(Semaphore::new(workers)),
+                dispatch: Dispatch::new(workers, shares.workers),
                 workers,
                 queue,
                 waiting: AtomicUsize::new(0),
@@ -409,7 +410,7 @@ impl Jobs {
                 families: moka::sync::Cache::new(FAMILIES_KEPT),
                 metrics,
                 closed: AtomicBool::new(false),
-                shares: Shares::new(share, workers, queue),
+                shares,
                 budget,
                 mean_run: AtomicU64::new(1f64.to_bits()),
                 shared: None,

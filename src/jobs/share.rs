@@ -1,13 +1,11 @@
-//! Fair shares: each client holds at most its share of the workers and of the queue, so one
-//! caller's long jobs cannot make everyone else wait.
-//!
-//! A job charged to a client waits for one of the client's worker permits before it waits
-//! for one of the server's; a client past its share of jobs (running and queued) is refused.
+//! Fair shares: each client holds at most its share of the jobs a server takes (running and
+//! queued), and a client past its share of the workers lets others' waiting jobs run first
+//! ([`super::dispatch`]), so one caller's long jobs cannot make everyone else wait, while a
+//! worker never idles when a job waits.
 
 use std::collections::HashMap;
 use std::fmt;
 use std::sync::{Arc, Mutex};
-use tokio::sync::Semaphore;
 
 /// Whom a job is charged to: an API key's name, or a client address.
 #[derive(Clone, PartialEq, Eq, Hash)]
@@ -34,23 +32,18 @@ impl fmt::Debug for Client {
 
 /// The shares, and what each client holds now.
 pub(super) struct Shares {
-    /// Jobs one client may run at once.
+    /// Jobs one client runs before other clients' waiting jobs go first.
     pub(super) workers: usize,
     /// Jobs one client may have running and queued.
     pub(super) jobs: usize,
-    held: Arc<Mutex<HashMap<Client, Holding>>>,
-}
-
-struct Holding {
-    permits: Arc<Semaphore>,
-    jobs: usize,
+    /// Jobs each client holds, running and queued.
+    held: Arc<Mutex<HashMap<Client, usize>>>,
 }
 
 /// One job charged to its client until dropped.
 pub(super) struct Charge {
     client: Client,
-    permits: Arc<Semaphore>,
-    held: Arc<Mutex<HashMap<Client, Holding>>>,
+    held: Arc<Mutex<HashMap<Client, usize>>>,
 }
 
 impl Shares {
@@ -64,36 +57,34 @@ impl Shares {
     /// Charges a job to `client`, or says how many it holds when that is its share.
     pub(super) fn charge(&self, client: &Client) -> Result<Charge, usize> {
         let mut held = self.held.lock().expect("shares poisoned");
-        let holding = held
-            .entry(client.clone())
-            .or_insert_with(|| Holding { permits: Arc::new(Semaphore::new(self.workers)), jobs: 0 });
-        if holding.jobs >= self.jobs {
-            return Err(holding.jobs);
+        let jobs = held.entry(client.clone()).or_default();
+        if *jobs >= self.jobs {
+            return Err(*jobs);
         }
-        holding.jobs += 1;
-        Ok(Charge { client: client.clone(), permits: holding.permits.clone(), held: self.held.clone() })
+        *jobs += 1;
+        Ok(Charge { client: client.clone(), held: self.held.clone() })
     }
 
     /// Jobs `client` holds now.
     #[cfg(test)]
     pub(super) fn held(&self, client: &Client) -> usize {
-        self.held.lock().expect("shares poisoned").get(client).map_or(0, |h| h.jobs)
+        self.held.lock().expect("shares poisoned").get(client).copied().unwrap_or(0)
     }
 }
 
 impl Charge {
-    /// The client's worker permits, which its job takes before a server's worker.
-    pub(super) fn permits(&self) -> Arc<Semaphore> {
-        self.permits.clone()
+    /// The client the job is charged to.
+    pub(super) fn client(&self) -> &Client {
+        &self.client
     }
 }
 
 impl Drop for Charge {
     fn drop(&mut self) {
         let mut held = self.held.lock().expect("shares poisoned");
-        if let Some(holding) = held.get_mut(&self.client) {
-            holding.jobs -= 1;
-            if holding.jobs == 0 {
+        if let Some(jobs) = held.get_mut(&self.client) {
+            *jobs -= 1;
+            if *jobs == 0 {
                 held.remove(&self.client);
             }
         }

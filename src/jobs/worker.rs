@@ -1,5 +1,5 @@
-//! The worker: waits for a permit, refines (with progress and a trace) or solves on the
-//! blocking pool, and files the outcome.
+//! The worker: waits for one of the server's workers ([`super::dispatch`]), refines (with
+//! progress and a trace) or solves on the blocking pool, and files the outcome.
 
 use super::budget;
 use super::job::{Job, JobError, Outcome, Status};
@@ -14,20 +14,13 @@ use crate::refine::{Observer, Progress, StopReason, refine};
 use crate::result::MeshResult;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
-/// Waits for a permit, refines on the blocking pool, stores the result and finishes the job.
+/// Waits for a worker, refines on the blocking pool, stores the result and finishes the job.
 pub(super) async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec, charges: (Charge, budget::Charge)) {
     let (charge, memory) = charges;
-    // One of the client's permits first, so that a client past its share of the workers
-    // waits without holding a place another client could run in.
-    let permits = async {
-        let own = charge.permits().acquire_owned().await.ok()?;
-        let server = inner.permits.clone().acquire_owned().await.ok()?;
-        Some((own, server))
-    };
     let permit = tokio::select! {
-        permits = permits => permits,
+        worker = inner.dispatch.acquire(charge.client()) => worker,
         () = job.cancel_notify.notified() => None,
     };
     inner.waiting.fetch_sub(1, Ordering::SeqCst);
@@ -71,6 +64,10 @@ pub(super) async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec, charges
     inner.file(&job);
 }
 
+/// A job publishes a progress event at most this often, however fast the engine reports: each
+/// is a server-sent event, numbered, that every client keeping up receives.
+pub const PROGRESS_EVERY: Duration = Duration::from_millis(100);
+
 /// Reports progress into the job's watch channel (a mesh's new vertices first, for viewers)
 /// and reads its cancel flag.
 struct JobObserver<'a> {
@@ -78,10 +75,17 @@ struct JobObserver<'a> {
     /// Whether vertices keep their values, so that viewers may be sent each one once: true
     /// for a mesh; a solution's values change with every solve.
     points: bool,
+    /// When the last progress event was published.
+    published: Option<Instant>,
 }
 
 impl Observer for JobObserver<'_> {
     fn progress(&mut self, mesh: &Mesh, p: &Progress) {
+        let now = Instant::now();
+        if self.published.is_some_and(|last| now - last < PROGRESS_EVERY) {
+            return;
+        }
+        self.published = Some(now);
         if self.points {
             let mut points = self.job.points.lock().expect("job points poisoned");
             let held = points.len();
@@ -108,7 +112,7 @@ impl Observer for JobObserver<'_> {
 /// long the engine ran. A result a time limit stopped goes apart from the cache's answers:
 /// another run would reach another vertex count.
 fn compute(job: &Job, spec: &JobSpec, inner: &Inner) -> (Outcome, Option<Duration>) {
-    let mut observer = JobObserver { job, points: matches!(spec.work, Work::Mesh(_)) };
+    let mut observer = JobObserver { job, points: matches!(spec.work, Work::Mesh(_)), published: None };
     let (mut result, trace, elapsed) = match &spec.work {
         Work::Mesh(mesh) => {
             let mut recorder = Recorder::new(&mut observer, &mesh.params);

@@ -87,8 +87,8 @@ async fn a_page_of_another_origin_cannot_submit_jobs_unless_listed() {
 }
 
 #[tokio::test]
-async fn one_client_cannot_take_every_worker_or_the_whole_queue() {
-    // Two workers and a queue of 8: each key may run 1 job and hold 5.
+async fn one_client_uses_idle_workers_but_not_the_whole_queue_and_others_run_first() {
+    // Two workers and a queue of 8: each key may hold 5 jobs, and runs 1 before others' go first.
     let app = spawn_with(with_keys(Config { client_share: 0.5, ..test_config() })).await;
     let long = |i: usize| json!({"function": format!("sin(40*x)*cos(40*y)+{i}"), "max_vertices": 2_000_000});
     let mut ids = Vec::new();
@@ -96,8 +96,11 @@ async fn one_client_cannot_take_every_worker_or_the_whole_queue() {
         let status: Value = post_as(&app, KEY_A, "/v1/jobs", &long(i)).await.json().await.unwrap();
         ids.push(status["id"].as_str().unwrap().to_owned());
     }
-    while status_as(&app, KEY_A, &ids[0]).await["status"] != "running" {
-        tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+    // No other client waits, so A's second job takes the second worker instead of idling it.
+    for id in &ids[..2] {
+        while status_as(&app, KEY_A, id).await["status"] != "running" {
+            tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+        }
     }
     let refused = post_as(&app, KEY_A, "/v1/jobs", &long(5)).await;
     assert_eq!(refused.status(), 429);
@@ -105,12 +108,48 @@ async fn one_client_cannot_take_every_worker_or_the_whole_queue() {
     let problem: Value = refused.json().await.unwrap();
     assert_eq!(problem["type"], "/problems/share-used");
 
-    // The other worker is B's: its small job finishes while A's second job still waits.
-    let small = post_as(&app, KEY_B, "/v1/meshes", &json!({"function": "x*y", "max_vertices": 10})).await;
-    assert_eq!(small.status(), 200);
-    assert_eq!(status_as(&app, KEY_A, &ids[1]).await["status"], "queued");
+    // B's job waits behind three of A's, and runs as soon as a worker is free: before them.
+    let small: Value = post_as(&app, KEY_B, "/v1/jobs", &json!({"function": "x*y", "max_vertices": 10}))
+        .await
+        .json()
+        .await
+        .unwrap();
+    let small = small["id"].as_str().unwrap();
+    assert_eq!(status_as(&app, KEY_B, small).await["status"], "queued");
+    app.client.delete(app.url(&format!("/v1/jobs/{}", ids[0]))).bearer_auth(KEY_A).send().await.unwrap();
+    while status_as(&app, KEY_B, small).await["status"] != "succeeded" {
+        tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+    }
+    // In arrival order, A's three would have run first; A's last is still queued.
+    assert_eq!(status_as(&app, KEY_A, &ids[4]).await["status"], "queued");
     for id in &ids {
         app.client.delete(app.url(&format!("/v1/jobs/{id}"))).bearer_auth(KEY_A).send().await.unwrap();
+    }
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn behind_a_trusted_proxy_each_forwarded_address_is_its_own_client() {
+    let config =
+        Config { client_share: 0.5, trusted_proxies: vec!["127.0.0.1/32".parse().unwrap()], ..test_config() };
+    let app = spawn_with(config).await;
+    let long = |i: usize| json!({"function": format!("sin(41*x)*cos(41*y)+{i}"), "max_vertices": 2_000_000});
+    let post = |from: &'static str, body: Value| {
+        let request = app.client.post(app.url("/v1/jobs")).header("x-forwarded-for", from).json(&body);
+        async move { request.send().await.unwrap() }
+    };
+    let mut ids = Vec::new();
+    for i in 0..5 {
+        let status: Value = post("203.0.113.1", long(i)).await.json().await.unwrap();
+        ids.push(status["id"].as_str().unwrap().to_owned());
+    }
+    assert_eq!(post("203.0.113.1", long(5)).await.status(), 429, "the first caller holds its share");
+    let other = post("198.51.100.7, 127.0.0.1", long(6)).await;
+    assert_eq!(other.status(), 202, "another caller behind the same proxy is another client");
+    let other: Value = other.json().await.unwrap();
+    ids.push(other["id"].as_str().unwrap().to_owned());
+    for id in &ids {
+        app.client.delete(app.url(&format!("/v1/jobs/{id}"))).send().await.unwrap();
     }
     app.shutdown().await;
 }

@@ -42,6 +42,7 @@ pub fn test_config() -> Config {
         cors_origins: Vec::new(),
         // Every test client is 127.0.0.1: a whole share keeps the tests of the queue simple.
         client_share: 1.0,
+        trusted_proxies: Vec::new(),
         redis_url: None,
         redis_ttl: Duration::from_secs(3600),
         redis_max_bytes: 64 << 20,

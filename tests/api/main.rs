@@ -9,6 +9,7 @@ mod events;
 mod helpers;
 mod jobs;
 mod page;
+mod quickstart;
 mod results;
 mod service;
 mod solutions;
