@@ -76,8 +76,10 @@ pub struct Config {
     /// Origins whose web pages may call the API (`MESHFIT_CORS_ORIGINS`, comma-separated
     /// `scheme://host[:port]`, or `*`). Default none: CORS is off.
     pub cors_origins: Vec<String>,
-    /// The share of the workers and of the queue one client (key, or address without keys)
-    /// may hold (`MESHFIT_CLIENT_SHARE`, in (0, 1], default 0.5).
+    /// One client's (key's, or address's without keys) share of the jobs the server takes,
+    /// running and queued, and of the workers it runs before other clients' waiting jobs go
+    /// first; an idle worker takes any waiting job (`MESHFIT_CLIENT_SHARE`, in (0, 1],
+    /// default 0.5).
     pub client_share: f64,
     /// Proxies whose `Forwarded` or `X-Forwarded-For` header names the client, for shares
     /// without keys (`MESHFIT_TRUSTED_PROXIES`, comma-separated addresses or CIDR ranges).

@@ -152,8 +152,8 @@ struct ServeArgs {
     /// MESHFIT_CORS_ORIGINS: origins whose pages may call the API [default: none].
     #[arg(long, value_name = "ORIGINS")]
     cors_origins: Option<String>,
-    /// MESHFIT_CLIENT_SHARE: share of the workers and the queue one client may hold
-    /// [default: 0.5].
+    /// MESHFIT_CLIENT_SHARE: one client's share of the jobs (workers plus queue), and of the
+    /// workers it runs before others' waiting jobs go first [default: 0.5].
     #[arg(long, value_name = "FRACTION")]
     client_share: Option<String>,
     /// MESHFIT_TRUSTED_PROXIES: proxies (addresses or CIDR ranges) whose Forwarded or
