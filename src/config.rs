@@ -20,6 +20,9 @@ pub enum LogFormat {
     Json,
 }
 
+/// Where the server listens unless told otherwise.
+pub const DEFAULT_ADDR: SocketAddr = SocketAddr::new(IpAddr::V4(std::net::Ipv4Addr::UNSPECIFIED), 8080);
+
 /// Validated service settings. Every field has a default; see the README's table.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Config {
@@ -102,7 +105,7 @@ pub struct Config {
 impl Default for Config {
     fn default() -> Self {
         Self {
-            addr: SocketAddr::from(([0, 0, 0, 0], 8080)),
+            addr: DEFAULT_ADDR,
             workers: std::thread::available_parallelism().unwrap_or(NonZeroUsize::MIN),
             queue: 64,
             max_vertices: 2_000_000,

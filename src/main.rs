@@ -59,7 +59,7 @@ fn health(args: &HealthArgs) -> Result<()> {
     use std::io::Read;
     use std::net::{IpAddr, Ipv4Addr, Ipv6Addr, TcpStream};
     let text = args.addr.clone().or_else(|| std::env::var("MESHFIT_ADDR").ok());
-    let text = text.unwrap_or_else(|| Config::default().addr.to_string());
+    let text = text.unwrap_or_else(|| meshfit::config::DEFAULT_ADDR.to_string());
     let flag = if args.addr.is_some() { "--addr" } else { "MESHFIT_ADDR" };
     let mut addr =
         meshfit::config::listen_addr(&text).map_err(|why| anyhow::anyhow!("{flag} {text:?}: {why}"))?;

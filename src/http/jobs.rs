@@ -411,21 +411,21 @@ pub async fn jobs_events(
     {
         return Ok(job_stream(waiter, last_seen, points));
     }
-    let Some(event_id) = final_event_id(&found, last_seen) else {
-        return Ok(StatusCode::NO_CONTENT.into_response());
-    };
-    if let Some((outcome, _)) = finished_outcome(&state, &id, found).await {
-        return Ok(final_stream(&id, &outcome, event_id));
+    if let Some(response) = final_response(&state, &id, found, last_seen).await {
+        return Ok(response);
     }
     // Finished between the two looks (its record is there now), or Redis stopped answering.
-    let found = find(&state, &id).await?;
+    final_response(&state, &id, find(&state, &id).await?, last_seen).await.ok_or(ApiError::Unreachable)
+}
+
+/// The stream of a finished job's final event, or 204 for a client that has seen it; `None`
+/// when `found` is not finished.
+async fn final_response(state: &AppState, id: &str, found: Found, last_seen: u64) -> Option<Response> {
     let Some(event_id) = final_event_id(&found, last_seen) else {
-        return Ok(StatusCode::NO_CONTENT.into_response());
+        return Some(StatusCode::NO_CONTENT.into_response());
     };
-    match finished_outcome(&state, &id, found).await {
-        Some((outcome, _)) => Ok(final_stream(&id, &outcome, event_id)),
-        None => Err(ApiError::Unreachable),
-    }
+    let (outcome, _) = finished_outcome(state, id, found).await?;
+    Some(final_stream(id, &outcome, event_id))
 }
 
 /// `?vertices=true` on the events route: progress events carry the new vertices.
@@ -497,9 +497,10 @@ struct Watch {
 }
 
 /// Progress events (as often as the job publishes them, a slow client skipping to the newest)
-/// and the final event of a job, skipping ids ≤ `last_seen`, with a keep-alive comment whenever the job is silent for [`sse::KEEP_ALIVE`]. With `points`,
-/// each progress event carries the vertices added since the last one this client was sent,
-/// at most [`POINTS_PER_EVENT`] (from the first: a reconnecting client starts again at 0).
+/// and the final event of a job, skipping ids ≤ `last_seen`, with a keep-alive comment
+/// whenever the job is silent for [`sse::KEEP_ALIVE`]. With `points`, each progress event
+/// carries the vertices added since the last one this client was sent, at most
+/// [`POINTS_PER_EVENT`] (from the first: a reconnecting client starts again at 0).
 fn job_stream(waiter: Waiter, last_seen: u64, points: bool) -> Response {
     let rx = waiter.job().subscribe();
     let points_sent = points.then_some(0);

@@ -5,6 +5,7 @@
 //! decoded grid and its vertex budget at the bytes per vertex measured below), and the
 //! cache's meshes in memory as they stand.
 
+use crate::refine::Criterion;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -22,10 +23,10 @@ pub const SOLUTION_BYTES_PER_VERTEX: u64 = 1536;
 /// Peak bytes per vertex of the command line's `meshfit mesh` (no viewer copy, no trace):
 /// measured as the server's `MESH_BYTES_PER_VERTEX` is, 147 MB at 10^6 vertices with `--criterion
 /// variation` and 201 MB with `error`, the output written as JSON or PLY; rounded up.
-pub const fn cli_mesh_bytes_per_vertex(criterion: crate::refine::Criterion) -> u64 {
+pub const fn cli_mesh_bytes_per_vertex(criterion: Criterion) -> u64 {
     match criterion {
-        crate::refine::Criterion::Variation => 160,
-        crate::refine::Criterion::Error => 224,
+        Criterion::Variation => 160,
+        Criterion::Error => 224,
     }
 }
 

@@ -8,7 +8,7 @@
 //! never waits behind an idle worker, and a client that arrives at a busy server is the next to
 //! run instead of queueing behind another's backlog. Running jobs are never preempted.
 
-use super::share::Client;
+use super::share::{Client, uncount};
 use std::collections::{HashMap, VecDeque};
 use std::sync::{Arc, Mutex};
 use tokio::sync::oneshot;
@@ -68,9 +68,9 @@ impl Dispatch {
 
     fn release(self: &Arc<Self>, client: &Client) {
         let mut state = self.lock();
-        state.stop_running(client);
+        uncount(&mut state.running, client);
+        let share = self.share;
         loop {
-            let share = self.share;
             let under_share =
                 state.waiting.iter().position(|(c, _)| state.running.get(c).is_none_or(|&n| n < share));
             let Some((next, tx)) = under_share
@@ -87,7 +87,7 @@ impl Dispatch {
                 // release its drop would make under this lock, and look again.
                 Err(mut unclaimed) => {
                     unclaimed.dispatch = None;
-                    state.stop_running(&next);
+                    uncount(&mut state.running, &next);
                 }
             }
         }
@@ -95,17 +95,6 @@ impl Dispatch {
 
     fn lock(&self) -> std::sync::MutexGuard<'_, State> {
         self.state.lock().expect("dispatch poisoned")
-    }
-}
-
-impl State {
-    fn stop_running(&mut self, client: &Client) {
-        if let Some(n) = self.running.get_mut(client) {
-            *n -= 1;
-            if *n == 0 {
-                self.running.remove(client);
-            }
-        }
     }
 }
 

@@ -3,8 +3,8 @@
 //! A submitted [`JobSpec`] gets an id (its canonical hash). A cached result answers at once;
 //! a smaller request of a cached run's family is replayed from its trace; an identical job
 //! already queued or running is joined; otherwise a new job waits for one of `workers`
-//! workers (handed out by `dispatch`) and then refines on tokio's blocking pool ([`crate::cpu`], at a lower OS
-//! priority than the async workers). The tokio docs for `spawn_blocking` recommend exactly
+//! workers (handed out by `dispatch`) and then refines on tokio's blocking pool
+//! ([`crate::cpu`], at a lower OS priority than the async workers). The tokio docs for `spawn_blocking` recommend exactly
 //! this: the blocking pool itself is large, so CPU-bound work needs its own bound.
 //!
 //! - `job`: a job's state, its outcome, and [`Record`], the one view clients get;

@@ -81,12 +81,17 @@ impl Charge {
 
 impl Drop for Charge {
     fn drop(&mut self) {
-        let mut held = self.held.lock().expect("shares poisoned");
-        if let Some(jobs) = held.get_mut(&self.client) {
-            *jobs -= 1;
-            if *jobs == 0 {
-                held.remove(&self.client);
-            }
+        uncount(&mut self.held.lock().expect("shares poisoned"), &self.client);
+    }
+}
+
+/// Takes one off `client`'s count, forgetting a client whose count reaches 0, so that the map
+/// holds only clients that hold something.
+pub(super) fn uncount(counts: &mut HashMap<Client, usize>, client: &Client) {
+    if let Some(n) = counts.get_mut(client) {
+        *n -= 1;
+        if *n == 0 {
+            counts.remove(client);
         }
     }
 }

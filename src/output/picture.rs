@@ -47,6 +47,13 @@ pub(crate) struct TextMetrics {
     pub line_height: f64,
 }
 
+impl TextMetrics {
+    /// How wide `text` is written.
+    pub fn width(&self, text: &str) -> f64 {
+        text.chars().count() as f64 * self.char_width
+    }
+}
+
 /// Where everything goes on a picture `width` units wide.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Layout {
@@ -102,7 +109,7 @@ impl Layout {
         let z_range = result.z_range();
         let (lo, hi) = z_range;
         let labels = [short(hi), short(lo)];
-        let label_chars = labels.iter().map(|l| l.chars().count()).max().unwrap_or(0) as f64;
+        let label_width = labels.iter().map(|l| text.width(l)).fold(0.0, f64::max);
 
         // Sizes are given for a 1024-unit picture and scale with it.
         let unit = width / NOMINAL_WIDTH;
@@ -110,13 +117,12 @@ impl Layout {
         let gap = (20.0 * unit).round().max(2.0);
         let bar_width = (24.0 * unit).round().max(3.0);
         let label_gap = (8.0 * unit).round().max(1.0);
-        let label_width = label_chars * text.char_width;
         let beside = gap + bar_width + label_gap + label_width;
         // The y axis's labels go left of the plot, the x axis's under it.
         let tick_length = (6.0 * unit).round().max(2.0);
         let (x_ticks, y_ticks) = (ticks(bounds[0], bounds[1]), ticks(bounds[2], bounds[3]));
-        let y_label_chars = y_ticks.iter().map(|(_, l)| l.chars().count()).max().unwrap_or(0) as f64;
-        let before = y_label_chars * text.char_width + tick_length + label_gap;
+        let y_labels_width = y_ticks.iter().map(|(_, l)| text.width(l)).fold(0.0, f64::max);
+        let before = y_labels_width + tick_length + label_gap;
         let box_width = (width - 2.0 * margin - beside - before).max(width / 4.0);
         // A tall domain fits a square box rather than making the picture taller than wide.
         let scale = (box_width / dx).min(box_width / dy);
@@ -124,21 +130,6 @@ impl Layout {
         // Centred as a group, so a narrow plot does not leave the bar at the far left.
         let left = ((width - before - plot_width - beside) / 2.0).round().max(margin) + before;
         let plot = Frame { left, top: margin, width: plot_width, height: plot_height };
-        let mut tick_marks = Vec::new();
-        let mut tick_labels = Vec::new();
-        for (x, label) in x_ticks {
-            let at = plot.left + (x - bounds[0]) * scale;
-            tick_marks.push([at, plot.bottom(), at, plot.bottom() + tick_length]);
-            let label_left = at - label.chars().count() as f64 * text.char_width / 2.0;
-            tick_labels.push((label, label_left, plot.bottom() + tick_length + label_gap / 2.0));
-        }
-        for (y, label) in y_ticks {
-            let at = plot.top + (bounds[3] - y) * scale;
-            tick_marks.push([plot.left, at, plot.left - tick_length, at]);
-            let label_left =
-                plot.left - tick_length - label_gap - label.chars().count() as f64 * text.char_width;
-            tick_labels.push((label, label_left, at - text.char_height / 2.0));
-        }
         let x_labels_bottom = plot.bottom() + tick_length + label_gap / 2.0 + text.char_height;
         // A flat plot still gets a bar tall enough for its two labels.
         let bar_height = plot_height.max(3.0 * text.line_height).round();
@@ -152,14 +143,14 @@ impl Layout {
         let lines = wrap(&stats_segments(result), per_line);
         let text_top = (bar.bottom().max(x_labels_bottom) + 0.75 * margin).round();
         let height = (text_top + lines.len() as f64 * text.line_height + 0.75 * margin).ceil();
-        Self {
+        let mut layout = Self {
             width,
             height,
             plot,
             bar,
             labels,
-            ticks: tick_marks,
-            tick_labels,
+            ticks: Vec::new(),
+            tick_labels: Vec::new(),
             lines,
             text_top,
             line_height: text.line_height,
@@ -167,7 +158,21 @@ impl Layout {
             bounds,
             z_range,
             scale,
+        };
+        // The ticks sit where their values are on the plot, outside its edges.
+        for (x, label) in x_ticks {
+            let at = layout.to_picture(x, bounds[3]).0;
+            layout.ticks.push([at, plot.bottom(), at, plot.bottom() + tick_length]);
+            let label_left = at - text.width(&label) / 2.0;
+            layout.tick_labels.push((label, label_left, plot.bottom() + tick_length + label_gap / 2.0));
         }
+        for (y, label) in y_ticks {
+            let at = layout.to_picture(bounds[0], y).1;
+            layout.ticks.push([plot.left, at, plot.left - tick_length, at]);
+            let label_left = plot.left - tick_length - label_gap - text.width(&label);
+            layout.tick_labels.push((label, label_left, at - text.char_height / 2.0));
+        }
+        layout
     }
 
     /// The picture point of the domain point (x, y), north up.

@@ -44,7 +44,7 @@ fn render(result: &MeshResult, width: u32) -> Vec<u8> {
         canvas.write(label, *left, *top, style);
     }
     for (i, line) in layout.lines.iter().enumerate() {
-        let left = (layout.width - line.chars().count() as f64 * text.char_width) / 2.0;
+        let left = (layout.width - text.width(line)) / 2.0;
         canvas.write(line, left.max(0.0), layout.text_top + i as f64 * layout.line_height, style);
     }
     encode_png(&pixmap)
