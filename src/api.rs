@@ -2,7 +2,7 @@
 
 use crate::refine::{Criterion, Method};
 use crate::result::Summary;
-use crate::solve::{Indicator, Physics};
+use crate::solve::{Indicator, Physics, Side};
 use crate::source::{Encoding, RawType};
 use serde::de::{self, Deserializer, Visitor};
 use serde::{Deserialize, Serialize};
@@ -208,6 +208,12 @@ pub struct ProgressEvent {
     pub worst: f64,
     /// Milliseconds since the job started running.
     pub elapsed_ms: f64,
+    /// A nonlinear solution's Newton steps in its latest solve.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub newton_iterations: Option<u32>,
+    /// Newton's final relative residual in that solve.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub newton_residual: Option<f64>,
 }
 
 /// The body of `POST /v1/solutions` (and of `POST /v1/jobs` when it names `physics`): the
@@ -224,9 +230,12 @@ pub struct SolveRequest {
     pub k: Option<Coefficient>,
     /// The load f (default 0; poisson only).
     pub f: Option<Coefficient>,
-    /// The boundary values g (default 0); A on the boundary for magnetostatics.
+    /// The boundary values g (default 0) on the Dirichlet sides; A there for magnetostatics.
     pub g: Option<Coefficient>,
-    /// Rectangles inside the domain, later entries winning, that override k and f.
+    /// Each side's condition: `dirichlet` (u = g, the default) or `neumann` (zero normal flux).
+    pub boundary: Option<BoundaryInput>,
+    /// Rectangles and polygons inside the domain, later entries winning, that override k and
+    /// f (or the material and current).
     #[serde(default)]
     pub regions: Vec<RegionInput>,
     /// The exact solution, to measure the errors against.
@@ -282,22 +291,48 @@ impl<'de> Deserialize<'de> for Coefficient {
     }
 }
 
-/// A region of a boundary value problem: an axis-aligned rectangle with constant values.
+/// A region of a boundary value problem: a rectangle (`x`, `y`) or a simple polygon
+/// (`polygon`), with constant values. The mesh follows its sides.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RegionInput {
-    /// [x0, x1].
-    pub x: Vec<f64>,
-    /// [y0, y1].
-    pub y: Vec<f64>,
+    /// [x0, x1], with `y`.
+    pub x: Option<Vec<f64>>,
+    /// [y0, y1], with `x`.
+    pub y: Option<Vec<f64>>,
+    /// A simple polygon's corners [[x, y], …], at least 3, either orientation, instead of `x`
+    /// and `y`.
+    pub polygon: Option<Vec<[f64; 2]>>,
     /// k inside (poisson).
     pub k: Option<f64>,
     /// f inside (poisson).
     pub f: Option<f64>,
     /// Relative permeability inside (magnetostatic; default 1).
     pub mu_r: Option<f64>,
+    /// A B–H curve [[H in A/m, B in T], …] from [0, 0], both strictly increasing, instead of
+    /// `mu_r` (magnetostatic).
+    pub bh: Option<Vec<[f64; 2]>>,
+    /// A permanent magnet's magnetization [Mx, My] in A/m: B = μ0 (μr H + M) (magnetostatic).
+    pub magnetization: Option<[f64; 2]>,
     /// Current density J_z inside, in A/m² (magnetostatic; default 0).
     pub current_density: Option<f64>,
+    /// The current through the region in A, spread evenly over its area, instead of
+    /// `current_density` (magnetostatic).
+    pub current: Option<f64>,
+}
+
+/// The condition on each side of the domain; a side left out is `dirichlet`.
+#[derive(Debug, Clone, Copy, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoundaryInput {
+    /// x = a.
+    pub left: Option<Side>,
+    /// x = b.
+    pub right: Option<Side>,
+    /// y = c.
+    pub bottom: Option<Side>,
+    /// y = d.
+    pub top: Option<Side>,
 }
 
 /// Why a JSON body is not the request it should be, and where.

@@ -39,6 +39,7 @@ impl Mesh {
     /// - every triangle is strictly counter-clockwise by exact `orient2d`;
     /// - every vertex lies in the closed rectangle, has a finite value, and its outgoing
     ///   half-edge starts at it;
+    /// - every constrained edge is an edge of the mesh;
     /// - Euler's relation for a triangulated convex polygon: triangles = 2n − h − 2.
     pub fn check_invariants(&self) -> Result<(), InvariantError> {
         let n = self.vertices.len();
@@ -92,6 +93,7 @@ impl Mesh {
                 "outgoing half-edge {e} of vertex {v} does not start there"
             );
         }
+        self.check_constraints()?;
         let h = self.num_boundary_vertices();
         ensure!(
             self.num_triangles() + h + 2 == 2 * n,
@@ -102,8 +104,8 @@ impl Mesh {
         Ok(())
     }
 
-    /// The first interior half-edge whose far vertex lies strictly inside the circumcircle of
-    /// its triangle, if any.
+    /// The first interior half-edge, not constrained, whose far vertex lies strictly inside the
+    /// circumcircle of its triangle, if any.
     ///
     /// A large mesh is checked in two halves on two threads; the answer is the same edge
     /// either way, the first half's when both have one (the second half then stops early).
@@ -139,7 +141,7 @@ impl Mesh {
             let mut len = 0;
             while len < CHECK_BATCH && next < range.end {
                 let f = self.twin(next);
-                if f != NONE && next < f {
+                if f != NONE && next < f && !self.is_constrained(next) {
                     edges[len] = next;
                     len += 1;
                 }
@@ -158,7 +160,8 @@ impl Mesh {
         None
     }
 
-    /// Whether every interior edge passes the exact in-circle test (a Delaunay triangulation).
+    /// Whether every interior edge passes the exact in-circle test (a Delaunay triangulation),
+    /// constrained edges excepted (then a constrained Delaunay triangulation).
     pub fn is_delaunay(&self) -> bool {
         self.find_non_delaunay_edge().is_none()
     }

@@ -87,12 +87,12 @@ impl Mesh {
         flips
     }
 
-    /// Whether the edge of `e` is interior and its far vertex lies strictly inside the
-    /// circumcircle of `e`'s triangle.
+    /// Whether the edge of `e` is interior, not constrained, and its far vertex lies strictly
+    /// inside the circumcircle of `e`'s triangle.
     #[inline]
     fn is_illegal(&self, e: u32) -> bool {
         let f = self.twin(e);
-        f != NONE && {
+        f != NONE && !self.is_constrained(e) && {
             let (u, v, m) = (self.point(self.origin(e)), self.point(self.dest(e)), self.point(self.apex(e)));
             is_in_circle(u, v, m, self.point(self.apex(f)))
         }

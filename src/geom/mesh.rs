@@ -7,6 +7,7 @@
 //! index arithmetic) with origin and twin side by side: a triangle's 24 bytes are read
 //! together, so a walk or a flip touches one cache line per triangle instead of two.
 
+use super::constrained::Constraints;
 use super::{Point, Rect, Vertex};
 
 /// The missing twin of a boundary half-edge.
@@ -56,6 +57,8 @@ pub struct Mesh {
     pub(super) half: Vec<HalfEdge>,
     /// One half-edge leaving each vertex, the entry point for walks around it.
     pub(super) outgoing: Vec<u32>,
+    /// Interior edges that splits keep and flips never take (regions' sides).
+    pub(super) constraints: Constraints,
 }
 
 impl Mesh {
@@ -83,6 +86,7 @@ impl Mesh {
             vertices: Vec::with_capacity(vertices),
             half: Vec::with_capacity(half_edges),
             outgoing: Vec::with_capacity(vertices),
+            constraints: Constraints::default(),
         };
         for (p, z) in rect.corners().into_iter().zip(z) {
             mesh.vertices.push(Vertex { x: p.x, y: p.y, z });

@@ -3,6 +3,7 @@
 //! Pure, synchronous and deterministic: nothing here knows about expressions, threads or I/O.
 
 mod check;
+mod constrained;
 mod flip;
 mod mesh;
 pub mod predicates;
@@ -10,6 +11,7 @@ pub mod raster;
 mod split;
 
 pub use check::InvariantError;
+pub use constrained::ConstrainedError;
 pub use mesh::{Edge, Mesh, NONE};
 pub use split::Split;
 

@@ -117,6 +117,7 @@ impl Mesh {
         }
 
         let d = self.apex(f);
+        self.constraints.split(a, b, mv);
         let t1 = f / 3;
         let (out_ad, out_db) = (self.twin(next(f)), self.twin(prev(f)));
         let t3 = self.push_triangle();

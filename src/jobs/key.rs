@@ -6,12 +6,13 @@
 
 use super::solution::{Coef, SolveSpec};
 use super::spec::{JobSpec, Work};
+use crate::solve::Shape;
 use crate::source::Source;
 use sha2::{Digest, Sha256};
 
 /// Bumped whenever the engine may produce a different mesh for the same request, so that a
 /// cache (in memory or on disk) never serves a mesh the current engine would not make.
-pub const ENGINE_VERSION: &str = "meshfit-engine-7";
+pub const ENGINE_VERSION: &str = "meshfit-engine-8";
 
 /// A job's id, and the id of its family: the requests that differ from it only in budget,
 /// tolerance or time limit, whose runs are prefixes of one another.
@@ -105,9 +106,23 @@ fn solution_fields(h: &mut Sha256, spec: &SolveSpec, field: fn(&mut Sha256, &str
     coef(h, "g", Some(&spec.g));
     coef(h, "exact", spec.exact.as_ref());
     field(h, "regions", &(spec.regions.len() as u64).to_le_bytes());
-    for r in &spec.regions {
-        let rect = [r.rect.x0(), r.rect.x1(), r.rect.y0(), r.rect.y1()].map(bits).concat();
-        field(h, "region", &[rect, optional(r.k), optional(r.f)].concat());
+    let b = spec.boundary;
+    field(h, "boundary", format!("{:?}", [b.left, b.right, b.bottom, b.top]).as_bytes());
+    for (r, table) in spec.regions.iter().zip(&spec.tables) {
+        let shape = match &r.shape {
+            Shape::Rect(rect) => {
+                [&[0u8][..], &[rect.x0(), rect.x1(), rect.y0(), rect.y1()].map(bits).concat()].concat()
+            }
+            Shape::Polygon(points) => {
+                let corners = points.iter().flat_map(|p| [bits(p.x), bits(p.y)]).collect::<Vec<_>>().concat();
+                [&[1u8][..], &(points.len() as u64).to_le_bytes(), &corners].concat()
+            }
+        };
+        let table =
+            table.iter().flatten().flat_map(|&[h, b]| [bits(h), bits(b)]).collect::<Vec<_>>().concat();
+        let source = r.source.map_or(Vec::new(), |[x, y]| [bits(x), bits(y)].concat());
+        field(h, "region", &[shape, optional(r.k), optional(r.f)].concat());
+        field(h, "material", &[(table.len() as u64).to_le_bytes().to_vec(), table, source].concat());
     }
     let s = &spec.settings;
     field(h, "method", s.method.to_string().as_bytes());
@@ -196,14 +211,14 @@ mod tests {
         );
         let pinned = [
             (
-                "meshfit-engine-7",
-                "02f389ca18e7226a8835e83a32e0300d7e405bbbcf04a1ebe26066052a754d35",
-                "9cadf695cfee649d53249f18bc51445732a8247cc1dbc7c48c41c12e0e689c81",
+                "meshfit-engine-8",
+                "9487d6a4aa7e1dc42bceb113b644110319fb030c98abd7f8502436a0817346ba",
+                "d5cf40ce1a49739b4f881aed41c15cef6033beb5ddfc0ddbeb52b8c161614537",
             ),
             (
-                "meshfit-engine-7",
-                "ac2ad953bb307c15c925807cdfa375367e45d6bbf1c9079ee6d719952246f7dc",
-                "68f74fb179b7102e3a26152bd1caa78d7df93bed52cfd9391d14c9c9aa66290d",
+                "meshfit-engine-8",
+                "e9a23f9d9824db513a698da8ff8cf984ae6a51423b360551fcf5a46d8cc2197a",
+                "5fd7076637917d2f6d3a1a3e5ef862f236fe4394babd2699879a31205d165bcd",
             ),
         ];
         for (body, pinned) in [expression, &grid].into_iter().zip(pinned) {

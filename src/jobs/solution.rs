@@ -1,11 +1,14 @@
 //! SolveSpec: a boundary value problem request, validated and in canonical form.
 
 use super::spec::{Limits, SpecError, at_most, budget, domain_of};
-use crate::api::{Coefficient, RegionInput, SolveRequest};
-use crate::geom::Rect;
+use crate::api::{BoundaryInput, Coefficient, RegionInput, SolveRequest};
+use crate::geom::{Point, Rect};
 use crate::refine::Observer;
-use crate::solve::{Adapted, Exact, MU_0, Physics, Problem, Region, Settings, SolveError, adapt};
+use crate::solve::{
+    Adapted, BhCurve, Boundary, Exact, MU_0, Physics, Problem, Region, Settings, Shape, SolveError, adapt,
+};
 use crate::source::Expression;
+use std::sync::Arc;
 use std::time::Duration;
 
 /// A coefficient: a constant or a parsed expression.
@@ -37,10 +40,14 @@ pub struct SolveSpec {
     pub k: Coef,
     /// f outside the regions.
     pub f: Coef,
-    /// u on the boundary.
+    /// u on the Dirichlet sides.
     pub g: Coef,
+    /// Each side's condition.
+    pub boundary: Boundary,
     /// The regions, in the order they apply.
     pub regions: Vec<Region>,
+    /// The B–H table of each region that has one, by region: what the cache key hashes.
+    pub tables: Vec<Option<BhTable>>,
     /// The exact solution, if given.
     pub exact: Option<Coef>,
     /// The loop's stop rules and method, the time limit already capped.
@@ -92,50 +99,214 @@ fn finite(field: &str, v: f64) -> Result<f64, SpecError> {
     if v.is_finite() { Ok(v + 0.0) } else { Err(invalid(field, format!("must be finite, got {v}"))) }
 }
 
-/// Region `i`, inside `domain`, with k and f for `physics`.
-fn region(i: usize, r: RegionInput, domain: Rect, physics: Physics) -> Result<Region, SpecError> {
-    let at = |name: &str| format!("regions[{i}].{name}");
-    let (x, y) = match (r.x.as_slice(), r.y.as_slice()) {
-        (&[x0, x1], &[y0, y1]) => ([x0, x1], [y0, y1]),
-        _ => return Err(invalid(format!("regions[{i}]"), "x and y must each be [low, high]")),
-    };
-    let rect = Rect::new(x[0] + 0.0, x[1] + 0.0, y[0] + 0.0, y[1] + 0.0)
-        .map_err(|e| invalid(format!("regions[{i}]"), e.to_string()))?;
-    let inside = domain.x0() <= rect.x0()
-        && rect.x1() <= domain.x1()
-        && domain.y0() <= rect.y0()
-        && rect.y1() <= domain.y1();
-    if !inside {
-        return Err(invalid(format!("regions[{i}]"), "the region must lie inside the domain"));
-    }
-    let (k, f) = match physics {
-        Physics::Poisson => {
-            if r.mu_r.is_some() || r.current_density.is_some() {
+/// A B–H table as the request gave it: [H, B] pairs.
+pub type BhTable = Vec<[f64; 2]>;
+
+/// The most corners a polygon may have: simplicity is checked pair by pair.
+pub const MAX_POLYGON_POINTS: usize = 1000;
+
+/// Region `i`'s shape: a rectangle inside `domain`, or a simple polygon inside it.
+fn shape(i: usize, r: &RegionInput, domain: Rect) -> Result<Shape, SpecError> {
+    let here = format!("regions[{i}]");
+    let inside =
+        |p: Point| domain.x0() <= p.x && p.x <= domain.x1() && domain.y0() <= p.y && p.y <= domain.y1();
+    match (&r.x, &r.y, &r.polygon) {
+        (Some(x), Some(y), None) => {
+            let (x, y) = match (x.as_slice(), y.as_slice()) {
+                (&[x0, x1], &[y0, y1]) => ([x0, x1], [y0, y1]),
+                _ => return Err(invalid(here, "x and y must each be [low, high]")),
+            };
+            let rect = Rect::new(x[0] + 0.0, x[1] + 0.0, y[0] + 0.0, y[1] + 0.0)
+                .map_err(|e| invalid(&here, e.to_string()))?;
+            if !rect.corners().into_iter().all(inside) {
+                return Err(invalid(here, "the region must lie inside the domain"));
+            }
+            Ok(Shape::Rect(rect))
+        }
+        (None, None, Some(points)) => {
+            let at = |k: usize| format!("regions[{i}].polygon[{k}]");
+            if points.len() < 3 {
                 return Err(invalid(
-                    format!("regions[{i}]"),
-                    "mu_r and current_density are for physics magnetostatic; use k and f",
+                    format!("{here}.polygon"),
+                    format!("needs at least 3 points, got {}", points.len()),
                 ));
             }
-            (r.k.map(|k| positive(&at("k"), k)).transpose()?, r.f.map(|f| finite(&at("f"), f)).transpose()?)
+            if points.len() > MAX_POLYGON_POINTS {
+                return Err(invalid(
+                    format!("{here}.polygon"),
+                    format!("has {} points, more than {MAX_POLYGON_POINTS}", points.len()),
+                ));
+            }
+            let mut corners = Vec::with_capacity(points.len());
+            for (k, &[x, y]) in points.iter().enumerate() {
+                let p = Point::new(x + 0.0, y + 0.0);
+                if !(x.is_finite() && y.is_finite() && inside(p)) {
+                    return Err(invalid(
+                        at(k),
+                        format!("[{x}, {y}] must be a finite point inside the domain"),
+                    ));
+                }
+                corners.push(p);
+            }
+            if let Some((k, problem)) = polygon_fault(&corners) {
+                return Err(invalid(at(k), problem));
+            }
+            Ok(Shape::Polygon(corners))
+        }
+        _ => Err(invalid(
+            here,
+            "a region is a rectangle (x and y) or a polygon (polygon), not both or neither",
+        )),
+    }
+}
+
+/// The first corner at which `corners` stop making a simple polygon, and why: a repeated
+/// corner, a zero-length or backtracking side, or two sides that cross or touch. Decided by
+/// exact orientation tests.
+fn polygon_fault(corners: &[Point]) -> Option<(usize, &'static str)> {
+    use crate::geom::predicates::{Orientation, orientation};
+    let n = corners.len();
+    let side = |k: usize| (corners[k], corners[(k + 1) % n]);
+    // Whether c lies on the closed segment a–b, given that the three are collinear.
+    let within = |a: Point, b: Point, c: Point| {
+        a.x.min(b.x) <= c.x && c.x <= a.x.max(b.x) && a.y.min(b.y) <= c.y && c.y <= a.y.max(b.y)
+    };
+    let touch = |(a, b): (Point, Point), (c, d): (Point, Point)| {
+        let (o1, o2) = (orientation(a, b, c), orientation(a, b, d));
+        let (o3, o4) = (orientation(c, d, a), orientation(c, d, b));
+        let proper = o1 != o2 && o3 != o4 && ![o1, o2, o3, o4].contains(&Orientation::Collinear);
+        proper
+            || (o1 == Orientation::Collinear && within(a, b, c))
+            || (o2 == Orientation::Collinear && within(a, b, d))
+            || (o3 == Orientation::Collinear && within(c, d, a))
+            || (o4 == Orientation::Collinear && within(c, d, b))
+    };
+    for k in 0..n {
+        let (a, b) = side(k);
+        if a == b {
+            return Some(((k + 1) % n, "repeats the corner before it"));
+        }
+        // Two consecutive sides meet only at their shared corner: no fold back along a line.
+        let c = corners[(k + 2) % n];
+        if orientation(a, b, c) == Orientation::Collinear && within(a, b, c) && c != b {
+            return Some(((k + 2) % n, "folds back onto the side before it"));
+        }
+        for j in k + 2..n {
+            if k == 0 && j == n - 1 {
+                continue;
+            }
+            if touch(side(k), side(j)) {
+                return Some((j, "its side crosses or touches another: the polygon must be simple"));
+            }
+        }
+    }
+    let twice: f64 = (0..n).map(side).map(|(a, b)| a.x * b.y - b.x * a.y).sum();
+    (twice == 0.0).then_some((0, "encloses no area"))
+}
+
+/// Region `i`, inside `domain`, with k and f for `physics`, and its B–H table if it has one.
+fn region(
+    i: usize,
+    r: RegionInput,
+    domain: Rect,
+    physics: Physics,
+) -> Result<(Region, Option<BhTable>), SpecError> {
+    let at = |name: &str| format!("regions[{i}].{name}");
+    let shape = shape(i, &r, domain)?;
+    let mut region = Region::new(shape);
+    let mut table = None;
+    match physics {
+        Physics::Poisson => {
+            let magnetic = [r.mu_r.is_some(), r.current_density.is_some(), r.current.is_some()]
+                .into_iter()
+                .chain([r.bh.is_some(), r.magnetization.is_some()]);
+            if magnetic.into_iter().any(|given| given) {
+                return Err(invalid(
+                    format!("regions[{i}]"),
+                    "mu_r, bh, magnetization, current_density and current are for physics magnetostatic; use k and f",
+                ));
+            }
+            region.k = r.k.map(|k| positive(&at("k"), k)).transpose()?;
+            region.f = r.f.map(|f| finite(&at("f"), f)).transpose()?;
+            if region.k.is_none() && region.f.is_none() {
+                return Err(invalid(format!("regions[{i}]"), "a region must set at least one value"));
+            }
         }
         Physics::Magnetostatic => {
             if r.k.is_some() || r.f.is_some() {
                 return Err(invalid(
                     format!("regions[{i}]"),
-                    "k and f are for physics poisson; use mu_r and current_density",
+                    "k and f are for physics poisson; use mu_r or bh, and current_density or current",
                 ));
             }
-            let mu_r = r.mu_r.map(|m| positive(&at("mu_r"), m)).transpose()?;
-            (
-                mu_r.map(|m| 1.0 / (MU_0 * m)),
-                r.current_density.map(|j| finite(&at("current_density"), j)).transpose()?,
-            )
+            let given = [r.mu_r.is_some(), r.bh.is_some(), r.magnetization.is_some()]
+                .into_iter()
+                .chain([r.current_density.is_some(), r.current.is_some()]);
+            if !given.into_iter().any(|g| g) {
+                return Err(invalid(
+                    format!("regions[{i}]"),
+                    "a region must set at least one of mu_r, bh, magnetization, current_density and current",
+                ));
+            }
+            if r.mu_r.is_some() && r.bh.is_some() {
+                return Err(invalid(at("bh"), "give mu_r or bh, not both"));
+            }
+            if r.bh.is_some() && r.magnetization.is_some() {
+                return Err(invalid(
+                    at("magnetization"),
+                    "a magnet takes mu_r (its recoil permeability), not bh",
+                ));
+            }
+            if r.current_density.is_some() && r.current.is_some() {
+                return Err(invalid(at("current"), "give current_density or current, not both"));
+            }
+            // Where regions overlap the later one's whole material wins: air (μr = 1) and no
+            // current are set explicitly, never inherited.
+            let mu_r = r.mu_r.map(|m| positive(&at("mu_r"), m)).transpose()?.unwrap_or(1.0);
+            match r.bh {
+                Some(points) => {
+                    let curve = BhCurve::new(&points).map_err(|e| match e.index() {
+                        Some(k) => invalid(format!("regions[{i}].bh[{k}]"), e.to_string()),
+                        None => invalid(at("bh"), e.to_string()),
+                    })?;
+                    region.curve = Some(Arc::new(curve));
+                    table = Some(points);
+                }
+                None => region.k = Some(1.0 / (MU_0 * mu_r)),
+            }
+            if let Some([mx, my]) = r.magnetization {
+                let (mx, my) = (finite(&at("magnetization[0]"), mx)?, finite(&at("magnetization[1]"), my)?);
+                region.source = Some([mx / mu_r, my / mu_r]);
+            } else {
+                region.source = Some([0.0; 2]);
+            }
+            let density = match (r.current_density, r.current) {
+                (Some(j), _) => finite(&at("current_density"), j)?,
+                (None, Some(i)) => finite(&at("current"), i)? / region.shape.area(),
+                (None, None) => 0.0,
+            };
+            region.f = Some(density);
         }
-    };
-    if k.is_none() && f.is_none() {
-        return Err(invalid(format!("regions[{i}]"), "a region must set at least one value"));
     }
-    Ok(Region { rect, k, f })
+    Ok((region, table))
+}
+
+/// Each side's condition; at least one must be Dirichlet, or u is fixed only up to a constant.
+fn boundary(input: Option<BoundaryInput>) -> Result<Boundary, SpecError> {
+    let input = input.unwrap_or_default();
+    let boundary = Boundary {
+        left: input.left.unwrap_or_default(),
+        right: input.right.unwrap_or_default(),
+        bottom: input.bottom.unwrap_or_default(),
+        top: input.top.unwrap_or_default(),
+    };
+    if !boundary.has_dirichlet() {
+        return Err(invalid(
+            "boundary",
+            "at least one side must be dirichlet: with every side neumann, u is fixed only up to a constant",
+        ));
+    }
+    Ok(boundary)
 }
 
 impl SolveSpec {
@@ -176,9 +347,10 @@ impl SolveSpec {
             None => None,
             Some(e) => Some(coefficient("exact", Some(e), 0.0, limits)?),
         };
-        let regions = (request.regions.into_iter().enumerate())
+        let boundary = boundary(request.boundary)?;
+        let (regions, tables) = (request.regions.into_iter().enumerate())
             .map(|(i, r)| region(i, r, domain, physics))
-            .collect::<Result<Vec<_>, _>>()?;
+            .collect::<Result<(Vec<_>, Vec<_>), _>>()?;
         // The checks of the budget and the tolerance, as for a mesh.
         let mut params = budget(request.max_vertices, limits)?;
         if let Some(t) = request.tolerance {
@@ -199,7 +371,7 @@ impl SolveSpec {
                 requested_time_limit.map_or(limits.job_time_limit, |t| t.min(limits.job_time_limit)),
             ),
         };
-        let spec = Self { physics, domain, k, f, g, regions, exact, settings };
+        let spec = Self { physics, domain, k, f, g, boundary, regions, tables, exact, settings };
         Ok((spec, requested_time_limit))
     }
 
@@ -208,9 +380,10 @@ impl SolveSpec {
         let mut problem = Problem::new(self.domain)
             .with_k(|x, y| self.k.eval(x, y))
             .with_f(|x, y| self.f.eval(x, y))
-            .with_g(|x, y| self.g.eval(x, y));
-        for &region in &self.regions {
-            problem = problem.with_region(region);
+            .with_g(|x, y| self.g.eval(x, y))
+            .with_boundary(self.boundary);
+        for region in &self.regions {
+            problem = problem.with_region(region.clone());
         }
         problem
     }

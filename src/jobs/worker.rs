@@ -96,6 +96,8 @@ impl Observer for JobObserver<'_> {
             triangles: p.triangles,
             worst: p.worst,
             elapsed_ms: p.elapsed.as_secs_f64() * 1e3,
+            newton_iterations: p.newton.map(|n| n.0),
+            newton_residual: p.newton.map(|n| n.1),
         };
         self.job.state.send_modify(|s| {
             s.seq += 1;

@@ -79,6 +79,9 @@ pub enum StopReason {
     Cancelled,
     /// Every remaining candidate was retired (too short, or its split would fold a triangle).
     Exhausted,
+    /// A boundary value problem's Newton iteration did not converge on the latest mesh; the
+    /// result is the last round that did.
+    NotConverged,
 }
 
 /// A snapshot for progress reports.
@@ -92,6 +95,8 @@ pub struct Progress {
     pub worst: f64,
     /// Time since the refinement started.
     pub elapsed: Duration,
+    /// A nonlinear solve's Newton steps and final relative residual.
+    pub newton: Option<(u32, f64)>,
 }
 
 /// How often [`Observer::progress`] is called at most.
@@ -517,6 +522,7 @@ impl<'a, O: Observer> Run<'a, O> {
                         triangles: mesh.num_triangles(),
                         worst: worst(),
                         elapsed: now - self.start,
+                        newton: None,
                     },
                 );
             }

@@ -175,12 +175,13 @@ pub fn write(result: &MeshResult, id: &str, out: impl Write) -> io::Result<u64> 
 /// The codes of a trace's method, criterion and stop reason: their index here.
 const METHODS: [Method; 2] = [Method::Recursive, Method::SemiRecursive];
 const CRITERIA: [Criterion; 2] = [Criterion::Variation, Criterion::Error];
-const STOPS: [StopReason; 5] = [
+const STOPS: [StopReason; 6] = [
     StopReason::MaxVertices,
     StopReason::Tolerance,
     StopReason::TimeLimit,
     StopReason::Cancelled,
     StopReason::Exhausted,
+    StopReason::NotConverged,
 ];
 
 /// Reads little-endian fields off the front of a slice.

@@ -8,8 +8,9 @@
 //! [`Floors::Resolution`]: a singular point gets vertices as close as floating point resolves.
 //! The loop always ends on a solve, so the mesh it returns carries the solution.
 
+use super::regions::{self, RegionStats};
 use super::residual::Residual;
-use super::{ErrorNorms, Problem, SolveError, solve_with};
+use super::{Coefficients, Element, ErrorNorms, Problem, SolveError, solve_with};
 use crate::geom::Mesh;
 use crate::refine::{Criterion, Floors, Method, Observer, Params, Progress, StopReason, resume, variation};
 use serde::{Deserialize, Serialize};
@@ -81,6 +82,12 @@ pub struct Step {
     /// ‖k^½ ∇(u − u_h)‖_L2, with an exact solution.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub energy_error: Option<f64>,
+    /// Newton steps of this solve (a nonlinear problem).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub newton_iterations: Option<u32>,
+    /// Newton's final relative residual ‖R‖₂ / ‖R(u = 0 inside)‖₂ (a nonlinear problem).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub newton_residual: Option<f64>,
 }
 
 /// The outcome of the loop; the same request gives the same stats, bit for bit.
@@ -96,18 +103,33 @@ pub struct SolveStats {
     pub solves: usize,
     /// The estimate on the final mesh.
     pub estimate: f64,
-    /// ½ ∫ k |∇u_h|² on the final mesh (J/m for magnetostatics).
+    /// ½ ∫ k |∇u_h|² on the final mesh (J/m for magnetostatics); ∫ ∫₀ᴮ H·dB for nonlinear
+    /// and magnet regions.
     pub energy: f64,
+    /// ∫ B·H minus the energy: the coenergy (J/m), whose derivative is the force at
+    /// constant current.
+    pub coenergy: f64,
     /// Edge flips made.
     pub flips: u64,
     /// Edges retired instead of split.
     pub retired_edges: u64,
     /// Why the loop stopped.
     pub stop: StopReason,
-    /// Whether the final mesh passes the exact in-circle test on every interior edge.
+    /// Whether the final mesh passes the exact in-circle test on every interior edge that is
+    /// not a region's side: a constrained Delaunay triangulation when there are regions.
     pub delaunay: bool,
+    /// Interior edges that lie on a region's side (the mesh follows every side).
+    #[serde(skip_serializing_if = "is_zero", default)]
+    pub constrained_edges: usize,
+    /// One entry per region, in the problem's order.
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub regions: Vec<RegionStats>,
     /// One entry per solve, in order.
     pub history: Vec<Step>,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 /// A finished loop.
@@ -140,7 +162,11 @@ pub fn adapt<O: Observer>(
     observer: &mut O,
 ) -> Result<Adapted, SolveError> {
     let start = Instant::now();
-    let mut mesh = Mesh::with_capacity(problem.domain(), [0.0; 4], settings.max_vertices);
+    let mut mesh = if problem.regions().is_empty() {
+        Mesh::with_capacity(problem.domain(), [0.0; 4], settings.max_vertices)
+    } else {
+        Mesh::constrained(problem.domain(), &problem.sides(), settings.max_vertices)?
+    };
     let mut residual = Residual::new(problem);
     let mut forward = Forward(observer);
     // Every z is 0, so every edge ties and the engine splits longest first: a uniform start.
@@ -150,12 +176,28 @@ pub fn adapt<O: Observer>(
     if settings.indicator == Indicator::Residual {
         residual.measure_all(&mesh)?;
     }
-    let mut run = Finish { flips: 0, retired: 0, unknowns: 0, history: Vec::new(), times: Vec::new() };
+    let mut run = Finish {
+        problem,
+        flips: 0,
+        retired: 0,
+        unknowns: 0,
+        coenergy: 0.0,
+        history: Vec::new(),
+        times: Vec::new(),
+    };
     let mut pending = None;
     loop {
         let triangles: Vec<[u32; 3]> = mesh.triangles().collect();
         let known = (settings.indicator == Indicator::Residual).then(|| residual.coefficients());
-        let solution = solve_with(problem, mesh.vertices(), &triangles, known)?;
+        // Newton starts from the last solution, interpolated onto the vertices since added.
+        let guess: Option<Vec<f64>> =
+            problem.is_nonlinear().then(|| mesh.vertices().iter().map(|v| v.z).collect());
+        let solution = solve_with(problem, mesh.vertices(), &triangles, known, guess.as_deref())?;
+        let converged = solution.newton.as_ref().is_none_or(|n| n.converged);
+        if !converged && !run.history.is_empty() {
+            // The mesh keeps the last converged solution, interpolated.
+            return Ok(run.finish(mesh, &residual, settings.indicator, StopReason::NotConverged));
+        }
         mesh.set_values(&solution.u);
         let estimate = match settings.indicator {
             Indicator::Variation => variation(&mesh),
@@ -172,6 +214,7 @@ pub fn adapt<O: Observer>(
         };
         let n = mesh.num_vertices();
         run.unknowns = solution.num_unknowns;
+        run.coenergy = solution.coenergy;
         run.history.push(Step {
             vertices: n,
             estimate,
@@ -179,16 +222,26 @@ pub fn adapt<O: Observer>(
             max_nodal_error: norms.map(|n: ErrorNorms| n.max_nodal),
             l2_error: norms.map(|n| n.l2),
             energy_error: norms.map(|n| n.energy),
+            newton_iterations: solution.newton.as_ref().map(|n| n.iterations),
+            newton_residual: solution.newton.as_ref().map(|n| n.residual),
         });
         let elapsed = start.elapsed();
         run.times.push(elapsed);
         forward.0.progress(
             &mesh,
-            &Progress { vertices: n, triangles: mesh.num_triangles(), worst: estimate, elapsed },
+            &Progress {
+                vertices: n,
+                triangles: mesh.num_triangles(),
+                worst: estimate,
+                elapsed,
+                newton: solution.newton.as_ref().map(|n| (n.iterations, n.residual)),
+            },
         );
 
         let remaining = settings.time_limit.map(|limit| limit.saturating_sub(elapsed));
-        let stop = pending
+        let stop = (!converged)
+            .then_some(StopReason::NotConverged)
+            .or(pending)
             .or_else(|| settings.tolerance.is_some_and(|t| estimate <= t).then_some(StopReason::Tolerance))
             .or_else(|| (n >= settings.max_vertices).then_some(StopReason::MaxVertices))
             .or_else(|| (remaining == Some(Duration::ZERO)).then_some(StopReason::TimeLimit));
@@ -227,15 +280,17 @@ fn total(residual: &Residual<'_, '_>, mesh: &Mesh) -> f64 {
 }
 
 /// What the loop has gathered so far.
-struct Finish {
+struct Finish<'p, 'a> {
+    problem: &'p Problem<'a>,
     flips: u64,
     retired: u64,
     unknowns: usize,
+    coenergy: f64,
     history: Vec<Step>,
     times: Vec<Duration>,
 }
 
-impl Finish {
+impl Finish<'_, '_> {
     fn finish(
         self,
         mesh: Mesh,
@@ -257,14 +312,47 @@ impl Finish {
             solves: self.history.len(),
             estimate: last.estimate,
             energy: last.energy,
+            coenergy: self.coenergy,
             flips: self.flips,
             retired_edges: self.retired,
             stop,
             delaunay: mesh.is_delaunay(),
+            constrained_edges: mesh.num_constrained(),
+            regions: region_stats(self.problem, &mesh, residual, indicator),
             history: self.history,
         };
         Adapted { mesh, indicators, stats, times: self.times }
     }
+}
+
+/// Each region's figures on the final mesh, from the values it carries.
+fn region_stats(
+    problem: &Problem<'_>,
+    mesh: &Mesh,
+    residual: &Residual<'_, '_>,
+    indicator: Indicator,
+) -> Vec<RegionStats> {
+    if problem.regions().is_empty() {
+        return Vec::new();
+    }
+    let points: Vec<_> = mesh.vertices().iter().map(|v| v.point()).collect();
+    let u: Vec<f64> = mesh.vertices().iter().map(|v| v.z).collect();
+    let triangles: Vec<[u32; 3]> = mesh.triangles().collect();
+    let mut gradients = Vec::with_capacity(triangles.len());
+    let mut measured = Vec::new();
+    for (t, &tri) in triangles.iter().enumerate() {
+        // Every triangle was solved on, so each is counter-clockwise with positive area.
+        let e = Element::new(&points, tri, t).expect("a solved mesh's triangle");
+        gradients.push(e.gradient(tri.map(|v| u[v as usize])));
+        if indicator == Indicator::Variation {
+            measured.push(Coefficients::of(problem, &e, t).expect("k and f were checked by the solve"));
+        }
+    }
+    let coefficients = match indicator {
+        Indicator::Residual => residual.coefficients(),
+        Indicator::Variation => &measured,
+    };
+    regions::measure(problem, &points, &u, &triangles, &gradients, coefficients)
 }
 
 /// The engine's parameters for one round.
@@ -306,5 +394,7 @@ fn gradient(u: Exact<'_>, x: f64, y: f64) -> [f64; 2] {
     [(u(xp, y) - u(xm, y)) / (xp - xm), (u(x, yp) - u(x, ym)) / (yp - ym)]
 }
 
+#[cfg(test)]
+mod physics;
 #[cfg(test)]
 mod tests;

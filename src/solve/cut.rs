@@ -37,8 +37,9 @@ pub(crate) fn try_for_each_piece<E>(
     let (lo_y, hi_y) = (p[0].y.min(p[1].y).min(p[2].y), p[0].y.max(p[1].y).max(p[2].y));
     let mut lines = [Line { vertical: true, c: 0.0 }; MAX_LINES];
     let mut count = 0;
-    for r in regions {
-        let (x0, x1, y0, y1) = (r.rect.x0(), r.rect.x1(), r.rect.y0(), r.rect.y1());
+    // Polygons are not cut: the meshes that carry them follow their sides.
+    for rect in regions.iter().filter_map(|r| r.shape.rect()) {
+        let (x0, x1, y0, y1) = (rect.x0(), rect.x1(), rect.y0(), rect.y1());
         // A side matters where it crosses the triangle's box strictly and spans part of it.
         let sides = [
             (true, x0, y0 < hi_y && lo_y < y1),
@@ -116,7 +117,7 @@ mod tests {
     use proptest::prelude::*;
 
     fn region(x0: f64, x1: f64, y0: f64, y1: f64) -> Region {
-        Region { rect: Rect::new(x0, x1, y0, y1).unwrap(), k: Some(2.0), f: None }
+        Region::rect(Rect::new(x0, x1, y0, y1).unwrap(), Some(2.0), None)
     }
 
     fn pieces(p: [Point; 3], regions: &[Region]) -> Vec<([Point; 3], Option<f64>)> {
@@ -159,7 +160,7 @@ mod tests {
                     let inside = region.contains(centre);
                     for q in piece {
                         let eps = 1e-12;
-                        let r = &region.rect;
+                        let r = region.shape.rect().unwrap();
                         let strictly_out = q.x < r.x0() - eps || q.x > r.x1() + eps || q.y < r.y0() - eps || q.y > r.y1() + eps;
                         let strictly_in = q.x > r.x0() + eps && q.x < r.x1() - eps && q.y > r.y0() + eps && q.y < r.y1() - eps;
                         let straddles = if inside { strictly_out } else { strictly_in };

@@ -40,19 +40,25 @@
 //!   fails with [`SolveError::NotPositiveDefinite`].
 
 mod adapt;
+mod bh;
 mod cholesky;
 mod cut;
+mod nonlinear;
 mod problem;
 mod quadrature;
+mod regions;
 mod residual;
 #[cfg(test)]
 mod tests;
 
 pub use adapt::{Adapted, Exact, INITIAL_VERTICES, Indicator, Settings, SolveStats, Step, adapt};
-pub use problem::{Problem, Region};
+pub use bh::{BhCurve, Curve, CurveError};
+pub use nonlinear::{MAX_NEWTON_ITERATIONS, NEWTON_TOLERANCE, Newton};
+pub use problem::{Boundary, Problem, Region, Shape, Side};
+pub use regions::RegionStats;
 
 use crate::geom::predicates::signed_area_x2;
-use crate::geom::{Point, Vertex};
+use crate::geom::{ConstrainedError, Point, Vertex};
 use faer::sparse::FaerError;
 use quadrature::RULE;
 
@@ -161,6 +167,9 @@ pub enum SolveError {
     /// The sparse solver could not allocate or index the factor.
     #[error("the sparse factorisation failed: {0}")]
     Factorisation(FaerError),
+    /// The regions' sides do not make a mesh.
+    #[error(transparent)]
+    Regions(#[from] ConstrainedError),
 }
 
 /// The discrete solution u_h and the quantities derived from it.
@@ -168,8 +177,13 @@ pub enum SolveError {
 pub struct Solution {
     /// u_h at every vertex, in vertex order; boundary vertices hold g.
     pub u: Vec<f64>,
-    /// ½ ∫ k |∇u_h|², with k integrated by the quadrature rule.
+    /// ½ ∫ k |∇u_h|², with k integrated by the quadrature rule; for nonlinear and magnet
+    /// regions ∫ H·dB along their law from where H = 0 (J/m in magnetostatics).
     pub energy: f64,
+    /// ∫ B·H − the energy: the coenergy ∫ ∫₀ᴴ B·dH for laws through the origin.
+    pub coenergy: f64,
+    /// What Newton did, for a nonlinear problem.
+    pub newton: Option<Newton>,
     /// ∇u_h on every triangle, in triangle order: [∂u/∂x, ∂u/∂y].
     pub gradients: Vec<[f64; 2]>,
     /// How many vertices were unknowns (not on the boundary).
@@ -253,13 +267,18 @@ pub(crate) struct Coefficients {
     pub f_sq: f64,
     /// ∫ f φᵢ / area for the three hat functions.
     pub load: [f64; 3],
+    /// The region whose curve replaces `k` on this triangle (read at its centroid).
+    pub curve: Option<u32>,
+    /// The rule's mean of the source s (a magnet's M/μr).
+    pub source: [f64; 2],
 }
 
 impl Coefficients {
     /// Samples k and f at the rule's points of triangle `t`, or of each piece of it when a
     /// region's side crosses it (see [`cut`]).
     pub(crate) fn of(problem: &Problem<'_>, e: &Element, t: usize) -> Result<Self, SolveError> {
-        let mut c = Self { k: 0.0, f_sq: 0.0, load: [0.0; 3] };
+        let mut c = Self { k: 0.0, f_sq: 0.0, load: [0.0; 3], curve: None, source: [0.0; 2] };
+        let materials = problem.has_materials();
         cut::try_for_each_piece(e.p, problem.regions(), |piece, share| {
             for (l, w) in &RULE {
                 let (q, hats, w) = match share {
@@ -281,10 +300,52 @@ impl Coefficients {
                 for (load, phi) in c.load.iter_mut().zip(hats) {
                     *load += w * f * phi;
                 }
+                if materials {
+                    let (_, source) = problem.material_at(q);
+                    c.source[0] += w * source[0];
+                    c.source[1] += w * source[1];
+                }
             }
             Ok(())
         })?;
+        if materials {
+            c.curve = problem.material_at(e.point(&[1.0 / 3.0; 3])).0;
+        }
         Ok(c)
+    }
+
+    /// ν and dH/dB on a triangle whose gradient has length `b`: its curve's, or k twice.
+    pub(crate) fn nu(&self, problem: &Problem<'_>, b: f64) -> (f64, f64) {
+        match self.curve.and_then(|r| problem.regions()[r as usize].curve.as_ref()) {
+            Some(curve) => curve.nu(b),
+            None => (self.k, self.k),
+        }
+    }
+
+    /// The flux k ∇u − (−s_y, s_x) on a triangle of gradient `g` (H rotated, in
+    /// magnetostatics): what the weak form tests, and whose normal part is continuous.
+    pub(crate) fn flux(&self, problem: &Problem<'_>, g: [f64; 2]) -> [f64; 2] {
+        let nu = if self.curve.is_some() { self.nu(problem, g[0].hypot(g[1])).0 } else { self.k };
+        [nu * g[0] + self.source[1], nu * g[1] - self.source[0]]
+    }
+
+    /// The energy density on a triangle of gradient `g`, and B·H. The energy density is
+    /// ∫ H·dB along the material's law from where H = 0: from B = 0 for a curve, from the
+    /// remanence Br = s/k for a magnet, so that it is ½ k |B − Br|² ≥ 0 there.
+    pub(crate) fn densities(&self, problem: &Problem<'_>, g: [f64; 2]) -> (f64, f64) {
+        let b_sq = g[0] * g[0] + g[1] * g[1];
+        // s·B with B = (∂u/∂y, −∂u/∂x).
+        let s_dot_b = self.source[0] * g[1] - self.source[1] * g[0];
+        match self.curve.and_then(|r| problem.regions()[r as usize].curve.as_ref()) {
+            Some(curve) => {
+                let b = b_sq.sqrt();
+                (curve.energy(b) - s_dot_b, b * curve.h(b).0 - s_dot_b)
+            }
+            None => {
+                let s_sq = self.source[0] * self.source[0] + self.source[1] * self.source[1];
+                (0.5 * self.k * b_sq - s_dot_b + 0.5 * s_sq / self.k, self.k * b_sq - s_dot_b)
+            }
+        }
     }
 }
 
@@ -326,25 +387,26 @@ pub fn solve<P: Position>(
     vertices: &[P],
     triangles: &[[u32; 3]],
 ) -> Result<Solution, SolveError> {
-    solve_with(problem, vertices, triangles, None)
+    solve_with(problem, vertices, triangles, None, None)
 }
 
 /// [`solve`] with each triangle's [`Coefficients`] already measured (by triangle index), as
 /// the adaptive loop keeps them from round to round: only new triangles sample k and f.
+/// `start` holds u at every vertex for Newton to start from (a nonlinear problem only).
 pub(crate) fn solve_with<P: Position>(
     problem: &Problem<'_>,
     vertices: &[P],
     triangles: &[[u32; 3]],
     known: Option<&[Coefficients]>,
+    start: Option<&[f64]>,
 ) -> Result<Solution, SolveError> {
-    let domain = problem.domain();
-    // Unknown index of each vertex, or None on the boundary.
+    // Unknown index of each vertex, or None on a Dirichlet side.
     let mut unknown = vec![None; vertices.len()];
     let mut u = vec![0.0; vertices.len()];
     let mut n = 0usize;
     for (v, vertex) in vertices.iter().enumerate() {
         let p = vertex.position();
-        if domain.is_on_boundary(p) {
+        if problem.is_dirichlet(p) {
             let g = problem.g_at(p);
             if !g.is_finite() {
                 return Err(SolveError::NonFiniteG { x: p.x, y: p.y, value: g, vertex: v });
@@ -355,48 +417,50 @@ pub(crate) fn solve_with<P: Position>(
             n += 1;
         }
     }
-
-    let mut entries: Vec<(usize, usize, f64)> = Vec::with_capacity(6 * triangles.len());
-    let mut rhs = vec![0.0; n];
-    let mut k_mean = Vec::with_capacity(triangles.len());
-    for (t, &tri) in triangles.iter().enumerate() {
-        let e = Element::new(vertices, tri, t)?;
-        let Coefficients { k: k_bar, load, .. } = match known {
-            Some(known) => known[t],
-            None => Coefficients::of(problem, &e, t)?,
-        };
-        k_mean.push(k_bar);
-        for i in 0..3 {
-            let Some(row) = unknown[tri[i] as usize] else { continue };
-            rhs[row] += e.area * load[i];
-            for j in 0..3 {
-                let a = k_bar * e.area * (e.grad[i][0] * e.grad[j][0] + e.grad[i][1] * e.grad[j][1]);
-                match unknown[tri[j] as usize] {
-                    // Lower triangle only, stored as (column, row).
-                    Some(col) if row >= col => entries.push((col, row, a)),
-                    Some(_) => {}
-                    None => rhs[row] -= a * u[tri[j] as usize],
+    let elements = (triangles.iter().enumerate())
+        .map(|(t, &tri)| Element::new(vertices, tri, t))
+        .collect::<Result<Vec<_>, _>>()?;
+    let measured;
+    let coefficients = match known {
+        Some(known) => &known[..triangles.len()],
+        None => {
+            measured = (elements.iter().enumerate())
+                .map(|(t, e)| Coefficients::of(problem, e, t))
+                .collect::<Result<Vec<_>, _>>()?;
+            &measured[..]
+        }
+    };
+    let system =
+        nonlinear::System { problem, triangles, elements: &elements, coefficients, unknown: &unknown };
+    let newton = if problem.is_nonlinear() {
+        if let Some(start) = start {
+            for (v, index) in unknown.iter().enumerate() {
+                if index.is_some() {
+                    u[v] = start[v];
                 }
             }
         }
-    }
+        Some(system.newton(n, &mut u)?)
+    } else {
+        system.linear(n, &mut u)?;
+        None
+    };
 
-    let x = solve_spd(n, entries, rhs)?;
-    for (v, index) in unknown.iter().enumerate() {
-        if let Some(i) = index {
-            u[v] = x[*i];
-        }
-    }
-
-    let mut energy = 0.0;
+    let (mut energy, mut work) = (0.0, 0.0);
     let mut gradients = Vec::with_capacity(triangles.len());
-    for (t, &tri) in triangles.iter().enumerate() {
-        let e = Element::new(vertices, tri, t)?;
+    for ((e, c), &tri) in elements.iter().zip(coefficients).zip(triangles) {
         let g = e.gradient(tri.map(|v| u[v as usize]));
-        energy += 0.5 * k_mean[t] * e.area * (g[0] * g[0] + g[1] * g[1]);
+        if c.curve.is_none() && c.source == [0.0; 2] {
+            energy += 0.5 * c.k * e.area * (g[0] * g[0] + g[1] * g[1]);
+            work += c.k * e.area * (g[0] * g[0] + g[1] * g[1]);
+        } else {
+            let (w, b_dot_h) = c.densities(problem, g);
+            energy += e.area * w;
+            work += e.area * b_dot_h;
+        }
         gradients.push(g);
     }
-    Ok(Solution { u, energy, gradients, num_unknowns: n })
+    Ok(Solution { u, energy, coenergy: work - energy, gradients, num_unknowns: n, newton })
 }
 
 /// Solves A x = b for the symmetric positive definite A given by its lower-triangle

@@ -1,34 +1,166 @@
-//! The boundary value problem: the domain, the coefficient k, the load f, the boundary data g
-//! and the constant-valued regions that override k and f.
+//! The boundary value problem: the domain, the coefficient k, the load f, the boundary data g,
+//! each side's condition, and the regions that override k and f.
 
+use super::bh::Curve;
 use crate::geom::{Point, Rect};
+use std::sync::Arc;
 
 /// A scalar field on the plane, evaluated at (x, y).
 pub(crate) type Field<'a> = Box<dyn Fn(f64, f64) -> f64 + 'a>;
 
-/// An axis-aligned rectangle (closed) in which k and/or f are constants.
+/// Where a region applies: a closed rectangle or a simple polygon, boundary included.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Shape {
+    /// An axis-aligned rectangle.
+    Rect(Rect),
+    /// A simple polygon's corners, in either orientation, without repeating the first.
+    Polygon(Vec<Point>),
+}
+
+impl Shape {
+    /// Whether `p` lies in the closed shape. A polygon's test is plain floating point, so a
+    /// point within rounding of a slanted side may fall either way: callers ask at points well
+    /// inside their triangles, or through [`Shape::holds`].
+    pub fn contains(&self, p: Point) -> bool {
+        match self {
+            Shape::Rect(r) => r.x0() <= p.x && p.x <= r.x1() && r.y0() <= p.y && p.y <= r.y1(),
+            Shape::Polygon(corners) => {
+                // Crossings of a ray to +x (W. R. Franklin's PNPOLY), then the sides themselves.
+                let mut inside = false;
+                let mut j = corners.len() - 1;
+                for (i, &a) in corners.iter().enumerate() {
+                    let b = corners[j];
+                    if (a.y > p.y) != (b.y > p.y) && p.x < (b.x - a.x) * (p.y - a.y) / (b.y - a.y) + a.x {
+                        inside = !inside;
+                    }
+                    j = i;
+                }
+                inside || self.sides().any(|[a, b]| distance_sq_to_segment(p, a, b) == 0.0)
+            }
+        }
+    }
+
+    /// Whether `p` lies in the shape or within `tolerance` of its outline: a mesh vertex that
+    /// a split of a slanted side rounded a hair off it still counts as on it.
+    pub fn holds(&self, p: Point, tolerance: f64) -> bool {
+        self.contains(p)
+            || self.sides().any(|[a, b]| distance_sq_to_segment(p, a, b) <= tolerance * tolerance)
+    }
+
+    /// The sides, each from one corner to the next.
+    pub fn sides(&self) -> impl Iterator<Item = [Point; 2]> + '_ {
+        let corners: Vec<Point> = match self {
+            Shape::Rect(r) => r.corners().to_vec(),
+            Shape::Polygon(c) => c.clone(),
+        };
+        (0..corners.len()).map(move |i| [corners[i], corners[(i + 1) % corners.len()]])
+    }
+
+    /// The area enclosed.
+    pub fn area(&self) -> f64 {
+        match self {
+            Shape::Rect(r) => r.area(),
+            Shape::Polygon(_) => {
+                let twice: f64 = self.sides().map(|[a, b]| a.x * b.y - b.x * a.y).sum();
+                0.5 * twice.abs()
+            }
+        }
+    }
+
+    /// The rectangle, when the shape is one.
+    pub fn rect(&self) -> Option<Rect> {
+        match self {
+            Shape::Rect(r) => Some(*r),
+            Shape::Polygon(_) => None,
+        }
+    }
+}
+
+/// The squared distance from `p` to the segment `a`–`b`.
+fn distance_sq_to_segment(p: Point, a: Point, b: Point) -> f64 {
+    let (dx, dy) = (b.x - a.x, b.y - a.y);
+    let len_sq = dx * dx + dy * dy;
+    let t = if len_sq > 0.0 { (((p.x - a.x) * dx + (p.y - a.y) * dy) / len_sq).clamp(0.0, 1.0) } else { 0.0 };
+    p.distance_sq(Point::new(a.x + t * dx, a.y + t * dy))
+}
+
+/// A part of the domain in which k, f and the material are constants.
 ///
 /// Regions are applied in the order they were added, so where two overlap the later one wins,
-/// field by field: a later region that sets only `f` keeps an earlier region's `k`.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// field by field: a later region that sets only `f` keeps an earlier region's `k`. The
+/// material (`k` or `curve`, with `source`) is one field.
+#[derive(Debug, Clone)]
 pub struct Region {
     /// Where the region applies, boundary included.
-    pub rect: Rect,
+    pub shape: Shape,
     /// The coefficient inside, or `None` to keep the value from below.
     pub k: Option<f64>,
     /// The load inside, or `None` to keep the value from below.
     pub f: Option<f64>,
+    /// A nonlinear coefficient instead of `k`: k = ν(|∇u|) = H(B)/B with B = |∇u|, for a
+    /// magnetostatic problem's iron.
+    pub curve: Option<Arc<dyn Curve>>,
+    /// A vector source s inside, the weak form gaining ∫ s · (∂φ/∂y, −∂φ/∂x): a permanent
+    /// magnet's M/μr in A/m. Goes with the material: it applies where `k` or `curve` does.
+    pub source: Option<[f64; 2]>,
 }
 
 impl Region {
-    /// Whether `p` lies in the closed rectangle.
+    /// A region of `shape` that sets nothing yet.
+    pub fn new(shape: Shape) -> Self {
+        Self { shape, k: None, f: None, curve: None, source: None }
+    }
+
+    /// A rectangle with k and/or f.
+    pub fn rect(rect: Rect, k: Option<f64>, f: Option<f64>) -> Self {
+        Self { k, f, ..Self::new(Shape::Rect(rect)) }
+    }
+
+    /// Whether `p` lies in the closed region.
     pub fn contains(&self, p: Point) -> bool {
-        let r = &self.rect;
-        r.x0() <= p.x && p.x <= r.x1() && r.y0() <= p.y && p.y <= r.y1()
+        self.shape.contains(p)
+    }
+
+    /// Whether the region sets the material (`k` or `curve`).
+    fn sets_material(&self) -> bool {
+        self.k.is_some() || self.curve.is_some()
     }
 }
 
-/// −∇·(k ∇u) = f in the rectangle D, u = g on ∂D.
+/// What a side of the rectangle prescribes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Side {
+    /// u = g.
+    #[default]
+    Dirichlet,
+    /// Zero normal flux, k ∂u/∂n = 0: u is free there (in magnetostatics the field crosses
+    /// the side at right angles).
+    Neumann,
+}
+
+/// The condition on each side of the rectangle: x = x0, x = x1, y = y0, y = y1.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub struct Boundary {
+    /// x = x0.
+    pub left: Side,
+    /// x = x1.
+    pub right: Side,
+    /// y = y0.
+    pub bottom: Side,
+    /// y = y1.
+    pub top: Side,
+}
+
+impl Boundary {
+    /// Whether any side is Dirichlet: otherwise u is fixed only up to a constant.
+    pub fn has_dirichlet(&self) -> bool {
+        [self.left, self.right, self.bottom, self.top].contains(&Side::Dirichlet)
+    }
+}
+
+/// −∇·(k ∇u) = f in the rectangle D; u = g on its Dirichlet sides, k ∂u/∂n = 0 on its
+/// Neumann sides.
 ///
 /// Built with [`Problem::new`] (k = 1, f = 0, g = 0) and the `with_*` builders. The fields are
 /// closures, so a caller's expression, grid or exact solution can be plugged in directly.
@@ -38,7 +170,7 @@ impl Region {
 /// use meshfit::geom::Rect;
 /// use meshfit::solve::{Problem, Region};
 ///
-/// let inclusion = Region { rect: Rect::new(0.25, 0.5, 0.25, 0.5).unwrap(), k: Some(10.0), f: None };
+/// let inclusion = Region::rect(Rect::new(0.25, 0.5, 0.25, 0.5).unwrap(), Some(10.0), None);
 /// let problem = Problem::new(Rect::unit())
 ///     .with_f(|_, _| 1.0)
 ///     .with_g(|x, y| x * y)
@@ -51,6 +183,7 @@ pub struct Problem<'a> {
     f: Field<'a>,
     g: Field<'a>,
     regions: Vec<Region>,
+    boundary: Boundary,
 }
 
 impl<'a> Problem<'a> {
@@ -62,6 +195,7 @@ impl<'a> Problem<'a> {
             f: Box::new(|_, _| 0.0),
             g: Box::new(|_, _| 0.0),
             regions: Vec::new(),
+            boundary: Boundary::default(),
         }
     }
 
@@ -89,6 +223,61 @@ impl<'a> Problem<'a> {
         self
     }
 
+    /// Sets each side's condition (every side Dirichlet by default).
+    pub fn with_boundary(mut self, boundary: Boundary) -> Self {
+        self.boundary = boundary;
+        self
+    }
+
+    /// Each side's condition.
+    pub fn boundary(&self) -> Boundary {
+        self.boundary
+    }
+
+    /// Whether `p` is on a Dirichlet side (exactly: its coordinate equals the side's); a
+    /// corner between a Dirichlet and a Neumann side is Dirichlet.
+    pub(crate) fn is_dirichlet(&self, p: Point) -> bool {
+        let (d, b) = (self.domain, self.boundary);
+        (p.x == d.x0() && b.left == Side::Dirichlet)
+            || (p.x == d.x1() && b.right == Side::Dirichlet)
+            || (p.y == d.y0() && b.bottom == Side::Dirichlet)
+            || (p.y == d.y1() && b.top == Side::Dirichlet)
+    }
+
+    /// Whether the segment `a`–`b` lies on a Neumann side.
+    pub(crate) fn is_neumann_edge(&self, a: Point, b: Point) -> bool {
+        let (d, s) = (self.domain, self.boundary);
+        (a.x == b.x
+            && ((a.x == d.x0() && s.left == Side::Neumann) || (a.x == d.x1() && s.right == Side::Neumann)))
+            || (a.y == b.y
+                && ((a.y == d.y0() && s.bottom == Side::Neumann)
+                    || (a.y == d.y1() && s.top == Side::Neumann)))
+    }
+
+    /// Every region side, for a mesh that follows them.
+    pub(crate) fn sides(&self) -> Vec<[Point; 2]> {
+        self.regions.iter().flat_map(|r| r.shape.sides()).collect()
+    }
+
+    /// The material at `p`: the index of the topmost region that sets it with a curve, and
+    /// its source (0 where none).
+    pub(crate) fn material_at(&self, p: Point) -> (Option<u32>, [f64; 2]) {
+        match self.regions.iter().enumerate().rev().find(|(_, r)| r.sets_material() && r.contains(p)) {
+            Some((i, r)) => (r.curve.is_some().then_some(i as u32), r.source.unwrap_or([0.0; 2])),
+            None => (None, [0.0; 2]),
+        }
+    }
+
+    /// Whether a region sets a curve or a source: each triangle then records its material.
+    pub(crate) fn has_materials(&self) -> bool {
+        self.regions.iter().any(|r| r.curve.is_some() || r.source.is_some())
+    }
+
+    /// Whether a region's k is a curve: the problem is nonlinear.
+    pub fn is_nonlinear(&self) -> bool {
+        self.regions.iter().any(|r| r.curve.is_some())
+    }
+
     /// The rectangle D.
     pub fn domain(&self) -> Rect {
         self.domain
@@ -105,7 +294,7 @@ impl<'a> Problem<'a> {
         // Walk from the top: the first region that sets a field is the last one added.
         for region in self.regions.iter().rev() {
             if region.contains(p) {
-                k = k.or(region.k);
+                k = k.or(region.k).or_else(|| region.curve.as_ref().map(|c| c.nu(0.0).0));
                 f = f.or(region.f);
                 if k.is_some() && f.is_some() {
                     break;
@@ -117,7 +306,9 @@ impl<'a> Problem<'a> {
 
     /// k at `p`, after the regions; f is not evaluated.
     pub(crate) fn k_at(&self, p: Point) -> f64 {
-        let region = self.regions.iter().rev().find_map(|r| if r.contains(p) { r.k } else { None });
+        let region = self.regions.iter().rev().find_map(|r| {
+            if r.contains(p) { r.k.or_else(|| r.curve.as_ref().map(|c| c.nu(0.0).0)) } else { None }
+        });
         region.unwrap_or_else(|| (self.k)(p.x, p.y))
     }
 
@@ -132,6 +323,7 @@ impl std::fmt::Debug for Problem<'_> {
         f.debug_struct("Problem")
             .field("domain", &self.domain)
             .field("regions", &self.regions)
+            .field("boundary", &self.boundary)
             .finish_non_exhaustive()
     }
 }

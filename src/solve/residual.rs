@@ -1,9 +1,11 @@
 //! The residual error indicator, and the values a mesh carries between two solves.
 //!
 //! η_T² = h_T² ‖f‖²_T + ½ Σ_E h_E ‖[k ∂u_h/∂n]‖²_E over the interior edges E of T, with h_T
-//! the longest edge, h_E the edge's length and k the triangle's quadrature mean. The jump is
-//! constant along an edge (u_h is linear on each side), so its term is |E|² · jump². Boundary
-//! edges carry no jump: u is given there.
+//! the longest edge, h_E the edge's length and k the triangle's quadrature mean (ν(|B|) on a
+//! nonlinear triangle, and the flux carries a magnet's source: see [`Coefficients::flux`]). The
+//! jump is constant along an edge (u_h is linear on each side), so its term is |E|² · jump².
+//! Dirichlet edges carry no jump: u is given there. A Neumann edge's term is its whole normal
+//! flux, which should vanish, without the ½ that two triangles sharing an edge split.
 //!
 //! Between solves the engine refines with this as its [`Estimator`]: a new vertex takes the
 //! mean of its edge's ends (u_h interpolated), and a rewritten triangle's indicator is measured
@@ -50,7 +52,8 @@ impl<'p, 'a> Residual<'p, 'a> {
     fn measure(&mut self, mesh: &Mesh, t: u32) -> Result<(), SolveError> {
         let t = t as usize;
         if self.volume.len() <= t {
-            self.coefficients.resize(t + 1, Coefficients { k: 0.0, f_sq: 0.0, load: [0.0; 3] });
+            let empty = Coefficients { k: 0.0, f_sq: 0.0, load: [0.0; 3], curve: None, source: [0.0; 2] };
+            self.coefficients.resize(t + 1, empty);
             self.volume.resize(t + 1, 0.0);
             self.flux.resize(t + 1, [0.0; 2]);
         }
@@ -61,33 +64,38 @@ impl<'p, 'a> Residual<'p, 'a> {
         let g = e.gradient(tri.map(|v| mesh.vertex(v).z));
         self.coefficients[t] = c;
         self.volume[t] = h_sq * e.area() * c.f_sq;
-        self.flux[t] = [c.k * g[0], c.k * g[1]];
+        self.flux[t] = c.flux(self.problem, g);
         Ok(())
     }
 
     /// Takes a solve's gradients (by triangle index) as the triangles' fluxes.
     pub(crate) fn solved(&mut self, gradients: &[[f64; 2]]) {
-        for ((flux, c), g) in self.flux.iter_mut().zip(&self.coefficients).zip(gradients) {
-            *flux = [c.k * g[0], c.k * g[1]];
+        for ((flux, c), &g) in self.flux.iter_mut().zip(&self.coefficients).zip(gradients) {
+            *flux = c.flux(self.problem, g);
         }
     }
 
     /// η_T² of triangle `t` for the values the mesh carries.
     pub(crate) fn indicator_sq(&self, mesh: &Mesh, t: u32) -> f64 {
         let own = self.flux[t as usize];
-        let mut jumps = 0.0;
+        let (mut jumps, mut neumann) = (0.0, 0.0);
         for h in 3 * t..3 * t + 3 {
             let twin = mesh.twin(h);
+            let (a, b) = (mesh.point(mesh.origin(h)), mesh.point(mesh.dest(h)));
             if twin == NONE {
+                // On a Neumann side the flux should have no normal part: all of it is error.
+                if self.problem.is_neumann_edge(a, b) {
+                    let flux = own[0] * (b.y - a.y) - own[1] * (b.x - a.x);
+                    neumann += flux * flux;
+                }
                 continue;
             }
             let other = self.flux[(twin / 3) as usize];
-            let (a, b) = (mesh.point(mesh.origin(h)), mesh.point(mesh.dest(h)));
             // (dy, −dx) is the outward normal times |E|, so this is |E| · jump.
             let jump = (own[0] - other[0]) * (b.y - a.y) - (own[1] - other[1]) * (b.x - a.x);
             jumps += jump * jump;
         }
-        self.volume[t as usize] + 0.5 * jumps
+        self.volume[t as usize] + 0.5 * jumps + neumann
     }
 }
 
@@ -125,5 +133,33 @@ impl Estimator for Residual<'_, '_> {
 
     fn rewritten(&mut self, mesh: &Mesh, touched: &[u32]) -> Result<(), SolveError> {
         touched.iter().try_for_each(|&t| self.measure(mesh, t))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::Rect;
+    use crate::solve::{Boundary, Side};
+
+    /// η_T² of S₄'s two triangles carrying u = y, for `boundary`.
+    fn indicators(boundary: Boundary) -> [f64; 2] {
+        let problem = Problem::new(Rect::unit()).with_boundary(boundary);
+        let mesh = Mesh::new(Rect::unit(), [0.0, 0.0, 1.0, 1.0]);
+        let mut residual = Residual::new(&problem);
+        residual.measure_all(&mesh).unwrap();
+        [0, 1].map(|t| residual.indicator_sq(&mesh, t))
+    }
+
+    #[test]
+    fn a_neumann_edge_counts_its_whole_normal_flux_and_a_dirichlet_edge_none() {
+        // u = y: no jump across the diagonal, no load; only the flux through y = 1 is error.
+        assert_eq!(indicators(Boundary::default()), [0.0, 0.0]);
+        let top = Boundary { top: Side::Neumann, ..Boundary::default() };
+        // Triangle 1 (P1 P3 P4) owns the top side: (k ∂u/∂n |E|)² = 1, k = 1 to rounding.
+        let [bottom, upper] = indicators(top);
+        assert!(bottom == 0.0 && (upper - 1.0).abs() < 1e-14, "{bottom} {upper}");
+        let right = Boundary { right: Side::Neumann, ..Boundary::default() };
+        assert_eq!(indicators(right), [0.0, 0.0], "∂u/∂x = 0 on x = 1 is right");
     }
 }

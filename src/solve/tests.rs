@@ -156,7 +156,7 @@ fn smooth_solution_converges_at_rate_one_half_in_energy_and_one_in_l2_per_vertex
 /// f = 1, g = 0, k = 10 in [0.25, 0.5]², a square on the line y = x and on mesh lines.
 fn inclusion() -> Problem<'static> {
     let rect = Rect::new(0.25, 0.5, 0.25, 0.5).unwrap();
-    Problem::new(Rect::unit()).with_f(|_, _| 1.0).with_region(Region { rect, k: Some(10.0), f: None })
+    Problem::new(Rect::unit()).with_f(|_, _| 1.0).with_region(Region::rect(rect, Some(10.0), None))
 }
 
 #[test]
@@ -193,7 +193,7 @@ fn a_region_side_that_cuts_a_triangle_counts_with_its_exact_share_of_the_area() 
     // The triangle (0,0), (1,0), (0,1) has 0.28125 of its 0.5 on the side x ≥ 0.25.
     let points = [Point::new(0.0, 0.0), Point::new(1.0, 0.0), Point::new(0.0, 1.0)];
     let e = Element::new(&points, [0, 1, 2], 0).unwrap();
-    let region = Region { rect: Rect::new(0.25, 2.0, -1.0, 2.0).unwrap(), k: Some(3.0), f: Some(2.0) };
+    let region = Region::rect(Rect::new(0.25, 2.0, -1.0, 2.0).unwrap(), Some(3.0), Some(2.0));
     let problem = Problem::new(Rect::new(-1.0, 2.0, -1.0, 2.0).unwrap()).with_region(region);
     let c = Coefficients::of(&problem, &e, 0).unwrap();
     let share = 0.28125 / 0.5;
@@ -208,8 +208,8 @@ fn a_region_side_that_cuts_a_triangle_counts_with_its_exact_share_of_the_area() 
 
 #[test]
 fn a_later_region_overrides_only_the_fields_it_sets() {
-    let big = Region { rect: Rect::unit(), k: Some(2.0), f: Some(3.0) };
-    let small = Region { rect: Rect::new(0.0, 0.5, 0.0, 0.5).unwrap(), k: None, f: Some(5.0) };
+    let big = Region::rect(Rect::unit(), Some(2.0), Some(3.0));
+    let small = Region::rect(Rect::new(0.0, 0.5, 0.0, 0.5).unwrap(), None, Some(5.0));
     let problem = Problem::new(Rect::unit()).with_k(|_, _| 7.0).with_region(big).with_region(small);
     assert_eq!(problem.k_and_f(Point::new(0.25, 0.25)), (2.0, 5.0));
     assert_eq!(problem.k_and_f(Point::new(0.75, 0.75)), (2.0, 3.0));
@@ -240,7 +240,7 @@ fn solving_the_same_problem_twice_gives_the_same_bits() {
 fn zero_k_in_a_region_names_the_quadrature_point() {
     let (points, triangles) = uniform(Rect::unit(), 4);
     let rect = Rect::new(0.5, 0.75, 0.5, 0.75).unwrap();
-    let problem = Problem::new(Rect::unit()).with_region(Region { rect, k: Some(0.0), f: None });
+    let problem = Problem::new(Rect::unit()).with_region(Region::rect(rect, Some(0.0), None));
     let err = solve(&problem, &points, &triangles).unwrap_err();
     let SolveError::InvalidK { x, y, value, triangle } = err else { panic!("{err:?}") };
     assert_eq!(value, 0.0);

@@ -59,18 +59,16 @@ async fn a_solution_carries_u_at_every_vertex_and_a_history_of_every_solve() {
     app.shutdown().await;
 }
 
+/// The events of `body` posted to /v1/solutions as a stream.
+async fn stream(app: &crate::helpers::TestApp, body: &Value) -> Vec<crate::helpers::SseEvent> {
+    let request = app.client.post(app.url("/v1/solutions")).header("accept", "text/event-stream");
+    read_events(request.json(body).send().await.unwrap()).await
+}
+
 #[tokio::test]
 async fn the_stream_reports_solves_and_ends_with_the_solution() {
     let app = spawn_app().await;
-    let response = app
-        .client
-        .post(app.url("/v1/solutions"))
-        .header("accept", "text/event-stream")
-        .json(&json!({"f": "1", "max_vertices": 60_000}))
-        .send()
-        .await
-        .unwrap();
-    let events = read_events(response).await;
+    let events = stream(&app, &json!({"f": "1", "max_vertices": 60_000})).await;
     let (last, progress) = events.split_last().unwrap();
     assert_eq!(last.event, "result");
     let doc: Value = serde_json::from_str(&last.data).unwrap();
@@ -156,5 +154,104 @@ async fn bad_problems_are_422_naming_the_field_and_the_column_or_point() {
     );
     let x = p["point"][0].as_f64().unwrap();
     assert!(x <= 0.5, "k(x, y) = x − 0.5 ≤ 0 at x = {x}");
+    app.shutdown().await;
+}
+
+/// The device: a triangular coil, a steel block with a B–H curve and a magnet, in a
+/// box with Neumann top and bottom.
+fn device(max_vertices: u64) -> Value {
+    json!({
+        "physics": "magnetostatic",
+        "domain": {"x": [0, 0.2], "y": [0, 0.1]},
+        "boundary": {"left": "dirichlet", "right": "dirichlet", "bottom": "neumann", "top": "neumann"},
+        "regions": [
+            {"polygon": [[0.03, 0.03], [0.07, 0.03], [0.05, 0.07]], "current_density": 2e6},
+            {"x": [0.11, 0.16], "y": [0.02, 0.08], "bh": [[0, 0], [100, 0.6], [300, 1.1], [1000, 1.45], [10000, 1.8]]},
+            {"x": [0.17, 0.19], "y": [0.03, 0.07], "magnetization": [0, 8.8e5], "mu_r": 1.05}
+        ],
+        "max_vertices": max_vertices
+    })
+}
+
+#[tokio::test]
+async fn a_device_with_a_polygon_coil_nonlinear_iron_a_magnet_and_neumann_sides_is_solved() {
+    let app = spawn_app().await;
+    let response = app.post("/v1/solutions", &device(4000)).await;
+    assert_eq!(response.status(), 200);
+    let doc: Value = response.json().await.unwrap();
+    let stats = &doc["stats"];
+    assert_eq!((stats["stop"].as_str(), stats["delaunay"].as_bool()), (Some("max_vertices"), Some(true)));
+    assert!(stats["constrained_edges"].as_u64().unwrap() > 12, "{stats}");
+    for step in stats["history"].as_array().unwrap() {
+        assert!(step["newton_iterations"].as_u64().unwrap() >= 1, "{step}");
+        assert!(step["newton_residual"].as_f64().unwrap() <= 1e-10, "{step}");
+    }
+    let regions = stats["regions"].as_array().unwrap();
+    assert_eq!(regions.len(), 3);
+    // The coil: a triangle of 0.04 × 0.04 / 2 at 2 MA/m².
+    let coil = &regions[0];
+    assert!((coil["area"].as_f64().unwrap() - 8e-4).abs() < 1e-15);
+    assert!((coil["current"].as_f64().unwrap() - 1600.0).abs() < 1e-9);
+    assert!(regions.iter().all(|r| r["force"].as_array().unwrap().len() == 2 && r["torque"].is_f64()));
+    assert!(stats["coenergy"].is_f64() && stats["energy"].as_f64().unwrap() > 0.0, "{stats}");
+    // A = 0 on the Dirichlet sides; free on the Neumann ones.
+    let vertices = doc["vertices"].as_array().unwrap();
+    let values = |test: fn(f64, f64) -> bool| -> Vec<f64> {
+        let xyz = vertices.iter().map(|v| [0, 1, 2].map(|i| v[i].as_f64().unwrap()));
+        xyz.filter(|&[x, y, _]| test(x, y)).map(|[_, _, a]| a).collect()
+    };
+    assert!(values(|x, _| x == 0.0 || x == 0.2).iter().all(|&a| a == 0.0));
+    let bottom = values(|x, y| y == 0.0 && x > 0.0 && x < 0.2);
+    assert!(bottom.iter().any(|a| a.abs() > 1e-6), "A is held at 0 on a Neumann side");
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_nonlinear_solution_streams_progress_with_newtons_steps() {
+    let app = spawn_app().await;
+    let events = stream(&app, &device(3000)).await;
+    let (last, progress) = events.split_last().unwrap();
+    assert_eq!(last.event, "result");
+    assert!(!progress.is_empty());
+    for event in progress {
+        let p: Value = serde_json::from_str(&event.data).unwrap();
+        assert!(
+            p["newton_iterations"].as_u64().unwrap() >= 1 && p["newton_residual"].as_f64().unwrap() <= 1e-10,
+            "{p}"
+        );
+    }
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn bad_materials_shapes_and_sides_are_422_naming_the_entry() {
+    let app = spawn_app().await;
+    let mut body = device(100);
+    body["regions"][1]["bh"] = json!([[0, 0], [100, 0.6], [90, 1.1]]);
+    let p = refused(&app, body).await;
+    assert_eq!(p["field"], "/regions/1/bh/2", "{p}");
+    assert!(p["detail"].as_str().unwrap().contains("increase"), "{p}");
+
+    let mut body = device(100);
+    body["regions"][0]["polygon"] = json!([[0.03, 0.03], [0.07, 0.07], [0.07, 0.03], [0.03, 0.07]]);
+    let p = refused(&app, body).await;
+    assert_eq!(p["field"], "/regions/0/polygon/2", "a bow tie's second side crosses its fourth: {p}");
+
+    let mut body = device(100);
+    body["regions"][0]["polygon"] = json!([[0.03, 0.03], [0.3, 0.03], [0.05, 0.07]]);
+    assert_eq!(refused(&app, body).await["field"], "/regions/0/polygon/1");
+
+    let mut body = device(100);
+    body["regions"][1]["mu_r"] = json!(1000);
+    assert_eq!(refused(&app, body).await["field"], "/regions/1/bh");
+
+    let mut body = device(100);
+    body["boundary"] = json!({"left": "neumann", "right": "neumann", "bottom": "neumann", "top": "neumann"});
+    assert_eq!(refused(&app, body).await["field"], "/boundary");
+
+    let mut body = device(100);
+    body["boundary"]["left"] = json!("robin");
+    let p = refused(&app, body).await;
+    assert_eq!(p["field"], "/boundary/left", "{p}");
     app.shutdown().await;
 }

@@ -1,0 +1,174 @@
+//! The discrete system on one mesh: assembled once for a linear problem, by Newton's method
+//! with a line search when a region's k is a curve ν(|∇u|).
+//!
+//! With B = |∇u| constant on each P1 triangle, the residual of vertex i is
+//! Rᵢ = Σ_T |T| (q_T · ∇φᵢ − ∫_T f φᵢ / |T|), q = ν(B) ∇u + (s_y, −s_x), and its Jacobian
+//! |T| (ν ∇φᵢ·∇φⱼ + (dH/dB − ν)(ĝ·∇φᵢ)(ĝ·∇φⱼ)) with ĝ = ∇u/|∇u|: stiffness dH/dB along the
+//! field and ν across it. Both are positive for a rising H(B), so every Newton system is
+//! symmetric positive definite and goes to the same Cholesky as a linear one.
+
+use super::{Coefficients, Element, Problem, SolveError, solve_spd};
+use serde::{Deserialize, Serialize};
+
+/// Newton stops once ‖R‖₂ is at most this fraction of the residual of u = 0 inside (the
+/// problem's own scale: its loads, magnets and boundary values).
+pub const NEWTON_TOLERANCE: f64 = 1e-10;
+
+/// Newton gives up after this many iterations (the solve then did not converge).
+pub const MAX_NEWTON_ITERATIONS: u32 = 50;
+
+/// Halvings of a Newton step before the line search takes the smallest.
+const MAX_HALVINGS: u32 = 20;
+
+/// What Newton's method did on one mesh.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Newton {
+    /// Newton steps taken.
+    pub iterations: u32,
+    /// ‖R‖₂ / ‖R(u = 0 inside)‖₂ at the end.
+    pub residual: f64,
+    /// Whether that met [`NEWTON_TOLERANCE`].
+    pub converged: bool,
+    /// The relative residual before each step and at the end.
+    #[serde(skip)]
+    pub residuals: Vec<f64>,
+}
+
+/// The discrete problem on one mesh.
+pub(super) struct System<'s, 'p> {
+    pub problem: &'s Problem<'p>,
+    pub triangles: &'s [[u32; 3]],
+    pub elements: &'s [Element],
+    pub coefficients: &'s [Coefficients],
+    /// The unknown index of each vertex, `None` on a Dirichlet side.
+    pub unknown: &'s [Option<usize>],
+}
+
+impl System<'_, '_> {
+    /// Solves the linear system for the unknowns of `u`, whose Dirichlet values are set.
+    pub fn linear(&self, n: usize, u: &mut [f64]) -> Result<(), SolveError> {
+        let mut entries: Vec<(usize, usize, f64)> = Vec::with_capacity(6 * self.triangles.len());
+        let mut rhs = vec![0.0; n];
+        for ((e, c), &tri) in self.elements.iter().zip(self.coefficients).zip(self.triangles) {
+            for i in 0..3 {
+                let Some(row) = self.unknown[tri[i] as usize] else { continue };
+                rhs[row] += e.area * c.load[i];
+                if c.source != [0.0; 2] {
+                    rhs[row] += e.area * (c.source[0] * e.grad[i][1] - c.source[1] * e.grad[i][0]);
+                }
+                for j in 0..3 {
+                    let a = c.k * e.area * (e.grad[i][0] * e.grad[j][0] + e.grad[i][1] * e.grad[j][1]);
+                    match self.unknown[tri[j] as usize] {
+                        // Lower triangle only, stored as (column, row).
+                        Some(col) if row >= col => entries.push((col, row, a)),
+                        Some(_) => {}
+                        None => rhs[row] -= a * u[tri[j] as usize],
+                    }
+                }
+            }
+        }
+        let x = solve_spd(n, entries, rhs)?;
+        self.scatter(&x, u, |_, x| x);
+        Ok(())
+    }
+
+    /// Newton's method from `u` (Dirichlet values set, the unknowns a first guess), with a
+    /// backtracking line search on ‖R‖₂.
+    pub fn newton(&self, n: usize, u: &mut [f64]) -> Result<Newton, SolveError> {
+        let mut zero = u.to_vec();
+        self.scatter(&vec![0.0; n], &mut zero, |_, x| x);
+        let scale = norm(&self.residual(&zero, None));
+        if scale == 0.0 {
+            // No load, magnet or boundary value: u = 0 inside is the solution.
+            u.copy_from_slice(&zero);
+            return Ok(Newton { iterations: 0, residual: 0.0, converged: true, residuals: vec![0.0] });
+        }
+        let mut entries = Vec::with_capacity(6 * self.triangles.len());
+        let mut r = self.residual(u, Some(&mut entries));
+        let mut relative = norm(&r) / scale;
+        let mut residuals = vec![relative];
+        let mut iterations = 0;
+        let mut trial = u.to_vec();
+        while relative > NEWTON_TOLERANCE && iterations < MAX_NEWTON_ITERATIONS {
+            for v in &mut r {
+                *v = -*v;
+            }
+            let step = solve_spd(n, std::mem::take(&mut entries), std::mem::take(&mut r))?;
+            // Armijo's rule on ‖R‖₂; past the last halving the step is taken if R stays finite.
+            let mut alpha = 1.0;
+            let mut halvings = 0;
+            let accepted = loop {
+                trial.copy_from_slice(u);
+                self.scatter(&step, &mut trial, |u, d| u + alpha * d);
+                let tried = norm(&self.residual(&trial, None)) / scale;
+                if tried <= (1.0 - 1e-4 * alpha) * relative {
+                    break true;
+                }
+                if halvings == MAX_HALVINGS {
+                    break tried.is_finite();
+                }
+                alpha *= 0.5;
+                halvings += 1;
+            };
+            if !accepted {
+                break;
+            }
+            u.copy_from_slice(&trial);
+            iterations += 1;
+            r = self.residual(u, Some(&mut entries));
+            relative = norm(&r) / scale;
+            residuals.push(relative);
+        }
+        Ok(Newton { iterations, residual: relative, converged: relative <= NEWTON_TOLERANCE, residuals })
+    }
+
+    /// Writes `f(u, x)` into the unknowns of `u`, x by unknown index.
+    fn scatter(&self, x: &[f64], u: &mut [f64], f: impl Fn(f64, f64) -> f64) {
+        for (u, index) in u.iter_mut().zip(self.unknown) {
+            if let Some(i) = index {
+                *u = f(*u, x[*i]);
+            }
+        }
+    }
+
+    /// R(u) by unknown index and, when `jacobian` is given, the lower triangle of its
+    /// Jacobian (column, row, value) written there.
+    fn residual(&self, u: &[f64], mut jacobian: Option<&mut Vec<(usize, usize, f64)>>) -> Vec<f64> {
+        let n = self.unknown.iter().flatten().count();
+        let mut r = vec![0.0; n];
+        if let Some(j) = jacobian.as_deref_mut() {
+            j.clear();
+        }
+        for ((e, c), &tri) in self.elements.iter().zip(self.coefficients).zip(self.triangles) {
+            let g = e.gradient(tri.map(|v| u[v as usize]));
+            let b = g[0].hypot(g[1]);
+            let (nu, dh) = c.nu(self.problem, b);
+            let q = [nu * g[0] + c.source[1], nu * g[1] - c.source[0]];
+            // The extra stiffness along the field, over |∇u|².
+            let along = if c.curve.is_some() && b > 0.0 { (dh - nu) / (b * b) } else { 0.0 };
+            for i in 0..3 {
+                let Some(row) = self.unknown[tri[i] as usize] else { continue };
+                let gi = e.grad[i];
+                r[row] += e.area * (q[0] * gi[0] + q[1] * gi[1] - c.load[i]);
+                let Some(jac) = jacobian.as_deref_mut() else { continue };
+                for (&vj, gj) in tri.iter().zip(e.grad) {
+                    let Some(col) = self.unknown[vj as usize] else { continue };
+                    if row < col {
+                        continue;
+                    }
+                    let mut a = nu * (gi[0] * gj[0] + gi[1] * gj[1]);
+                    if along != 0.0 {
+                        a += along * (g[0] * gi[0] + g[1] * gi[1]) * (g[0] * gj[0] + g[1] * gj[1]);
+                    }
+                    jac.push((col, row, e.area * a));
+                }
+            }
+        }
+        r
+    }
+}
+
+/// The Euclidean norm, summed in index order.
+fn norm(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
