@@ -1,6 +1,7 @@
 //! ApiError: every failure the API reports, written as RFC 9457 `application/problem+json`.
 
 use crate::api::{JsonError, pointer};
+use crate::geom::ConstrainedError;
 use crate::jobs::{JobError, SpecError, SubmitError};
 use crate::output::Format;
 use crate::refine::RefineError;
@@ -114,7 +115,9 @@ impl From<JobError> for ApiError {
                 SolveError::InvalidK { .. }
                 | SolveError::NonFiniteF { .. }
                 | SolveError::NonFiniteG { .. }
-                | SolveError::Overflow { .. } => ApiError::Unsolvable(e),
+                | SolveError::Overflow { .. }
+                | SolveError::Regions(_)
+                | SolveError::Unmatched { .. } => ApiError::Unsolvable(e),
                 other => ApiError::Internal(other.to_string()),
             },
             JobError::Internal(detail) => ApiError::Internal(detail),
@@ -220,10 +223,15 @@ impl ApiError {
                     SolveError::NonFiniteF { x, y, .. } => ("f", x, y),
                     SolveError::NonFiniteG { x, y, .. } => ("g", x, y),
                     SolveError::Overflow { x, y, .. } => ("f", x, y),
+                    SolveError::Regions(ConstrainedError::BadPoint { x, y }) => ("regions", x, y),
+                    SolveError::Regions(_) => ("regions", f64::NAN, f64::NAN),
+                    SolveError::Unmatched { x, y } => ("boundary", x, y),
                     _ => ("", f64::NAN, f64::NAN),
                 };
                 ext.insert("field".into(), json!(pointer(field)));
-                ext.insert("point".into(), json!([x, y]));
+                if x.is_finite() && y.is_finite() {
+                    ext.insert("point".into(), json!([x, y]));
+                }
                 (unprocessable, "invalid-problem", "Boundary value problem is invalid", e.to_string())
             }
             ApiError::NotFound(d) => (StatusCode::NOT_FOUND, "not-found", "Not found", d.clone()),

@@ -300,6 +300,16 @@ fn boundary(input: Option<BoundaryInput>) -> Result<Boundary, SpecError> {
         bottom: input.bottom.unwrap_or_default(),
         top: input.top.unwrap_or_default(),
     };
+    for (a, b, pair) in
+        [(boundary.left, boundary.right, "left and right"), (boundary.bottom, boundary.top, "bottom and top")]
+    {
+        if (a.sign().is_some() || b.sign().is_some()) && a != b {
+            return Err(invalid(
+                "boundary",
+                format!("{pair} are a pair: periodic and antiperiodic sides must say the same on both"),
+            ));
+        }
+    }
     if !boundary.has_dirichlet() {
         return Err(invalid(
             "boundary",

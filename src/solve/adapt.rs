@@ -8,6 +8,7 @@
 //! [`Floors::Resolution`]: a singular point gets vertices as close as floating point resolves.
 //! The loop always ends on a solve, so the mesh it returns carries the solution.
 
+use super::periodic;
 use super::regions::{self, RegionStats};
 use super::residual::Residual;
 use super::{Coefficients, Element, ErrorNorms, Problem, SolveError, solve_with};
@@ -187,6 +188,10 @@ pub fn adapt<O: Observer>(
     };
     let mut pending = None;
     loop {
+        let matched = periodic::match_sides(&mut mesh, problem, settings.method)?;
+        if matched && settings.indicator == Indicator::Residual {
+            residual.measure_all(&mesh)?;
+        }
         let triangles: Vec<[u32; 3]> = mesh.triangles().collect();
         let known = (settings.indicator == Indicator::Residual).then(|| residual.coefficients());
         // Newton starts from the last solution, interpolated onto the vertices since added.

@@ -44,6 +44,7 @@ mod bh;
 mod cholesky;
 mod cut;
 mod nonlinear;
+mod periodic;
 mod problem;
 mod quadrature;
 mod regions;
@@ -61,6 +62,7 @@ use crate::geom::predicates::signed_area_x2;
 use crate::geom::{ConstrainedError, Point, Vertex};
 use faer::sparse::FaerError;
 use quadrature::RULE;
+use std::collections::HashMap;
 
 /// The magnetic constant μ0 in H/m (CODATA 2018).
 pub const MU_0: f64 = 1.256_637_062_12e-6;
@@ -170,6 +172,14 @@ pub enum SolveError {
     /// The regions' sides do not make a mesh.
     #[error(transparent)]
     Regions(#[from] ConstrainedError),
+    /// A vertex on a periodic side has no vertex at the matching point of the other side.
+    #[error("the vertex ({x}, {y}) on a periodic side has no partner on the opposite side")]
+    Unmatched {
+        /// Abscissa.
+        x: f64,
+        /// Ordinate.
+        y: f64,
+    },
 }
 
 /// The discrete solution u_h and the quantities derived from it.
@@ -400,23 +410,8 @@ pub(crate) fn solve_with<P: Position>(
     known: Option<&[Coefficients]>,
     start: Option<&[f64]>,
 ) -> Result<Solution, SolveError> {
-    // Unknown index of each vertex, or None on a Dirichlet side.
-    let mut unknown = vec![None; vertices.len()];
-    let mut u = vec![0.0; vertices.len()];
-    let mut n = 0usize;
-    for (v, vertex) in vertices.iter().enumerate() {
-        let p = vertex.position();
-        if problem.is_dirichlet(p) {
-            let g = problem.g_at(p);
-            if !g.is_finite() {
-                return Err(SolveError::NonFiniteG { x: p.x, y: p.y, value: g, vertex: v });
-            }
-            u[v] = g;
-        } else {
-            unknown[v] = Some(n);
-            n += 1;
-        }
-    }
+    let Numbering { unknown, sign, mut u, masters } = Numbering::new(problem, vertices)?;
+    let n = masters.len();
     let elements = (triangles.iter().enumerate())
         .map(|(t, &tri)| Element::new(vertices, tri, t))
         .collect::<Result<Vec<_>, _>>()?;
@@ -430,15 +425,19 @@ pub(crate) fn solve_with<P: Position>(
             &measured[..]
         }
     };
-    let system =
-        nonlinear::System { problem, triangles, elements: &elements, coefficients, unknown: &unknown };
+    let system = nonlinear::System {
+        problem,
+        triangles,
+        elements: &elements,
+        coefficients,
+        unknown: &unknown,
+        sign: &sign,
+    };
     let newton = if problem.is_nonlinear() {
         if let Some(start) = start {
-            for (v, index) in unknown.iter().enumerate() {
-                if index.is_some() {
-                    u[v] = start[v];
-                }
-            }
+            // Each unknown from its own vertex, so periodic partners start consistent.
+            let x: Vec<f64> = masters.iter().map(|&v| start[v]).collect();
+            system.scatter(&x, &mut u, |_, x| x);
         }
         Some(system.newton(n, &mut u)?)
     } else {
@@ -461,6 +460,79 @@ pub(crate) fn solve_with<P: Position>(
         gradients.push(g);
     }
     Ok(Solution { u, energy, coenergy: work - energy, gradients, num_unknowns: n, newton })
+}
+
+/// Which vertices are unknowns: one per vertex off the Dirichlet sides, except that a vertex
+/// on the right (top) side of a periodic pair shares its left (bottom) partner's, with the
+/// pair's sign; a corner on two pairs goes through both to the bottom-left one.
+struct Numbering {
+    /// The unknown of each vertex, `None` on a Dirichlet side.
+    unknown: Vec<Option<usize>>,
+    /// u at the vertex = sign · the unknown.
+    sign: Vec<f64>,
+    /// g at the Dirichlet vertices, 0 elsewhere.
+    u: Vec<f64>,
+    /// The vertex that owns each unknown.
+    masters: Vec<usize>,
+}
+
+impl Numbering {
+    fn new<P: Position>(problem: &Problem<'_>, vertices: &[P]) -> Result<Self, SolveError> {
+        let (domain, boundary) = (problem.domain(), problem.boundary());
+        let mut numbering = Self {
+            unknown: vec![None; vertices.len()],
+            sign: vec![1.0; vertices.len()],
+            u: vec![0.0; vertices.len()],
+            masters: Vec::new(),
+        };
+        // Each vertex's partner across each periodic pair, found by its exact coordinate.
+        let index = |on: &dyn Fn(Point) -> bool, along: fn(Point) -> f64| -> HashMap<u64, usize> {
+            let on_side = vertices.iter().enumerate().filter(|(_, p)| on(p.position()));
+            on_side.map(|(v, p)| ((along(p.position()) + 0.0).to_bits(), v)).collect()
+        };
+        let across_x = boundary.across_x().map(|sign| (sign, index(&|p| p.x == domain.x0(), |p| p.y)));
+        let across_y = boundary.across_y().map(|sign| (sign, index(&|p| p.y == domain.y0(), |p| p.x)));
+        // The vertex whose unknown `v` takes, and the sign.
+        let master = |v: usize| -> Result<(usize, f64), SolveError> {
+            let (mut v, mut sign) = (v, 1.0);
+            let p = vertices[v].position();
+            if let Some((s, left)) = &across_x
+                && p.x == domain.x1()
+            {
+                v = *left.get(&(p.y + 0.0).to_bits()).ok_or(SolveError::Unmatched { x: p.x, y: p.y })?;
+                sign *= s;
+            }
+            let q = vertices[v].position();
+            if let Some((s, bottom)) = &across_y
+                && q.y == domain.y1()
+            {
+                v = *bottom.get(&(q.x + 0.0).to_bits()).ok_or(SolveError::Unmatched { x: q.x, y: q.y })?;
+                sign *= s;
+            }
+            Ok((v, sign))
+        };
+        for (v, vertex) in vertices.iter().enumerate() {
+            let p = vertex.position();
+            if problem.is_dirichlet(p) {
+                let g = problem.g_at(p);
+                if !g.is_finite() {
+                    return Err(SolveError::NonFiniteG { x: p.x, y: p.y, value: g, vertex: v });
+                }
+                numbering.u[v] = g;
+            } else if master(v)?.0 == v {
+                numbering.unknown[v] = Some(numbering.masters.len());
+                numbering.masters.push(v);
+            }
+        }
+        for (v, vertex) in vertices.iter().enumerate() {
+            let (m, sign) = master(v)?;
+            if m != v && !problem.is_dirichlet(vertex.position()) {
+                numbering.unknown[v] = numbering.unknown[m];
+                numbering.sign[v] = sign;
+            }
+        }
+        Ok(numbering)
+    }
 }
 
 /// Solves A x = b for the symmetric positive definite A given by its lower-triangle

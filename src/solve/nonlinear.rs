@@ -42,6 +42,8 @@ pub(super) struct System<'s, 'p> {
     pub coefficients: &'s [Coefficients],
     /// The unknown index of each vertex, `None` on a Dirichlet side.
     pub unknown: &'s [Option<usize>],
+    /// u at each vertex = sign · its unknown (−1 across an antiperiodic pair).
+    pub sign: &'s [f64],
 }
 
 impl System<'_, '_> {
@@ -52,17 +54,20 @@ impl System<'_, '_> {
         for ((e, c), &tri) in self.elements.iter().zip(self.coefficients).zip(self.triangles) {
             for i in 0..3 {
                 let Some(row) = self.unknown[tri[i] as usize] else { continue };
-                rhs[row] += e.area * c.load[i];
+                let si = self.sign[tri[i] as usize];
+                rhs[row] += si * e.area * c.load[i];
                 if c.source != [0.0; 2] {
-                    rhs[row] += e.area * (c.source[0] * e.grad[i][1] - c.source[1] * e.grad[i][0]);
+                    rhs[row] += si * e.area * (c.source[0] * e.grad[i][1] - c.source[1] * e.grad[i][0]);
                 }
                 for j in 0..3 {
                     let a = c.k * e.area * (e.grad[i][0] * e.grad[j][0] + e.grad[i][1] * e.grad[j][1]);
                     match self.unknown[tri[j] as usize] {
                         // Lower triangle only, stored as (column, row).
-                        Some(col) if row >= col => entries.push((col, row, a)),
+                        Some(col) if row >= col => {
+                            entries.push((col, row, si * self.sign[tri[j] as usize] * a))
+                        }
                         Some(_) => {}
-                        None => rhs[row] -= a * u[tri[j] as usize],
+                        None => rhs[row] -= si * a * u[tri[j] as usize],
                     }
                 }
             }
@@ -122,11 +127,12 @@ impl System<'_, '_> {
         Ok(Newton { iterations, residual: relative, converged: relative <= NEWTON_TOLERANCE, residuals })
     }
 
-    /// Writes `f(u, x)` into the unknowns of `u`, x by unknown index.
-    fn scatter(&self, x: &[f64], u: &mut [f64], f: impl Fn(f64, f64) -> f64) {
-        for (u, index) in u.iter_mut().zip(self.unknown) {
+    /// Writes `f(u, ±x)` into the vertices of `u` off the Dirichlet sides, x by unknown index
+    /// and signed as the vertex takes it.
+    pub fn scatter(&self, x: &[f64], u: &mut [f64], f: impl Fn(f64, f64) -> f64) {
+        for ((u, index), sign) in u.iter_mut().zip(self.unknown).zip(self.sign) {
             if let Some(i) = index {
-                *u = f(*u, x[*i]);
+                *u = f(*u, sign * x[*i]);
             }
         }
     }
@@ -148,8 +154,8 @@ impl System<'_, '_> {
             let along = if c.curve.is_some() && b > 0.0 { (dh - nu) / (b * b) } else { 0.0 };
             for i in 0..3 {
                 let Some(row) = self.unknown[tri[i] as usize] else { continue };
-                let gi = e.grad[i];
-                r[row] += e.area * (q[0] * gi[0] + q[1] * gi[1] - c.load[i]);
+                let (gi, si) = (e.grad[i], self.sign[tri[i] as usize]);
+                r[row] += si * e.area * (q[0] * gi[0] + q[1] * gi[1] - c.load[i]);
                 let Some(jac) = jacobian.as_deref_mut() else { continue };
                 for (&vj, gj) in tri.iter().zip(e.grad) {
                     let Some(col) = self.unknown[vj as usize] else { continue };
@@ -160,7 +166,7 @@ impl System<'_, '_> {
                     if along != 0.0 {
                         a += along * (g[0] * gi[0] + g[1] * gi[1]) * (g[0] * gj[0] + g[1] * gj[1]);
                     }
-                    jac.push((col, row, e.area * a));
+                    jac.push((col, row, si * self.sign[vj as usize] * e.area * a));
                 }
             }
         }

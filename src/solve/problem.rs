@@ -137,6 +137,22 @@ pub enum Side {
     /// Zero normal flux, k ∂u/∂n = 0: u is free there (in magnetostatics the field crosses
     /// the side at right angles).
     Neumann,
+    /// u on this side equals u at the matching point of the opposite side, which says the same:
+    /// a repeating structure. The mesh gets a vertex on each side wherever the other has one.
+    Periodic,
+    /// As `periodic`, with u opposite: a motor slice over one pole.
+    Antiperiodic,
+}
+
+impl Side {
+    /// u at the point matched across a periodic pair, for u here: ±1; `None` when not a pair.
+    pub fn sign(self) -> Option<f64> {
+        match self {
+            Side::Periodic => Some(1.0),
+            Side::Antiperiodic => Some(-1.0),
+            Side::Dirichlet | Side::Neumann => None,
+        }
+    }
 }
 
 /// The condition on each side of the rectangle: x = x0, x = x1, y = y0, y = y1.
@@ -156,6 +172,16 @@ impl Boundary {
     /// Whether any side is Dirichlet: otherwise u is fixed only up to a constant.
     pub fn has_dirichlet(&self) -> bool {
         [self.left, self.right, self.bottom, self.top].contains(&Side::Dirichlet)
+    }
+
+    /// The sign of the left–right pair (u right = sign · u left), when the pair is periodic.
+    pub fn across_x(&self) -> Option<f64> {
+        if self.left == self.right { self.left.sign() } else { None }
+    }
+
+    /// The sign of the bottom–top pair, when it is periodic.
+    pub fn across_y(&self) -> Option<f64> {
+        if self.bottom == self.top { self.bottom.sign() } else { None }
     }
 }
 

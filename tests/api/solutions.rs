@@ -250,6 +250,12 @@ async fn bad_materials_shapes_and_sides_are_422_naming_the_entry() {
     assert_eq!(refused(&app, body).await["field"], "/boundary");
 
     let mut body = device(100);
+    body["boundary"] = json!({"left": "periodic", "right": "antiperiodic"});
+    let p = refused(&app, body).await;
+    assert_eq!(p["field"], "/boundary", "{p}");
+    assert!(p["detail"].as_str().unwrap().contains("left and right"), "{p}");
+
+    let mut body = device(100);
     body["boundary"]["left"] = json!("robin");
     let p = refused(&app, body).await;
     assert_eq!(p["field"], "/boundary/left", "{p}");

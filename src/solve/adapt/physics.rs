@@ -2,7 +2,7 @@
 //! magnets, nonlinear iron by Newton, and forces by the weighted stress tensor.
 
 use super::*;
-use crate::geom::{Point, Rect};
+use crate::geom::{Point, Rect, Vertex};
 use crate::solve::tests::slope;
 use crate::solve::{Boundary, Curve, MU_0, Region, Shape, Side};
 use std::f64::consts::PI;
@@ -98,6 +98,48 @@ fn neumann_sides_leave_u_free_where_its_normal_derivative_vanishes() {
         .unzip::<_, _, Vec<_>, Vec<_>>();
     let rate = slope(&energy);
     assert!((-0.6..-0.4).contains(&rate), "energy-norm slope {rate}");
+}
+
+// ---- Periodic sides ---------------------------------------------------------------------------
+
+/// Runs −Δu = f on the unit square with the left–right pair `side`, u = 0 at y = 0 and 1, and
+/// checks u against `exact` and every left vertex against its partner on the right.
+fn periodic_run(side: Side, exact: fn(f64, f64) -> f64, f: fn(f64, f64) -> f64) {
+    let boundary = Boundary { left: side, right: side, ..Boundary::default() };
+    let problem = Problem::new(Rect::unit()).with_f(f).with_boundary(boundary);
+    let a = adapt(&problem, Some(&exact), &Settings::new(8_000), &mut Checked).unwrap();
+    assert!(a.stats.history.last().unwrap().max_nodal_error.unwrap() < 2e-3, "{:?}", a.stats.history.last());
+    let sign = side.sign().unwrap();
+    let vertices = a.mesh.vertices();
+    let (left, right): (Vec<&Vertex>, Vec<&Vertex>) =
+        vertices.iter().filter(|v| v.x == 0.0 || v.x == 1.0).partition(|v| v.x == 0.0);
+    assert_eq!(left.len(), right.len(), "every vertex on one side has a partner");
+    assert!(left.len() > 20);
+    for l in left {
+        let r = right.iter().find(|r| r.y == l.y).expect("a partner at the same y");
+        assert_eq!(r.z, sign * l.z, "u at (1, {}) against (0, {})", r.y, l.y);
+    }
+    assert!(a.stats.delaunay);
+}
+
+#[test]
+fn a_periodic_pair_matches_its_vertices_and_gives_the_periodic_solution() {
+    // u = cos(2πx) sin(πy): the same value and slope at x = 0 and 1, not zero there.
+    periodic_run(
+        Side::Periodic,
+        |x, y| (2.0 * PI * x).cos() * (PI * y).sin(),
+        |x, y| 5.0 * PI * PI * (2.0 * PI * x).cos() * (PI * y).sin(),
+    );
+}
+
+#[test]
+fn an_antiperiodic_pair_gives_the_antiperiodic_solution() {
+    // u = cos(πx) sin(πy): u(1, y) = −u(0, y).
+    periodic_run(
+        Side::Antiperiodic,
+        |x, y| (PI * x).cos() * (PI * y).sin(),
+        |x, y| 2.0 * PI * PI * (PI * x).cos() * (PI * y).sin(),
+    );
 }
 
 // ---- Magnets ----------------------------------------------------------------------------------
