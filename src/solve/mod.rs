@@ -1,22 +1,26 @@
-//! P1 finite elements on a triangle mesh: −∇·(k ∇u) = f in a rectangle, u = g on its boundary.
+//! P1 finite elements on a triangle mesh: −∇·(k ∇u) = f in a rectangle; u = g on its Dirichlet
+//! sides, zero flux on its Neumann sides, u equal or opposite across a periodic pair; k a
+//! constant, an expression, or a B–H curve of |∇u| (nonlinear, by Newton).
 //!
 //! # Usage
 //! Describe the problem with [`Problem`], then call [`solve`] with the mesh's vertices (either
 //! [`Point`]s or [`Vertex`]es, so a [`geom::Mesh`](crate::geom::Mesh) and a
-//! [`MeshResult`](crate::result::MeshResult) both work) and its counter-clockwise triangles.
+//! [`MeshResult`](crate::result::MeshResult) both work) and its counter-clockwise triangles,
+//! or [`adapt`] to refine and solve in rounds on a mesh that follows the regions' sides.
 //! [`Solution::errors`] measures the result against a known exact solution.
 //!
 //! # Method
-//! - Unknowns are the vertices not on the rectangle's boundary (exactly: x = x0, x1 or
-//!   y = y0, y1), numbered in vertex order. Boundary vertices take u = g and are eliminated:
-//!   their columns move to the right-hand side.
+//! - Unknowns are the vertices not on a Dirichlet side (exactly: x = x0, x1 or y = y0, y1),
+//!   numbered in vertex order; a periodic partner shares its partner's unknown (`Numbering`).
+//!   Dirichlet vertices take u = g and are eliminated: their columns move to the right-hand
+//!   side.
 //! - Every integral uses the 6-point, degree-4 rule of Dunavant (1985), whose points lie
-//!   strictly inside each triangle. A triangle that a region's side crosses is cut along the
-//!   side into pieces, and the rule is applied on each, so a region's k and f count with
-//!   their exact share of the triangle's area. The stiffness of a triangle uses that average
-//!   of k: a jump of k inside a triangle is smeared over that triangle only (a mesh line
-//!   never follows a side that is not at a dyadic fraction of the rectangle). The load
-//!   vector ∫ f φᵢ is exact for f of degree ≤ 3 (linear f included) and for region values.
+//!   strictly inside each triangle. A triangle that a rectangle region's side crosses (on a
+//!   mesh that does not follow it) is cut along the side into pieces, and the rule is applied
+//!   on each, so a region's k and f count with their exact share of the triangle's area. The
+//!   load vector ∫ f φᵢ is exact for f of degree ≤ 3 (linear f included) and for region values.
+//! - A nonlinear problem is solved by Newton's method with a line search (`nonlinear`); each
+//!   step is a linear solve of the same kind.
 //! - The symmetric positive definite system is factorised by a supernodal sparse Cholesky
 //!   (LLᵀ, `cholesky`): `faer` orders it (approximate minimum degree) and finds the
 //!   supernodes, and the numbers are computed by dense kernels of our own.
@@ -29,10 +33,10 @@
 //! - Linear g with f = 0 and constant k is reproduced to rounding (the patch test).
 //!
 //! # Limitations
-//! - Dirichlet conditions only, on the whole boundary; no Neumann or Robin data.
-//! - Regions are constants on rectangles; a region side that cuts a triangle is integrated
-//!   exactly, but u_h stays linear across it, so the kink of u there is resolved only as
-//!   the loop refines toward the side.
+//! - No Robin data; every problem needs one Dirichlet side.
+//! - On a mesh that does not follow a region (a library caller's own), a side that cuts a
+//!   triangle is integrated exactly, but u_h stays linear across it; a curve's or a magnet's
+//!   triangle takes the material at its centroid. [`adapt`]'s meshes follow every side.
 //! - Needle triangles amplify rounding: the patch-test error grows like ε divided by the
 //!   smallest height/length ratio, which meshes from the Recursive method drive to ~1e-9 by
 //!   a thousand vertices (error ~1e-8 there, against ~1e-14 on Delaunay meshes).

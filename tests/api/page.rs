@@ -380,6 +380,14 @@ async fn boundary_value_problem(app: &TestApp, client: &Client) {
     for name in ["vertices", "unknowns", "solves", "estimate", "energy", "stop"] {
         assert_eq!(shown.get(name), Some(&status["stats"][name]), "{name} on the page");
     }
+    // Each region's force, as the stats give it.
+    for (i, region) in status["stats"]["regions"].as_array().unwrap().iter().enumerate() {
+        assert_eq!(
+            shown.get(&format!("force_{i}")),
+            Some(&region["force"]),
+            "region {i}'s force on the page"
+        );
+    }
     // |B| colouring is a different picture from u.
     let before = canvas_ink(client, "flat").await;
     client.execute("const s = document.getElementById('solve-colour'); s.value = 'b'; s.dispatchEvent(new Event('change'));", vec![]).await.unwrap();

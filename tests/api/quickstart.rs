@@ -59,6 +59,13 @@ async fn the_readme_quick_start_runs_as_written_and_says_what_the_readme_says() 
     ] {
         assert!(stdout.contains(said), "the quick start no longer prints {said:?}:\n{stdout}");
     }
+    // The electromagnet's four forces, one a line; the armature's is the second, as it says.
+    let forces: Vec<f64> = (stdout.lines())
+        .filter_map(|l| l.strip_prefix(r#""force":["#))
+        .map(|l| l.split(',').next().unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(forces.len(), 4, "{stdout}");
+    assert!((-1700.0..-1550.0).contains(&forces[1]), "the armature's force is {}", forces[1]);
     let file = |name: &str| std::fs::read(dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
     for (name, starts) in [
         ("mesh.ply", &b"ply\n"[..]),

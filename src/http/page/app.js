@@ -355,13 +355,17 @@ function showStats(s) {
   const q = s.quality || {};
   const rows = view.kind === "solution"
     ? [["vertices", s.vertices], ["triangles", s.triangles], ["unknowns", s.unknowns], ["solves", s.solves],
-      ["estimate", s.estimate], ["energy", s.energy], ["flips", s.flips], ["stop", s.stop], ["delaunay", s.delaunay]]
+      ["estimate", s.estimate], ["energy", s.energy], ["coenergy", s.coenergy], ["flips", s.flips], ["stop", s.stop],
+      ["delaunay", s.delaunay], ["constrained_edges", s.constrained_edges],
+      // One row per region: the force on everything inside it, [fx, fy] in N/m.
+      ...(s.regions || []).map((r, i) => [`force_${i}`, r.force])]
     : [["vertices", s.vertices], ["triangles", s.triangles], ["variation", s.variation],
       ["max_triangle_error", s.max_triangle_error], ["max_error", q.max_error], ["rms_error", q.rms_error],
       ["min_angle_deg", q.min_angle_deg], ["evaluations", s.evaluations], ["flips", s.flips], ["stop", s.stop],
       ["delaunay", s.delaunay]];
   const labels = { variation: "V_n", max_triangle_error: "worst e(T)", max_error: "E_n estimate",
-    rms_error: "RMS error", min_angle_deg: "smallest angle (°)" };
+    rms_error: "RMS error", min_angle_deg: "smallest angle (°)", constrained_edges: "edges on region sides" };
+  (s.regions || []).forEach((_, i) => (labels[`force_${i}`] = `force on region ${i} (N/m)`));
   const body = $("stats").tBodies[0];
   body.replaceChildren();
   for (const [key, value] of rows) {
@@ -371,7 +375,7 @@ function showStats(s) {
     th.textContent = labels[key] || key;
     tr.append(th);
     const td = tr.insertCell();
-    td.textContent = fmt(value);
+    td.textContent = Array.isArray(value) ? value.map(fmt).join(", ") : fmt(value);
     td.dataset.stat = key;
     td.dataset.value = JSON.stringify(value);
   }
@@ -789,17 +793,28 @@ function drawRegions(g, f) {
   const p = problemJson();
   if (!p || !Array.isArray(p.regions)) return;
   for (const r of p.regions) {
-    if (!Array.isArray(r.x) || !Array.isArray(r.y)) continue;
-    const [x0, x1] = [f.x(r.x[0]), f.x(r.x[1])];
-    const [y0, y1] = [f.y(r.y[1]), f.y(r.y[0])];
-    g.fillStyle = r.current_density ? "rgba(214, 96, 77, 0.35)" : r.mu_r ? "rgba(90, 110, 140, 0.35)" : "rgba(47, 95, 208, 0.25)";
-    g.fillRect(x0, y0, x1 - x0, y1 - y0);
+    // A rectangle's corners or a polygon's, in picture coordinates.
+    const corners = Array.isArray(r.polygon)
+      ? r.polygon
+      : Array.isArray(r.x) && Array.isArray(r.y)
+        ? [[r.x[0], r.y[0]], [r.x[1], r.y[0]], [r.x[1], r.y[1]], [r.x[0], r.y[1]]]
+        : null;
+    if (!corners || corners.length < 3) continue;
+    const current = r.current_density || r.current;
+    g.fillStyle = current ? "rgba(214, 96, 77, 0.35)" : r.mu_r || r.bh || r.magnetization ? "rgba(90, 110, 140, 0.35)" : "rgba(47, 95, 208, 0.25)";
+    g.beginPath();
+    corners.forEach(([x, y], i) => (i ? g.lineTo(f.x(x), f.y(y)) : g.moveTo(f.x(x), f.y(y))));
+    g.closePath();
+    g.fill();
     g.strokeStyle = "#394150";
-    g.strokeRect(x0, y0, x1 - x0, y1 - y0);
+    g.stroke();
     g.fillStyle = "#1d2330";
     g.font = "13px system-ui, sans-serif";
-    const label = r.current_density ? `J ${fmt(r.current_density)}` : r.mu_r ? `μr ${fmt(r.mu_r)}` : `k ${fmt(r.k)} f ${fmt(r.f)}`;
-    g.fillText(label, x0 + 4, y0 + 15);
+    const label = r.current_density ? `J ${fmt(r.current_density)}` : r.current ? `I ${fmt(r.current)} A`
+      : r.magnetization ? `M ${r.magnetization.map(fmt).join(", ")}` : r.bh ? "B–H" : r.mu_r ? `μr ${fmt(r.mu_r)}` : `k ${fmt(r.k)} f ${fmt(r.f)}`;
+    const left = Math.min(...corners.map(([x]) => f.x(x)));
+    const top = Math.min(...corners.map(([, y]) => f.y(y)));
+    g.fillText(label, left + 4, top + 15);
   }
 }
 
