@@ -1,6 +1,7 @@
 //! Gmsh MSH 4.1, ASCII: the triangles as a 2-D mesh of the rectangle (nodes at `x y 0`), with
 //! F as the node view "z" and, when known, the triangle errors as the element view "error" and
-//! a magnetostatic solution's flux density as the element vector view "B" (Bx, By, 0).
+//! a magnetostatic solution's flux density as the element vector view "B" (Bx, By, 0), its
+//! field strength as "H" and its relative permeability as the scalar view "mu_r".
 //!
 //! The plane mesh and F apart is how a finite-element tool wants it: the domain is the
 //! geometry, F a field on it. There is one surface entity (tag 1) holding every node and
@@ -74,6 +75,29 @@ pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoding {
             out.push(b' ');
             push_f64(out, flux[i][1]);
             out.extend_from_slice(b" 0\n");
+        }));
+        tail.extend_from_slice(b"$EndElementData\n");
+    }
+    if result.magnetic_field.is_some() {
+        tail.extend_from_slice(format!("$ElementData\n1\n\"H\"\n1\n0\n3\n0\n3\n{m}\n").as_bytes());
+        let h = result.clone();
+        parts.push(Part::Bytes(std::mem::take(&mut tail)));
+        parts.push(Part::rows(m, move |i, out| {
+            let v = h.magnetic_field.as_ref().expect("checked above")[i];
+            write!(out, "{} ", i + 1).expect("a Vec");
+            push_f64(out, v[0]);
+            out.push(b' ');
+            push_f64(out, v[1]);
+            out.extend_from_slice(b" 0\n");
+        }));
+        tail.extend_from_slice(b"$EndElementData\n");
+        tail.extend_from_slice(format!("$ElementData\n1\n\"mu_r\"\n1\n0\n3\n0\n1\n{m}\n").as_bytes());
+        let mu = result.clone();
+        parts.push(Part::Bytes(std::mem::take(&mut tail)));
+        parts.push(Part::rows(m, move |i, out| {
+            write!(out, "{} ", i + 1).expect("a Vec");
+            push_f64(out, mu.magnetic_field.as_ref().expect("checked above")[i][2]);
+            out.push(b'\n');
         }));
         tail.extend_from_slice(b"$EndElementData\n");
     }

@@ -1,6 +1,7 @@
 //! VTK XML unstructured grid (`.vtu`), as ParaView opens it: f64 points `x y z`, the triangles
 //! as cells of type 5, F as the point array "z" and, when known, the triangle errors as the
-//! cell array "error" and a magnetostatic solution's flux density as the cell vector "B".
+//! cell array "error" and a magnetostatic solution's flux density as the cell vector "B", its
+//! field strength as "H" and its relative permeability as "mu_r".
 //!
 //! Arrays are inline `format="binary"`: base64 of a UInt64 byte count followed by the
 //! little-endian values, one base64 stream per array. Raw appended data would be a quarter
@@ -57,6 +58,23 @@ pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoding {
             for c in [flux[i][0], flux[i][1], 0.0] {
                 out.extend_from_slice(&c.to_le_bytes());
             }
+        }));
+        parts.push(Part::Bytes(b"</DataArray>\n".to_vec()));
+    }
+    if result.magnetic_field.is_some() {
+        let (h, mu) = (result.clone(), result.clone());
+        parts.push(Part::Bytes(array("type=\"Float64\" Name=\"H\" NumberOfComponents=\"3\"")));
+        parts.push(binary_array(m, 24, move |i, out| {
+            let h = h.magnetic_field.as_ref().expect("checked above")[i];
+            for c in [h[0], h[1], 0.0] {
+                out.extend_from_slice(&c.to_le_bytes());
+            }
+        }));
+        parts.push(Part::Bytes(b"</DataArray>\n".to_vec()));
+        parts.push(Part::Bytes(array("type=\"Float64\" Name=\"mu_r\"")));
+        parts.push(binary_array(m, 8, move |i, out| {
+            let h = mu.magnetic_field.as_ref().expect("checked above")[i];
+            out.extend_from_slice(&h[2].to_le_bytes());
         }));
         parts.push(Part::Bytes(b"</DataArray>\n".to_vec()));
     }

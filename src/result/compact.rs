@@ -2,9 +2,10 @@
 //! short header, and a SHA-256 of everything before it at the end.
 //!
 //! ```text
-//! magic "MESHFIT\0" · u32 version · u32 flags (bit 0: triangle errors)
+//! magic "MESHFIT\0" · u32 version · u32 flags (bit 0: triangle errors, bit 2: magnetic field)
 //! u64 vertices · u64 triangles · u32 id length · id · u32 stats length · stats (JSON)
-//! vertices (x, y, z as f64) · triangles (3 × u32) · [triangle errors (f64)]
+//! vertices (x, y, z as f64) · triangles (3 × u32) · [triangle errors (f64)] ·
+//! [magnetic field (Hx, Hy, μr as f64 per triangle)]
 //! [trace (flag bit 1): u8 method · u8 criterion · u8 stop · u8 on nodes · u8 has min angle ·
 //!  f64 min angle (0 without one) · u64 base evaluations ·
 //!  u64 checks · u64 steps · u64 estimates · worst (f64 per check) · split half-edges (u32 per
@@ -24,9 +25,10 @@ use std::io::{self, Write};
 use std::sync::Arc;
 
 const MAGIC: &[u8; 8] = b"MESHFIT\0";
-const VERSION: u32 = 3;
+const VERSION: u32 = 4;
 const HAS_ERRORS: u32 = 1;
 const HAS_TRACE: u32 = 2;
+const HAS_FIELD: u32 = 4;
 const CHECKSUM_LEN: usize = 32;
 
 /// Why bytes are not the compact form of a result with the expected id.
@@ -77,13 +79,14 @@ pub fn size(result: &MeshResult, id: &str) -> u64 {
     let stats = serde_json::to_vec(&result.stats).map_or(0, |s| s.len()) as u64;
     let (nv, nt) = (result.vertices.len() as u64, result.triangles.len() as u64);
     let errors = if result.triangle_errors.is_some() { 8 * nt } else { 0 };
+    let field = if result.magnetic_field.is_some() { 24 * nt } else { 0 };
     let trace = result.trace.as_ref().map_or(0, |t| {
         let (checks, steps, estimates) =
             (t.worst.len() as u64, t.splits.len() as u64, t.estimates.len() as u64);
         3 + 1 + 1 + 8 + 4 * 8 + 8 * checks + 12 * steps + 12 * estimates + 4 * (steps + 1)
     });
     let header = MAGIC.len() as u64 + 4 + 4 + 8 + 8 + 4 + id.len() as u64 + 4 + stats;
-    header + 24 * nv + 12 * nt + errors + trace + CHECKSUM_LEN as u64
+    header + 24 * nv + 12 * nt + errors + field + trace + CHECKSUM_LEN as u64
 }
 
 /// Writes `result`, stored under `id`, to `out` and returns the bytes written.
@@ -94,7 +97,8 @@ pub fn write(result: &MeshResult, id: &str, out: impl Write) -> io::Result<u64> 
     let stats = serde_json::to_vec(&result.stats).map_err(io::Error::other)?;
     let mut w = Hashing { out, hash: Sha256::new(), written: 0 };
     let flags = if result.triangle_errors.is_some() { HAS_ERRORS } else { 0 }
-        | if result.trace.is_some() { HAS_TRACE } else { 0 };
+        | if result.trace.is_some() { HAS_TRACE } else { 0 }
+        | if result.magnetic_field.is_some() { HAS_FIELD } else { 0 };
     w.write_all(MAGIC)?;
     w.write_all(&VERSION.to_le_bytes())?;
     w.write_all(&flags.to_le_bytes())?;
@@ -126,6 +130,12 @@ pub fn write(result: &MeshResult, id: &str, out: impl Write) -> io::Result<u64> 
     }
     for e in result.triangle_errors.iter().flatten() {
         buf.extend_from_slice(&e.to_le_bytes());
+        flush(&mut w, &mut buf, false)?;
+    }
+    for h in result.magnetic_field.iter().flatten() {
+        for c in h {
+            buf.extend_from_slice(&c.to_le_bytes());
+        }
         flush(&mut w, &mut buf, false)?;
     }
     if let Some(trace) = &result.trace {
@@ -284,8 +294,9 @@ pub fn read(bytes: &[u8], id: &str) -> Result<MeshResult, CompactError> {
     }
     let stats = r.u32().and_then(|n| r.take(n as usize))?;
     let stats = serde_json::from_slice(stats).map_err(|e| CompactError::Stats(e.to_string()))?;
-    let has_errors = flags & HAS_ERRORS != 0;
-    let expected = u128::from(nv) * 24 + u128::from(nt) * (12 + if has_errors { 8 } else { 0 });
+    let (has_errors, has_field) = (flags & HAS_ERRORS != 0, flags & HAS_FIELD != 0);
+    let per_triangle = 12 + if has_errors { 8 } else { 0 } + if has_field { 24 } else { 0 };
+    let expected = u128::from(nv) * 24 + u128::from(nt) * per_triangle;
     let fits = match flags & HAS_TRACE {
         0 => expected == r.0.len() as u128,
         _ => expected <= r.0.len() as u128,
@@ -314,11 +325,15 @@ pub fn read(bytes: &[u8], id: &str) -> Result<MeshResult, CompactError> {
         true => Some(r.take(8 * nt)?.chunks_exact(8).map(|c| f64_at(c, 0)).collect()),
         false => None,
     };
+    let magnetic_field = match has_field {
+        true => Some(r.take(24 * nt)?.chunks_exact(24).map(|c| [0, 8, 16].map(|k| f64_at(c, k))).collect()),
+        false => None,
+    };
     let trace = match flags & HAS_TRACE {
         0 => None,
         _ => Some(Arc::new(read_trace(&mut r)?)),
     };
-    Ok(MeshResult { vertices, triangles, triangle_errors, stats, trace })
+    Ok(MeshResult { vertices, triangles, triangle_errors, stats, trace, magnetic_field })
 }
 
 #[cfg(test)]
@@ -335,6 +350,19 @@ mod tests {
         assert_eq!(n, out.len() as u64);
         assert_eq!(size(result, ID), n, "size() foretells what write() writes");
         out
+    }
+
+    #[test]
+    fn a_magnetic_field_reads_back_equal_and_a_cut_one_is_refused() {
+        let mut result = sample(300, Criterion::Error);
+        let n = result.triangles.len();
+        result.magnetic_field = Some((0..n).map(|t| [t as f64, -(t as f64), 1000.0]).collect());
+        let data = bytes(&result);
+        assert_eq!(read(&data, ID).unwrap(), result);
+        // Without the field's last triangle, the lengths no longer agree.
+        let mut short = data[..data.len() - CHECKSUM_LEN - 24].to_vec();
+        short.extend_from_slice(&Sha256::digest(&short));
+        assert!(matches!(read(&short, ID), Err(CompactError::Length(_))));
     }
 
     #[test]

@@ -11,7 +11,7 @@ pub mod locate;
 use crate::geom::Vertex;
 use crate::refine::trace::Trace;
 use crate::refine::{Refinement, Stats, StopReason};
-use crate::solve::{Adapted, Element, Physics, SolveStats};
+use crate::solve::{Adapted, Element, MU_0, Physics, SolveStats};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
@@ -30,6 +30,9 @@ pub struct MeshResult {
     /// What each step of the run did, so that smaller requests are answered from it (none
     /// for a result that was itself replayed from another).
     pub trace: Option<Arc<Trace>>,
+    /// A magnetostatic solution's field strength and permeability per triangle: [Hx, Hy, μr]
+    /// (A/m; μr = 1/(μ0 ν), the secant permeability B/(μ0 H) on a B–H curve).
+    pub magnetic_field: Option<Vec<[f64; 3]>>,
 }
 
 impl From<Refinement> for MeshResult {
@@ -40,6 +43,7 @@ impl From<Refinement> for MeshResult {
             triangle_errors: r.triangle_errors,
             stats: Summary::Mesh(r.stats),
             trace: None,
+            magnetic_field: None,
         }
     }
 }
@@ -91,6 +95,9 @@ impl MeshResult {
             triangle_errors: adapted.indicators,
             stats: Summary::Solution(SolutionStats { physics, run: adapted.stats }),
             trace: None,
+            // H = (q_y, −q_x) from the flux q the weak form tests.
+            magnetic_field: (physics == Physics::Magnetostatic)
+                .then(|| adapted.fields.iter().map(|&[qx, qy, k]| [qy, -qx, 1.0 / (MU_0 * k)]).collect()),
         }
     }
 
@@ -117,6 +124,7 @@ impl MeshResult {
             + self.vertices.len() * size_of::<Vertex>()
             + self.triangles.len() * size_of::<[u32; 3]>()
             + errors * size_of::<f64>()
+            + self.magnetic_field.as_ref().map_or(0, |h| h.len() * size_of::<[f64; 3]>())
             + self.trace.as_ref().map_or(0, |t| t.num_bytes())
     }
 

@@ -143,6 +143,9 @@ pub struct Adapted {
     pub indicators: Option<Vec<f64>>,
     /// What happened.
     pub stats: SolveStats,
+    /// Per triangle of the final mesh: the flux q = k∇u + (s_y, −s_x) that the weak form tests
+    /// (H rotated by −90° in magnetostatics: H = (q_y, −q_x)) and k there (ν(|B|) on a curve).
+    pub fields: Vec<[f64; 3]>,
     /// Time from the start to the end of each solve, in step order: the one thing that
     /// differs between identical runs, so kept out of the stats.
     pub times: Vec<Duration>,
@@ -323,23 +326,24 @@ impl Finish<'_, '_> {
             stop,
             delaunay: mesh.is_delaunay(),
             constrained_edges: mesh.num_constrained(),
-            regions: region_stats(self.problem, &mesh, residual, indicator),
+            regions: Vec::new(),
             history: self.history,
         };
-        Adapted { mesh, indicators, stats, times: self.times }
+        let mut adapted = Adapted { mesh, indicators, stats, fields: Vec::new(), times: self.times };
+        measure_fields(self.problem, &mut adapted, residual, indicator);
+        adapted
     }
 }
 
-/// Each region's figures on the final mesh, from the values it carries.
-fn region_stats(
+/// Each triangle's flux and coefficient, and each region's figures, on the final mesh from
+/// the values it carries.
+fn measure_fields(
     problem: &Problem<'_>,
-    mesh: &Mesh,
+    adapted: &mut Adapted,
     residual: &Residual<'_, '_>,
     indicator: Indicator,
-) -> Vec<RegionStats> {
-    if problem.regions().is_empty() {
-        return Vec::new();
-    }
+) {
+    let mesh = &adapted.mesh;
     let points: Vec<_> = mesh.vertices().iter().map(|v| v.point()).collect();
     let u: Vec<f64> = mesh.vertices().iter().map(|v| v.z).collect();
     let triangles: Vec<[u32; 3]> = mesh.triangles().collect();
@@ -357,7 +361,13 @@ fn region_stats(
         Indicator::Residual => residual.coefficients(),
         Indicator::Variation => &measured,
     };
-    regions::measure(problem, &points, &u, &triangles, &gradients, coefficients)
+    adapted.fields = (gradients.iter().zip(coefficients))
+        .map(|(&g, c)| {
+            let q = c.flux(problem, g);
+            [q[0], q[1], c.nu(problem, g[0].hypot(g[1])).0]
+        })
+        .collect();
+    adapted.stats.regions = regions::measure(problem, &points, &u, &triangles, &gradients, coefficients);
 }
 
 /// The engine's parameters for one round.

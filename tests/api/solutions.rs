@@ -107,8 +107,21 @@ async fn a_job_that_names_physics_is_a_solution_with_its_flux_density_in_every_f
 
     let vtu = app.get(&format!("/v1/jobs/{id}/mesh?format=vtu")).await.text().await.unwrap();
     assert!(vtu.contains("Name=\"B\" NumberOfComponents=\"3\""), "VTU carries B");
+    assert!(
+        vtu.contains("Name=\"H\" NumberOfComponents=\"3\"") && vtu.contains("Name=\"mu_r\""),
+        "VTU carries H, μr"
+    );
     let msh = app.get(&format!("/v1/jobs/{id}/mesh?format=msh")).await.text().await.unwrap();
     assert!(msh.contains("$ElementData\n1\n\"B\"\n1\n0\n3\n0\n3\n"), "MSH carries B");
+    assert!(msh.contains("$ElementData\n1\n\"H\"\n1\n0\n3\n0\n3\n"), "MSH carries H");
+    // μr per element: the iron block's 1000 and the air's (and the conductor's) 1.
+    let view = &msh[msh.find("\"mu_r\"").unwrap()..];
+    let rows = view.lines().skip(7).take_while(|l| !l.starts_with('$'));
+    let mut mu: Vec<f64> = rows.map(|l| l.split(' ').nth(1).unwrap().parse().unwrap()).collect();
+    mu.sort_by(f64::total_cmp);
+    mu.dedup_by(|a, b| (*a - *b).abs() < 1e-9 * b.abs());
+    assert_eq!(mu.len(), 2, "{mu:?}");
+    assert!((mu[0] - 1.0).abs() < 1e-12 && (mu[1] - 1000.0).abs() < 1e-9, "{mu:?}");
     app.shutdown().await;
 }
 

@@ -180,6 +180,14 @@ fn a_magnet_slab_has_the_flux_density_of_its_one_dimensional_solution() {
     // Energy ½ ν |B − Br|², Br = μ0 M in the magnet: |B − Br| = 0.2 μ0 M0 everywhere.
     let expected = 0.5 / MU_0 * (0.2 * MU_0 * m0).powi(2);
     assert!((a.stats.energy - expected).abs() < 1e-9 * expected, "{} against {expected}", a.stats.energy);
+    // H = −0.2 M0 x̂ on every triangle, magnet or air; μr = 1 in both.
+    let result = crate::result::MeshResult::solution(a.clone(), crate::solve::Physics::Magnetostatic);
+    for &[hx, hy, mu_r] in result.magnetic_field.as_ref().unwrap() {
+        assert!(
+            (hx + 0.2 * m0).abs() < 1e-6 * m0 && hy.abs() < 1e-6 * m0 && (mu_r - 1.0).abs() < 1e-12,
+            "{hx} {hy} {mu_r}"
+        );
+    }
     // Coenergy ∫ B·H − energy: H = −0.2 M0 everywhere, B·H = −0.2 M0 B.
     let b_dot_h = -0.2 * m0 * (0.8 * (-0.2) + 0.2 * 0.8) * MU_0 * m0;
     assert!((a.stats.coenergy - (b_dot_h - expected)).abs() < 1e-9 * expected, "{}", a.stats.coenergy);
