@@ -113,7 +113,8 @@ fn solution_fields(h: &mut Sha256, spec: &SolveSpec, field: fn(&mut Sha256, &str
             Shape::Rect(rect) => {
                 [&[0u8][..], &[rect.x0(), rect.x1(), rect.y0(), rect.y1()].map(bits).concat()].concat()
             }
-            Shape::Polygon(points) => {
+            Shape::Polygon(polygon) => {
+                let points = polygon.corners();
                 let corners = points.iter().flat_map(|p| [bits(p.x), bits(p.y)]).collect::<Vec<_>>().concat();
                 [&[1u8][..], &(points.len() as u64).to_le_bytes(), &corners].concat()
             }

@@ -102,6 +102,9 @@ fn finite(field: &str, v: f64) -> Result<f64, SpecError> {
 /// A B–H table as the request gave it: [H, B] pairs.
 pub type BhTable = Vec<[f64; 2]>;
 
+/// The most regions a problem may have: every quadrature point looks through them.
+pub const MAX_REGIONS: usize = 100;
+
 /// The most corners a polygon may have: simplicity is checked pair by pair.
 pub const MAX_POLYGON_POINTS: usize = 1000;
 
@@ -151,7 +154,7 @@ fn shape(i: usize, r: &RegionInput, domain: Rect) -> Result<Shape, SpecError> {
             if let Some((k, problem)) = polygon_fault(&corners) {
                 return Err(invalid(at(k), problem));
             }
-            Ok(Shape::Polygon(corners))
+            Ok(Shape::polygon(corners))
         }
         _ => Err(invalid(
             here,
@@ -358,6 +361,12 @@ impl SolveSpec {
             Some(e) => Some(coefficient("exact", Some(e), 0.0, limits)?),
         };
         let boundary = boundary(request.boundary)?;
+        if request.regions.len() > MAX_REGIONS {
+            return Err(invalid(
+                "regions",
+                format!("{} regions, more than {MAX_REGIONS}", request.regions.len()),
+            ));
+        }
         let (regions, tables) = (request.regions.into_iter().enumerate())
             .map(|(i, r)| region(i, r, domain, physics))
             .collect::<Result<(Vec<_>, Vec<_>), _>>()?;

@@ -104,8 +104,8 @@ pub struct SolveStats {
     pub solves: usize,
     /// The estimate on the final mesh.
     pub estimate: f64,
-    /// ½ ∫ k |∇u_h|² on the final mesh (J/m for magnetostatics); ∫ ∫₀ᴮ H·dB for nonlinear
-    /// and magnet regions.
+    /// ½ ∫ k |∇u_h|² on the final mesh (J/m for magnetostatics); on a curve or in a magnet,
+    /// ∫ H·dB along the material's law from where H = 0.
     pub energy: f64,
     /// ∫ B·H minus the energy: the coenergy (J/m), whose derivative is the force at
     /// constant current.
@@ -204,7 +204,7 @@ pub fn adapt<O: Observer>(
         let converged = solution.newton.as_ref().is_none_or(|n| n.converged);
         if !converged && !run.history.is_empty() {
             // The mesh keeps the last converged solution, interpolated.
-            return Ok(run.finish(mesh, &residual, settings.indicator, StopReason::NotConverged));
+            return run.finish(mesh, &residual, settings.indicator, StopReason::NotConverged);
         }
         mesh.set_values(&solution.u);
         let estimate = match settings.indicator {
@@ -254,7 +254,7 @@ pub fn adapt<O: Observer>(
             .or_else(|| (n >= settings.max_vertices).then_some(StopReason::MaxVertices))
             .or_else(|| (remaining == Some(Duration::ZERO)).then_some(StopReason::TimeLimit));
         if let Some(stop) = stop {
-            return Ok(run.finish(mesh, &residual, settings.indicator, stop));
+            return run.finish(mesh, &residual, settings.indicator, stop);
         }
         let target = ((n as f64 * settings.growth).ceil() as usize).clamp(n + 1, settings.max_vertices);
         let criterion = match settings.indicator {
@@ -268,9 +268,9 @@ pub fn adapt<O: Observer>(
         match round.stop {
             StopReason::MaxVertices => {}
             // Nothing to solve again: the mesh is the one just solved, or the job is over.
-            StopReason::Cancelled => return Ok(run.finish(mesh, &residual, settings.indicator, round.stop)),
+            StopReason::Cancelled => return run.finish(mesh, &residual, settings.indicator, round.stop),
             StopReason::Exhausted if mesh.num_vertices() == n => {
-                return Ok(run.finish(mesh, &residual, settings.indicator, round.stop));
+                return run.finish(mesh, &residual, settings.indicator, round.stop);
             }
             // Solve what the round made, then stop.
             other => pending = Some(other),
@@ -305,7 +305,7 @@ impl Finish<'_, '_> {
         residual: &Residual<'_, '_>,
         indicator: Indicator,
         stop: StopReason,
-    ) -> Adapted {
+    ) -> Result<Adapted, SolveError> {
         let last = *self.history.last().expect("the loop solves before it stops");
         let indicators = match indicator {
             Indicator::Variation => None,
@@ -330,19 +330,23 @@ impl Finish<'_, '_> {
             history: self.history,
         };
         let mut adapted = Adapted { mesh, indicators, stats, fields: Vec::new(), times: self.times };
-        measure_fields(self.problem, &mut adapted, residual, indicator);
-        adapted
+        measure_fields(self.problem, &mut adapted, residual, indicator)?;
+        Ok(adapted)
     }
 }
 
 /// Each triangle's flux and coefficient, and each region's figures, on the final mesh from
 /// the values it carries.
+///
+/// # Errors
+/// A triangle the last round added but no solve sampled (a cancelled or stopped round) whose
+/// k or f is invalid: [`Coefficients::of`]'s error.
 fn measure_fields(
     problem: &Problem<'_>,
     adapted: &mut Adapted,
     residual: &Residual<'_, '_>,
     indicator: Indicator,
-) {
+) -> Result<(), SolveError> {
     let mesh = &adapted.mesh;
     let points: Vec<_> = mesh.vertices().iter().map(|v| v.point()).collect();
     let u: Vec<f64> = mesh.vertices().iter().map(|v| v.z).collect();
@@ -350,11 +354,10 @@ fn measure_fields(
     let mut gradients = Vec::with_capacity(triangles.len());
     let mut measured = Vec::new();
     for (t, &tri) in triangles.iter().enumerate() {
-        // Every triangle was solved on, so each is counter-clockwise with positive area.
-        let e = Element::new(&points, tri, t).expect("a solved mesh's triangle");
+        let e = Element::new(&points, tri, t)?;
         gradients.push(e.gradient(tri.map(|v| u[v as usize])));
         if indicator == Indicator::Variation {
-            measured.push(Coefficients::of(problem, &e, t).expect("k and f were checked by the solve"));
+            measured.push(Coefficients::of(problem, &e, t)?);
         }
     }
     let coefficients = match indicator {
@@ -368,6 +371,7 @@ fn measure_fields(
         })
         .collect();
     adapted.stats.regions = regions::measure(problem, &points, &u, &triangles, &gradients, coefficients);
+    Ok(())
 }
 
 /// The engine's parameters for one round.

@@ -59,7 +59,7 @@ mod tests;
 pub use adapt::{Adapted, Exact, INITIAL_VERTICES, Indicator, Settings, SolveStats, Step, adapt};
 pub use bh::{BhCurve, Curve, CurveError};
 pub use nonlinear::{MAX_NEWTON_ITERATIONS, NEWTON_TOLERANCE, Newton};
-pub use problem::{Boundary, Problem, Region, Shape, Side};
+pub use problem::{Boundary, Polygon, Problem, Region, Shape, Side};
 pub use regions::RegionStats;
 
 use crate::geom::predicates::signed_area_x2;

@@ -13,18 +13,62 @@ pub(crate) type Field<'a> = Box<dyn Fn(f64, f64) -> f64 + 'a>;
 pub enum Shape {
     /// An axis-aligned rectangle.
     Rect(Rect),
-    /// A simple polygon's corners, in either orientation, without repeating the first.
-    Polygon(Vec<Point>),
+    /// A simple polygon.
+    Polygon(Polygon),
+}
+
+/// A simple polygon's corners, in either orientation, without repeating the first, and the
+/// box around them, which spares most points the walk around the sides.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Polygon {
+    corners: Vec<Point>,
+    /// The smallest x and y of the corners.
+    lo: Point,
+    /// The largest.
+    hi: Point,
+}
+
+impl Polygon {
+    /// The polygon of `corners` (at least three).
+    pub fn new(corners: Vec<Point>) -> Self {
+        let fold = |f: fn(f64, f64) -> f64, start: f64| {
+            let x = corners.iter().map(|p| p.x).fold(start, f);
+            let y = corners.iter().map(|p| p.y).fold(start, f);
+            Point::new(x, y)
+        };
+        let (lo, hi) = (fold(f64::min, f64::INFINITY), fold(f64::max, f64::NEG_INFINITY));
+        Self { corners, lo, hi }
+    }
+
+    /// The corners.
+    pub fn corners(&self) -> &[Point] {
+        &self.corners
+    }
 }
 
 impl Shape {
+    /// A polygon of `corners`.
+    pub fn polygon(corners: Vec<Point>) -> Self {
+        Shape::Polygon(Polygon::new(corners))
+    }
+
+    /// Whether `p` is within `margin` of the box around the shape: no point outside is in it.
+    fn near(&self, p: Point, margin: f64) -> bool {
+        let (lo, hi) = match self {
+            Shape::Rect(r) => (Point::new(r.x0(), r.y0()), Point::new(r.x1(), r.y1())),
+            Shape::Polygon(polygon) => (polygon.lo, polygon.hi),
+        };
+        lo.x - margin <= p.x && p.x <= hi.x + margin && lo.y - margin <= p.y && p.y <= hi.y + margin
+    }
+
     /// Whether `p` lies in the closed shape. A polygon's test is plain floating point, so a
     /// point within rounding of a slanted side may fall either way: callers ask at points well
     /// inside their triangles, or through [`Shape::holds`].
     pub fn contains(&self, p: Point) -> bool {
         match self {
             Shape::Rect(r) => r.x0() <= p.x && p.x <= r.x1() && r.y0() <= p.y && p.y <= r.y1(),
-            Shape::Polygon(corners) => {
+            Shape::Polygon(_) if !self.near(p, 0.0) => false,
+            Shape::Polygon(Polygon { corners, .. }) => {
                 // Crossings of a ray to +x (W. R. Franklin's PNPOLY), then the sides themselves.
                 let mut inside = false;
                 let mut j = corners.len() - 1;
@@ -43,17 +87,21 @@ impl Shape {
     /// Whether `p` lies in the shape or within `tolerance` of its outline: a mesh vertex that
     /// a split of a slanted side rounded a hair off it still counts as on it.
     pub fn holds(&self, p: Point, tolerance: f64) -> bool {
-        self.contains(p)
-            || self.sides().any(|[a, b]| distance_sq_to_segment(p, a, b) <= tolerance * tolerance)
+        self.near(p, tolerance)
+            && (self.contains(p)
+                || self.sides().any(|[a, b]| distance_sq_to_segment(p, a, b) <= tolerance * tolerance))
     }
 
     /// The sides, each from one corner to the next.
     pub fn sides(&self) -> impl Iterator<Item = [Point; 2]> + '_ {
-        let corners: Vec<Point> = match self {
-            Shape::Rect(r) => r.corners().to_vec(),
-            Shape::Polygon(c) => c.clone(),
+        let rect = self.rect().map(|r| r.corners());
+        let corners: &[Point] = match self {
+            Shape::Rect(_) => &[],
+            Shape::Polygon(polygon) => &polygon.corners,
         };
-        (0..corners.len()).map(move |i| [corners[i], corners[(i + 1) % corners.len()]])
+        let n = if rect.is_some() { 4 } else { corners.len() };
+        let at = move |k: usize| rect.map_or_else(|| corners[k % n], |c| c[k % n]);
+        (0..n).map(move |i| [at(i), at(i + 1)])
     }
 
     /// The area enclosed.

@@ -51,9 +51,13 @@ pub(crate) fn measure(
             let (mut inside, mut integral) = (0.0, 0.0);
             let (mut force, mut torque) = ([0.0; 2], 0.0);
             for (t, &tri) in triangles.iter().enumerate() {
-                let Ok(e) = Element::new(points, tri, t) else { continue };
                 let weights = tri.map(|v| weight[v as usize]);
                 let sum = weights[0] + weights[1] + weights[2];
+                // Neither inside (every corner in) nor on the ring (some corner in).
+                if sum == 0.0 {
+                    continue;
+                }
+                let Ok(e) = Element::new(points, tri, t) else { continue };
                 let centre = e.point(&[1.0 / 3.0; 3]);
                 if sum == 3.0 && region.contains(centre) {
                     inside += e.area();

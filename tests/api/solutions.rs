@@ -269,6 +269,11 @@ async fn bad_materials_shapes_and_sides_are_422_naming_the_entry() {
     assert!(p["detail"].as_str().unwrap().contains("left and right"), "{p}");
 
     let mut body = device(100);
+    body["regions"] = json!(vec![json!({"x": [0.01, 0.02], "y": [0.01, 0.02], "mu_r": 2}); 101]);
+    let p = refused(&app, body).await;
+    assert_eq!(p["field"], "/regions", "{p}");
+
+    let mut body = device(100);
     body["boundary"]["left"] = json!("robin");
     let p = refused(&app, body).await;
     assert_eq!(p["field"], "/boundary/left", "{p}");
