@@ -57,6 +57,12 @@ pub enum ConstrainedError {
         /// Ordinate.
         y: f64,
     },
+    /// The sides and their crossings alone need more vertices than the budget.
+    #[error("the regions' sides and their crossings need more than {budget} vertices, the vertex budget")]
+    Budget {
+        /// The vertex budget.
+        budget: usize,
+    },
     /// The triangulation spade made does not make a valid mesh (a bug, or sides so close
     /// together that their crossings round onto one another).
     #[error("the regions' sides do not make a valid triangulation: {0}")]
@@ -66,13 +72,14 @@ pub enum ConstrainedError {
 impl Mesh {
     /// The constrained Delaunay triangulation of `rect` with every segment of `sides` made of
     /// its edges; where sides cross, spade inserts the crossing (rounded to f64). Vertices 0..3
-    /// are the rectangle's corners, as in [`Mesh::new`]; every vertex's z is 0. Room is made
-    /// for `capacity` vertices.
+    /// are the rectangle's corners, as in [`Mesh::new`]; every vertex's z is 0. At most
+    /// `budget` vertices, and room for that many.
     ///
     /// # Errors
-    /// [`ConstrainedError`] for a point outside the rectangle, or a triangulation that fails
-    /// [`Mesh::check_invariants`].
-    pub fn constrained(rect: Rect, sides: &[[Point; 2]], capacity: usize) -> Result<Self, ConstrainedError> {
+    /// [`ConstrainedError`] for a point outside the rectangle, sides that need more than
+    /// `budget` vertices (checked side by side, so a tangle of crossings stops early), or a
+    /// triangulation that fails [`Mesh::check_invariants`].
+    pub fn constrained(rect: Rect, sides: &[[Point; 2]], budget: usize) -> Result<Self, ConstrainedError> {
         let mut cdt = ConstrainedDelaunayTriangulation::<Point2<f64>>::new();
         let mut insert = |p: Point| {
             let inside = rect.x0() <= p.x && p.x <= rect.x1() && rect.y0() <= p.y && p.y <= rect.y1();
@@ -89,9 +96,15 @@ impl Mesh {
             ends.push((insert(a)?, insert(b)?));
         }
         for (a, b) in ends {
+            if cdt.num_vertices() > budget {
+                return Err(ConstrainedError::Budget { budget });
+            }
             if a != b {
                 cdt.add_constraint_and_split(a, b, |p| p);
             }
+        }
+        if cdt.num_vertices() > budget {
+            return Err(ConstrainedError::Budget { budget });
         }
         let vertices: Vec<Vertex> =
             cdt.vertices().map(|v| Vertex { x: v.position().x, y: v.position().y, z: 0.0 }).collect();
@@ -104,7 +117,7 @@ impl Mesh {
             .filter(|e| e.is_constraint_edge())
             .map(|e| e.vertices().map(|v| v.fix().index() as u32))
             .collect();
-        Self::from_triangles(rect, vertices, &triangles, &constraints, capacity)
+        Self::from_triangles(rect, vertices, &triangles, &constraints, budget)
             .map_err(|e| ConstrainedError::Invalid(e.to_string()))
     }
 
@@ -228,7 +241,7 @@ mod tests {
     fn crossing_sides_are_split_where_they_cross() {
         let mut sides = square(0.1, 0.5, 0.1, 0.5);
         sides.extend(square(0.3, 0.7, 0.3, 0.7));
-        let mesh = Mesh::constrained(Rect::unit(), &sides, 0).unwrap();
+        let mesh = Mesh::constrained(Rect::unit(), &sides, 100).unwrap();
         // 4 corners, 8 region corners, 2 crossings.
         assert_eq!(mesh.num_vertices(), 14);
         assert!(mesh.find_edge(0, 1).is_some());
@@ -236,9 +249,26 @@ mod tests {
     }
 
     #[test]
+    fn sides_that_need_more_vertices_than_the_budget_are_refused() {
+        let mut sides = square(0.1, 0.5, 0.1, 0.5);
+        sides.extend(square(0.3, 0.7, 0.3, 0.7));
+        // 14 vertices with the crossings: 13 is one short, whether the crossings or the
+        // corners tip it.
+        assert_eq!(
+            Mesh::constrained(Rect::unit(), &sides, 13).unwrap_err(),
+            ConstrainedError::Budget { budget: 13 }
+        );
+        assert_eq!(
+            Mesh::constrained(Rect::unit(), &sides, 11).unwrap_err(),
+            ConstrainedError::Budget { budget: 11 }
+        );
+        assert_eq!(Mesh::constrained(Rect::unit(), &sides, 14).unwrap().num_vertices(), 14);
+    }
+
+    #[test]
     fn a_point_outside_the_rectangle_is_refused() {
         let sides = [[Point::new(0.5, 0.5), Point::new(1.5, 0.5)]];
-        let err = Mesh::constrained(Rect::unit(), &sides, 0).unwrap_err();
+        let err = Mesh::constrained(Rect::unit(), &sides, 100).unwrap_err();
         assert_eq!(err, ConstrainedError::BadPoint { x: 1.5, y: 0.5 });
     }
 
@@ -256,7 +286,7 @@ mod tests {
                 Point::new(centre.0 + radii[i] * a.cos(), centre.1 + radii[i] * a.sin())
             }).collect();
             let sides: Vec<[Point; 2]> = (0..n).map(|i| [points[i], points[(i + 1) % n]]).collect();
-            let mesh = Mesh::constrained(Rect::unit(), &sides, 0).unwrap();
+            let mesh = Mesh::constrained(Rect::unit(), &sides, 100).unwrap();
             prop_assert_eq!(mesh.num_vertices(), 4 + n);
             prop_assert_eq!(mesh.num_constrained(), n);
             prop_assert!(mesh.is_delaunay());

@@ -105,6 +105,10 @@ pub type BhTable = Vec<[f64; 2]>;
 /// The most regions a problem may have: every quadrature point looks through them.
 pub const MAX_REGIONS: usize = 100;
 
+/// The most corners all regions may have together (a rectangle has 4): the first mesh holds
+/// them all, and every region side is a constraint.
+pub const MAX_CORNERS: usize = 10_000;
+
 /// The most corners a polygon may have: simplicity is checked pair by pair.
 pub const MAX_POLYGON_POINTS: usize = 1000;
 
@@ -278,8 +282,10 @@ fn region(
                 None => region.k = Some(1.0 / (MU_0 * mu_r)),
             }
             if let Some([mx, my]) = r.magnetization {
-                let (mx, my) = (finite(&at("magnetization[0]"), mx)?, finite(&at("magnetization[1]"), my)?);
-                region.source = Some([mx / mu_r, my / mu_r]);
+                // M/μr must stay finite too: μr = 1e-10 under M = 1e300 would not.
+                let sx = finite(&at("magnetization[0]"), mx / mu_r)?;
+                let sy = finite(&at("magnetization[1]"), my / mu_r)?;
+                region.source = Some([sx, sy]);
             } else {
                 region.source = Some([0.0; 2]);
             }
@@ -366,6 +372,10 @@ impl SolveSpec {
                 "regions",
                 format!("{} regions, more than {MAX_REGIONS}", request.regions.len()),
             ));
+        }
+        let corners: usize = request.regions.iter().map(|r| r.polygon.as_ref().map_or(4, Vec::len)).sum();
+        if corners > MAX_CORNERS {
+            return Err(invalid("regions", format!("{corners} corners in all, more than {MAX_CORNERS}")));
         }
         let (regions, tables) = (request.regions.into_iter().enumerate())
             .map(|(i, r)| region(i, r, domain, physics))

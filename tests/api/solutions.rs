@@ -206,6 +206,9 @@ async fn a_device_with_a_polygon_coil_nonlinear_iron_a_magnet_and_neumann_sides_
     assert!((coil["area"].as_f64().unwrap() - 8e-4).abs() < 1e-15);
     assert!((coil["current"].as_f64().unwrap() - 1600.0).abs() < 1e-9);
     assert!(regions.iter().all(|r| r["force"].as_array().unwrap().len() == 2 && r["torque"].is_f64()));
+    // Iron attracts both the coil on its left and the magnet on its right.
+    let fx = |i: usize| regions[i]["force"][0].as_f64().unwrap();
+    assert!(fx(0) > 0.0 && fx(2) < 0.0, "coil {} magnet {}", fx(0), fx(2));
     assert!(stats["coenergy"].is_f64() && stats["energy"].as_f64().unwrap() > 0.0, "{stats}");
     // A = 0 on the Dirichlet sides; free on the Neumann ones.
     let vertices = doc["vertices"].as_array().unwrap();
@@ -248,7 +251,7 @@ async fn bad_materials_shapes_and_sides_are_422_naming_the_entry() {
     let mut body = device(100);
     body["regions"][0]["polygon"] = json!([[0.03, 0.03], [0.07, 0.07], [0.07, 0.03], [0.03, 0.07]]);
     let p = refused(&app, body).await;
-    assert_eq!(p["field"], "/regions/0/polygon/2", "a bow tie's second side crosses its fourth: {p}");
+    assert_eq!(p["field"], "/regions/0/polygon/2", "a bow tie's first side crosses its third: {p}");
 
     let mut body = device(100);
     body["regions"][0]["polygon"] = json!([[0.03, 0.03], [0.3, 0.03], [0.05, 0.07]]);
@@ -272,6 +275,16 @@ async fn bad_materials_shapes_and_sides_are_422_naming_the_entry() {
     body["regions"] = json!(vec![json!({"x": [0.01, 0.02], "y": [0.01, 0.02], "mu_r": 2}); 101]);
     let p = refused(&app, body).await;
     assert_eq!(p["field"], "/regions", "{p}");
+
+    // The outlines alone are more vertices than the budget.
+    let p = refused(&app, device(8)).await;
+    assert_eq!(p["field"], "/regions", "{p}");
+    assert!(p["detail"].as_str().unwrap().contains("vertex budget"), "{p}");
+
+    let mut body = device(100);
+    body["regions"][2]["mu_r"] = json!(1e-10);
+    body["regions"][2]["magnetization"] = json!([1e300, 0]);
+    assert_eq!(refused(&app, body).await["field"], "/regions/2/magnetization/0");
 
     let mut body = device(100);
     body["boundary"]["left"] = json!("robin");
