@@ -6,8 +6,9 @@
 //! for values and `geom` for topology, `result` holds the finished mesh as data, and `output`
 //! encodes it in the format a client asks for.
 //!
-//! - [`geom`]: points, the rectangle, the half-edge mesh, edge splits and flips, exact
-//!   predicates (`robust`) and invariant checks. Depends on nothing else in the crate.
+//! - [`geom`]: points, the rectangle, the half-edge mesh, edge splits and flips, constrained
+//!   edges (regions' sides, the first mesh from `spade`), exact predicates (`robust`) and
+//!   invariant checks. Depends on nothing else in the crate.
 //! - [`source`]: the [`Surface`](source::Surface) trait and its two sources, a `meval`
 //!   expression compiled once and a sampled grid with bilinear interpolation, and
 //!   [`decode_grid`](source::decode_grid), which reads a grid from .npy, PNG, TIFF/GeoTIFF,
@@ -18,8 +19,9 @@
 //! - [`result`]: a finished mesh as data (arrays, per-triangle errors, stats, trace), its
 //!   checksummed binary form, and point location for F_n at any point.
 //! - [`solve`]: P1 finite elements on a mesh's vertices and triangles: −∇·(k ∇u) = f with
-//!   u = g on the rectangle's boundary, a sparse Cholesky solve, and error norms against an
-//!   exact solution. Depends on `geom`.
+//!   Dirichlet, Neumann and periodic sides, regions that are rectangles or polygons, B–H
+//!   curves solved by Newton, magnets, region forces, a sparse Cholesky solve, error norms
+//!   against an exact solution, and the adaptive loop. Depends on `geom` and `refine`.
 //! - [`output`]: the formats (json, obj, ply, stl, vtu, msh, glb, svg, png), each streamed
 //!   from a result; shared by the command line and the API.
 //! - [`jobs`]: validated, hashed job specs, the job record, the registry with its bounded
