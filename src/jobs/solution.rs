@@ -5,7 +5,8 @@ use crate::api::{BoundaryInput, Coefficient, RegionInput, SolveRequest};
 use crate::geom::{Point, Rect};
 use crate::refine::Observer;
 use crate::solve::{
-    Adapted, BhCurve, Boundary, Exact, MU_0, Physics, Problem, Region, Settings, Shape, SolveError, adapt,
+    Adapted, BhCurve, Boundary, Exact, MU_0, Physics, Polygon, Problem, Region, Settings, Shape, SolveError,
+    adapt,
 };
 use crate::source::Expression;
 use std::sync::Arc;
@@ -155,10 +156,11 @@ fn shape(i: usize, r: &RegionInput, domain: Rect) -> Result<Shape, SpecError> {
                 }
                 corners.push(p);
             }
-            if let Some((k, problem)) = polygon_fault(&corners) {
+            let polygon = Polygon::new(corners);
+            if let Some((k, problem)) = polygon_fault(&polygon) {
                 return Err(invalid(at(k), problem));
             }
-            Ok(Shape::polygon(corners))
+            Ok(Shape::Polygon(polygon))
         }
         _ => Err(invalid(
             here,
@@ -170,8 +172,9 @@ fn shape(i: usize, r: &RegionInput, domain: Rect) -> Result<Shape, SpecError> {
 /// The first corner at which `corners` stop making a simple polygon, and why: a repeated
 /// corner, a zero-length or backtracking side, or two sides that cross or touch. Decided by
 /// exact orientation tests.
-fn polygon_fault(corners: &[Point]) -> Option<(usize, &'static str)> {
+fn polygon_fault(polygon: &Polygon) -> Option<(usize, &'static str)> {
     use crate::geom::predicates::{Orientation, orientation};
+    let corners = polygon.corners();
     let n = corners.len();
     let side = |k: usize| (corners[k], corners[(k + 1) % n]);
     // Whether c lies on the closed segment a–b, given that the three are collinear.
@@ -207,8 +210,7 @@ fn polygon_fault(corners: &[Point]) -> Option<(usize, &'static str)> {
             }
         }
     }
-    let twice: f64 = (0..n).map(side).map(|(a, b)| a.x * b.y - b.x * a.y).sum();
-    (twice == 0.0).then_some((0, "encloses no area"))
+    (polygon.area() == 0.0).then_some((0, "encloses no area"))
 }
 
 /// Region `i`, inside `domain`, with k and f for `physics`, and its B–H table if it has one.
@@ -222,12 +224,13 @@ fn region(
     let shape = shape(i, &r, domain)?;
     let mut region = Region::new(shape);
     let mut table = None;
+    // Whether the region sets any of the magnetostatic fields.
+    let magnetic = [r.mu_r, r.current_density, r.current].iter().any(Option::is_some)
+        || r.bh.is_some()
+        || r.magnetization.is_some();
     match physics {
         Physics::Poisson => {
-            let magnetic = [r.mu_r.is_some(), r.current_density.is_some(), r.current.is_some()]
-                .into_iter()
-                .chain([r.bh.is_some(), r.magnetization.is_some()]);
-            if magnetic.into_iter().any(|given| given) {
+            if magnetic {
                 return Err(invalid(
                     format!("regions[{i}]"),
                     "mu_r, bh, magnetization, current_density and current are for physics magnetostatic; use k and f",
@@ -246,10 +249,7 @@ fn region(
                     "k and f are for physics poisson; use mu_r or bh, and current_density or current",
                 ));
             }
-            let given = [r.mu_r.is_some(), r.bh.is_some(), r.magnetization.is_some()]
-                .into_iter()
-                .chain([r.current_density.is_some(), r.current.is_some()]);
-            if !given.into_iter().any(|g| g) {
+            if !magnetic {
                 return Err(invalid(
                     format!("regions[{i}]"),
                     "a region must set at least one of mu_r, bh, magnetization, current_density and current",

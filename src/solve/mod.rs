@@ -328,18 +328,20 @@ impl Coefficients {
         Ok(c)
     }
 
+    /// The curve that replaces k on this triangle, if any.
+    fn law<'p>(&self, problem: &'p Problem<'_>) -> Option<&'p dyn Curve> {
+        self.curve.and_then(|r| problem.regions()[r as usize].curve.as_deref())
+    }
+
     /// ν and dH/dB on a triangle whose gradient has length `b`: its curve's, or k twice.
     pub(crate) fn nu(&self, problem: &Problem<'_>, b: f64) -> (f64, f64) {
-        match self.curve.and_then(|r| problem.regions()[r as usize].curve.as_ref()) {
-            Some(curve) => curve.nu(b),
-            None => (self.k, self.k),
-        }
+        self.law(problem).map_or((self.k, self.k), |curve| curve.nu(b))
     }
 
     /// The flux k ∇u − (−s_y, s_x) on a triangle of gradient `g` (H rotated, in
     /// magnetostatics): what the weak form tests, and whose normal part is continuous.
     pub(crate) fn flux(&self, problem: &Problem<'_>, g: [f64; 2]) -> [f64; 2] {
-        let nu = if self.curve.is_some() { self.nu(problem, g[0].hypot(g[1])).0 } else { self.k };
+        let nu = self.law(problem).map_or(self.k, |curve| curve.nu(g[0].hypot(g[1])).0);
         [nu * g[0] + self.source[1], nu * g[1] - self.source[0]]
     }
 
@@ -350,7 +352,7 @@ impl Coefficients {
         let b_sq = g[0] * g[0] + g[1] * g[1];
         // s·B with B = (∂u/∂y, −∂u/∂x).
         let s_dot_b = self.source[0] * g[1] - self.source[1] * g[0];
-        match self.curve.and_then(|r| problem.regions()[r as usize].curve.as_ref()) {
+        match self.law(problem) {
             Some(curve) => {
                 let b = b_sq.sqrt();
                 (curve.energy(b) - s_dot_b, b * curve.h(b).0 - s_dot_b)
@@ -436,6 +438,7 @@ pub(crate) fn solve_with<P: Position>(
         coefficients,
         unknown: &unknown,
         sign: &sign,
+        unknowns: masters.len(),
     };
     let newton = if problem.is_nonlinear() {
         if let Some(start) = start {
@@ -443,9 +446,9 @@ pub(crate) fn solve_with<P: Position>(
             let x: Vec<f64> = masters.iter().map(|&v| start[v]).collect();
             system.scatter(&x, &mut u, |_, x| x);
         }
-        Some(system.newton(n, &mut u)?)
+        Some(system.newton(&mut u)?)
     } else {
-        system.linear(n, &mut u)?;
+        system.linear(&mut u)?;
         None
     };
 
@@ -515,6 +518,8 @@ impl Numbering {
             }
             Ok((v, sign))
         };
+        // Partners take their master's unknown once every master has one.
+        let mut partners = Vec::new();
         for (v, vertex) in vertices.iter().enumerate() {
             let p = vertex.position();
             if problem.is_dirichlet(p) {
@@ -523,17 +528,19 @@ impl Numbering {
                     return Err(SolveError::NonFiniteG { x: p.x, y: p.y, value: g, vertex: v });
                 }
                 numbering.u[v] = g;
-            } else if master(v)?.0 == v {
-                numbering.unknown[v] = Some(numbering.masters.len());
-                numbering.masters.push(v);
+                continue;
+            }
+            match master(v)? {
+                (m, _) if m == v => {
+                    numbering.unknown[v] = Some(numbering.masters.len());
+                    numbering.masters.push(v);
+                }
+                (m, sign) => partners.push((v, m, sign)),
             }
         }
-        for (v, vertex) in vertices.iter().enumerate() {
-            let (m, sign) = master(v)?;
-            if m != v && !problem.is_dirichlet(vertex.position()) {
-                numbering.unknown[v] = numbering.unknown[m];
-                numbering.sign[v] = sign;
-            }
+        for (v, m, sign) in partners {
+            numbering.unknown[v] = numbering.unknown[m];
+            numbering.sign[v] = sign;
         }
         Ok(numbering)
     }

@@ -44,13 +44,15 @@ pub(super) struct System<'s, 'p> {
     pub unknown: &'s [Option<usize>],
     /// u at each vertex = sign · its unknown (−1 across an antiperiodic pair).
     pub sign: &'s [f64],
+    /// How many unknowns there are.
+    pub unknowns: usize,
 }
 
 impl System<'_, '_> {
     /// Solves the linear system for the unknowns of `u`, whose Dirichlet values are set.
-    pub fn linear(&self, n: usize, u: &mut [f64]) -> Result<(), SolveError> {
+    pub fn linear(&self, u: &mut [f64]) -> Result<(), SolveError> {
         let mut entries: Vec<(usize, usize, f64)> = Vec::with_capacity(6 * self.triangles.len());
-        let mut rhs = vec![0.0; n];
+        let mut rhs = vec![0.0; self.unknowns];
         for ((e, c), &tri) in self.elements.iter().zip(self.coefficients).zip(self.triangles) {
             for i in 0..3 {
                 let Some(row) = self.unknown[tri[i] as usize] else { continue };
@@ -72,16 +74,16 @@ impl System<'_, '_> {
                 }
             }
         }
-        let x = solve_spd(n, entries, rhs)?;
+        let x = solve_spd(self.unknowns, entries, rhs)?;
         self.scatter(&x, u, |_, x| x);
         Ok(())
     }
 
     /// Newton's method from `u` (Dirichlet values set, the unknowns a first guess), with a
     /// backtracking line search on ‖R‖₂.
-    pub fn newton(&self, n: usize, u: &mut [f64]) -> Result<Newton, SolveError> {
+    pub fn newton(&self, u: &mut [f64]) -> Result<Newton, SolveError> {
         let mut zero = u.to_vec();
-        self.scatter(&vec![0.0; n], &mut zero, |_, x| x);
+        self.scatter(&vec![0.0; self.unknowns], &mut zero, |_, x| x);
         let scale = norm(&self.residual(&zero, None));
         if scale == 0.0 {
             // No load, magnet or boundary value: u = 0 inside is the solution.
@@ -98,7 +100,7 @@ impl System<'_, '_> {
             for v in &mut r {
                 *v = -*v;
             }
-            let step = solve_spd(n, std::mem::take(&mut entries), std::mem::take(&mut r))?;
+            let step = solve_spd(self.unknowns, std::mem::take(&mut entries), std::mem::take(&mut r))?;
             // Armijo's rule on ‖R‖₂; past the last halving the step is taken if R stays finite.
             let mut alpha = 1.0;
             let mut halvings = 0;
@@ -140,8 +142,7 @@ impl System<'_, '_> {
     /// R(u) by unknown index and, when `jacobian` is given, the lower triangle of its
     /// Jacobian (column, row, value) written there.
     fn residual(&self, u: &[f64], mut jacobian: Option<&mut Vec<(usize, usize, f64)>>) -> Vec<f64> {
-        let n = self.unknown.iter().flatten().count();
-        let mut r = vec![0.0; n];
+        let mut r = vec![0.0; self.unknowns];
         if let Some(j) = jacobian.as_deref_mut() {
             j.clear();
         }

@@ -44,6 +44,16 @@ impl Polygon {
     pub fn corners(&self) -> &[Point] {
         &self.corners
     }
+
+    /// The area enclosed (the shoelace formula), whatever the orientation.
+    pub fn area(&self) -> f64 {
+        let n = self.corners.len();
+        let twice: f64 = (0..n)
+            .map(|i| (self.corners[i], self.corners[(i + 1) % n]))
+            .map(|(a, b)| a.x * b.y - b.x * a.y)
+            .sum();
+        0.5 * twice.abs()
+    }
 }
 
 impl Shape {
@@ -108,10 +118,7 @@ impl Shape {
     pub fn area(&self) -> f64 {
         match self {
             Shape::Rect(r) => r.area(),
-            Shape::Polygon(_) => {
-                let twice: f64 = self.sides().map(|[a, b]| a.x * b.y - b.x * a.y).sum();
-                0.5 * twice.abs()
-            }
+            Shape::Polygon(polygon) => polygon.area(),
         }
     }
 
