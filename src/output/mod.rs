@@ -7,6 +7,7 @@
 //! memory beyond the shared result, however slowly it reads.
 
 pub mod colour;
+mod contour;
 mod glb;
 pub mod json;
 mod msh;

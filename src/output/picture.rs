@@ -1,5 +1,8 @@
 //! What the two pictures (svg, png) share: where the plot, the colour bar and the text go,
-//! the text itself, each triangle's colour and which triangle draws which edge.
+//! the text itself, each triangle's colour, the field lines and which triangle draws which edge.
+//!
+//! A mesh, or a Poisson solution, is coloured by z. A magnetostatic solution is coloured by
+//! |B| per triangle, with the contours of A drawn over it as field lines, as FEMM draws one.
 //!
 //! ```text
 //!  ┌──────────────────────────────────────────┐
@@ -14,7 +17,7 @@
 //! ```
 //! Lengths are in picture units: pixels for png, view-box units for svg.
 
-use super::colour;
+use super::{colour, contour};
 use crate::result::{MeshResult, Summary};
 
 /// A rectangle on the picture, y downward.
@@ -77,9 +80,92 @@ pub(crate) struct Layout {
     pub line_width: f64,
     /// x0, x1, y0, y1 of the domain (`result.bounds()`, or the unit square for no mesh).
     pub bounds: [f64; 4],
-    /// The smallest and largest z: the ends of the colour scale.
-    pub z_range: (f64, f64),
+    /// What colours the triangles and the bar, and the field lines' levels.
+    pub shading: Shading,
     scale: f64,
+}
+
+/// How many field lines a magnetostatic picture draws (FEMM's default is 19).
+const FIELD_LINES: usize = 20;
+
+/// A |B| range narrower than this fraction of its top is one value, coloured mid-scale.
+const FLAT: f64 = 1e-9;
+
+/// The |B| scale stops at the value this fraction of the domain's area lies under. B grows
+/// without bound at iron's re-entrant corners, and a scale up to the largest triangle's |B|
+/// would leave the rest of the picture in its darkest colour.
+const SCALE_AREA: f64 = 0.99;
+
+/// What a picture colours its triangles by, and which contours of z it draws.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Shading {
+    /// Each triangle's |B| in tesla, for a magnetostatic solution; without it a triangle takes
+    /// the mean of its corners' z.
+    flux_density: Option<Vec<f64>>,
+    /// The smallest and largest coloured value: the ends of the colour scale.
+    pub range: (f64, f64),
+    /// The largest coloured value: above the scale when the scale stops short of it.
+    max: f64,
+    /// The values of z = A whose contours are the field lines (none but in magnetostatics).
+    pub levels: Vec<f64>,
+}
+
+impl Shading {
+    /// How `result` is coloured.
+    pub fn of(result: &MeshResult) -> Self {
+        let Some(b) = result.flux_density() else {
+            let range = result.z_range();
+            return Self { flux_density: None, range, max: range.1, levels: Vec::new() };
+        };
+        let b: Vec<f64> = b.iter().map(|&[bx, by]| bx.hypot(by)).collect();
+        let areas: Vec<f64> = result.triangles.iter().map(|&t| area(result, t)).collect();
+        let low = b.iter().copied().fold(f64::INFINITY, f64::min);
+        let max = b.iter().copied().fold(0.0, f64::max);
+        let mut range = (low.min(max), weighted_quantile(&b, &areas, SCALE_AREA));
+        // A uniform field's gradients differ in their last bits; spread over the whole scale,
+        // that rounding would paint noise.
+        if range.1 - range.0 <= FLAT * range.1 {
+            range.0 = range.1;
+        }
+        let (lo, hi) = result.z_range();
+        Self { flux_density: Some(b), range, max, levels: contour::levels(lo, hi, FIELD_LINES) }
+    }
+
+    /// The colour of triangle `t` of `result`.
+    pub fn colour(&self, result: &MeshResult, t: usize) -> [u8; 3] {
+        let value = match &self.flux_density {
+            Some(b) => b[t],
+            None => result.triangles[t].iter().map(|&v| result.vertices[v as usize].z).sum::<f64>() / 3.0,
+        };
+        colour::of(value, self.range.0, self.range.1)
+    }
+
+    /// What the colours and lines stand for, for the stats line (nothing for z).
+    fn legend(&self) -> Vec<String> {
+        let mut legend = Vec::new();
+        if self.flux_density.is_some() {
+            legend.push("colour |B| in T".to_owned());
+        }
+        if self.max > self.range.1 {
+            legend.push(format!("max {} above the bar", short(self.max)));
+        }
+        if let [first, second, ..] = self.levels[..] {
+            legend.push(format!("field lines every {} Wb/m of A", short(second - first)));
+        }
+        legend
+    }
+
+    /// Calls `piece` with the ends of each field line's piece in triangle `t` of `result`.
+    pub fn field_lines(&self, result: &MeshResult, t: usize, piece: impl FnMut([f64; 2], [f64; 2])) {
+        if self.levels.is_empty() {
+            return;
+        }
+        let corners = result.triangles[t].map(|v| {
+            let p = result.vertices[v as usize];
+            (v, [p.x, p.y, p.z])
+        });
+        contour::pieces(corners, &self.levels, piece);
+    }
 }
 
 /// Picture width on which one unit is a line width; wider pictures scale their lines and text.
@@ -92,6 +178,9 @@ const FADE_TO: f64 = 12.0;
 
 /// Opacity of fully drawn edges: light enough that a triangle's colour stays readable.
 const EDGE_OPACITY: f64 = 0.45;
+
+/// Opacity of field lines: dark enough to follow across the brightest colours.
+pub(crate) const FIELD_LINE_OPACITY: f64 = 0.85;
 
 /// Colours of the background and of text and frames.
 pub(crate) const BACKGROUND: [u8; 3] = [255, 255, 255];
@@ -106,8 +195,8 @@ impl Layout {
             bounds = [0.0, 1.0, 0.0, 1.0];
         }
         let (dx, dy) = (bounds[1] - bounds[0], bounds[3] - bounds[2]);
-        let z_range = result.z_range();
-        let (lo, hi) = z_range;
+        let shading = Shading::of(result);
+        let (lo, hi) = shading.range;
         let labels = [short(hi), short(lo)];
         let label_width = labels.iter().map(|l| text.width(l)).fold(0.0, f64::max);
 
@@ -140,7 +229,9 @@ impl Layout {
         let labels = [(max, label_left, bar.top), (min, label_left, bar.bottom() - text.char_height)];
 
         let per_line = ((width - 2.0 * margin) / text.char_width).floor().max(1.0) as usize;
-        let lines = wrap(&stats_segments(result), per_line);
+        let mut segments = stats_segments(result);
+        segments.extend(shading.legend());
+        let lines = wrap(&segments, per_line);
         let text_top = (bar.bottom().max(x_labels_bottom) + 0.75 * margin).round();
         let height = (text_top + lines.len() as f64 * text.line_height + 0.75 * margin).ceil();
         let mut layout = Self {
@@ -156,7 +247,7 @@ impl Layout {
             line_height: text.line_height,
             line_width: unit.max(1.0),
             bounds,
-            z_range,
+            shading,
             scale,
         };
         // The ticks sit where their values are on the plot, outside its edges.
@@ -181,6 +272,11 @@ impl Layout {
         (self.plot.left + (x - x0) * self.scale, self.plot.top + (y1 - y) * self.scale)
     }
 
+    /// Width of a field line: half again an edge's, so that lines stand out from a mesh.
+    pub fn field_line_width(&self) -> f64 {
+        1.5 * self.line_width
+    }
+
     /// How opaque edges are drawn, given the mean triangle's size: 0 when they would crowd.
     pub fn edge_opacity(&self, triangles: usize) -> f64 {
         if triangles == 0 {
@@ -193,10 +289,26 @@ impl Layout {
     }
 }
 
-/// The colour of triangle `t`: its mean z on the scale of the result's z range.
-pub(crate) fn triangle_colour(result: &MeshResult, t: usize, (lo, hi): (f64, f64)) -> [u8; 3] {
-    let z = result.triangles[t].iter().map(|&v| result.vertices[v as usize].z).sum::<f64>() / 3.0;
-    colour::of(z, lo, hi)
+/// The area of `triangle`.
+fn area(result: &MeshResult, triangle: [u32; 3]) -> f64 {
+    let [a, b, c] = triangle.map(|v| result.vertices[v as usize]);
+    ((b.x - a.x) * (c.y - a.y) - (c.x - a.x) * (b.y - a.y)).abs() / 2.0
+}
+
+/// The smallest of `values` that at least `fraction` of the total weight lies at or under
+/// (0 for no values).
+fn weighted_quantile(values: &[f64], weights: &[f64], fraction: f64) -> f64 {
+    let mut order: Vec<u32> = (0..values.len() as u32).collect();
+    order.sort_unstable_by(|&s, &t| values[s as usize].total_cmp(&values[t as usize]).then(s.cmp(&t)));
+    let total: f64 = order.iter().map(|&t| weights[t as usize]).sum();
+    let mut under = 0.0;
+    for &t in &order {
+        under += weights[t as usize];
+        if under >= fraction * total {
+            return values[t as usize];
+        }
+    }
+    order.last().map_or(0.0, |&t| values[t as usize])
 }
 
 /// The edges triangle `t` draws, so that each edge of the mesh is drawn once: an interior
@@ -307,7 +419,7 @@ pub(crate) fn short(v: f64) -> String {
 mod tests {
     use super::*;
     use crate::refine::Criterion;
-    use crate::result::testing::sample;
+    use crate::result::testing::{magnetic, sample};
 
     const TEXT: TextMetrics = TextMetrics { char_width: 10.0, char_height: 20.0, line_height: 24.0 };
 
@@ -386,6 +498,47 @@ mod tests {
         result.vertices.iter_mut().for_each(|v| v.y *= 100.0);
         let layout = Layout::new(&result, 1024.0, TEXT);
         assert!(layout.plot.height <= 1024.0 && layout.height < 1200.0, "{layout:?}");
+    }
+
+    #[test]
+    fn a_magnetostatic_solution_is_shaded_by_b_a_mesh_by_z_and_a_uniform_field_in_one_colour() {
+        let mesh = sample(300, Criterion::Error);
+        let range = mesh.z_range();
+        assert_eq!(Shading::of(&mesh), Shading { flux_density: None, range, max: range.1, levels: vec![] });
+        let mut result = magnetic(500);
+        let shading = Shading::of(&result);
+        assert!(shading.range.0 < 0.1 * shading.range.1 && shading.levels.len() == FIELD_LINES);
+        let text = Layout::new(&result, 1024.0, TEXT).lines.join(" ");
+        assert!(text.contains("colour |B| in T") && text.contains("field lines every "), "{text}");
+        // A = 3x − y: |B| = √10 on every triangle, to rounding.
+        result.vertices.iter_mut().for_each(|v| v.z = 3.0 * v.x - v.y);
+        let shading = Shading::of(&result);
+        assert_eq!(shading.range.0, shading.range.1);
+        assert!((shading.range.0 - 10f64.sqrt()).abs() < 1e-12, "{:?}", shading.range);
+        let colours: std::collections::HashSet<[u8; 3]> =
+            (0..result.triangles.len()).map(|t| shading.colour(&result, t)).collect();
+        assert_eq!(colours.len(), 1);
+    }
+
+    #[test]
+    fn the_b_scale_stops_under_99_percent_of_the_area_not_at_a_corners_peak() {
+        assert_eq!(weighted_quantile(&[5.0, 1.0, 2.0, 3.0], &[1.0, 1.0, 1.0, 97.0], 0.99), 3.0);
+        assert_eq!(weighted_quantile(&[5.0, 1.0, 2.0, 3.0], &[1.0, 1.0, 1.0, 96.0], 0.99), 5.0);
+        assert_eq!(weighted_quantile(&[], &[], 0.99), 0.0);
+        // One tiny triangle with a huge field does not set the scale; the legend says so.
+        let mut result = magnetic(500);
+        result.vertices.iter_mut().for_each(|v| v.z = v.x);
+        let t = (0..result.triangles.len())
+            .min_by(|&s, &t| {
+                area(&result, result.triangles[s]).total_cmp(&area(&result, result.triangles[t]))
+            })
+            .unwrap();
+        let lift = result.triangles[t][0] as usize;
+        result.vertices[lift].z += 1.0;
+        let shading = Shading::of(&result);
+        assert!((shading.range.1 - 1.0).abs() < 1e-9, "{:?}", shading.range);
+        assert!(shading.max > 10.0, "{}", shading.max);
+        assert!(shading.legend().iter().any(|l| l.starts_with("max ") && l.ends_with(" above the bar")));
     }
 
     #[test]

@@ -33,9 +33,10 @@ fn render(result: &MeshResult, width: u32) -> Vec<u8> {
     let mut pixmap = Pixmap::new(width, height).expect("the layout has a positive size");
     pixmap.fill(colour(BACKGROUND, 255));
 
-    fill_triangles(&mut pixmap, result, &layout, layout.z_range);
+    fill_triangles(&mut pixmap, result, &layout);
     draw_edges(&mut pixmap, result, &layout);
-    draw_bar(&mut pixmap, &layout, layout.z_range);
+    draw_field_lines(&mut pixmap, result, &layout);
+    draw_bar(&mut pixmap, &layout, layout.shading.range);
     draw_ticks(&mut pixmap, &layout);
 
     let style = MonoTextStyle::new(font, Rgb888::new(INK[0], INK[1], INK[2]));
@@ -89,7 +90,7 @@ fn colour([r, g, b]: [u8; 3], alpha: u8) -> tiny_skia::Color {
     tiny_skia::Color::from_rgba8(r, g, b, alpha)
 }
 
-fn fill_triangles(pixmap: &mut Pixmap, result: &MeshResult, layout: &Layout, z_range: (f64, f64)) {
+fn fill_triangles(pixmap: &mut Pixmap, result: &MeshResult, layout: &Layout) {
     let corners: Vec<(f32, f32)> = result
         .vertices
         .iter()
@@ -101,7 +102,7 @@ fn fill_triangles(pixmap: &mut Pixmap, result: &MeshResult, layout: &Layout, z_r
     // Sorted by colour, then by id, so each colour is one path and the order is fixed.
     let mut order: Vec<(u32, u32)> = (0..result.triangles.len())
         .map(|t| {
-            let [r, g, b] = picture::triangle_colour(result, t, z_range);
+            let [r, g, b] = layout.shading.colour(result, t);
             (u32::from_be_bytes([0, r, g, b]), t as u32)
         })
         .collect();
@@ -145,6 +146,27 @@ fn draw_edges(pixmap: &mut Pixmap, result: &MeshResult, layout: &Layout) {
     let paint = line_paint(INK, opacity);
     let stroke = Stroke { width: layout.line_width as f32, ..Stroke::default() };
     pixmap.stroke_path(&path, &paint, &stroke, Transform::identity(), None);
+}
+
+/// The field lines of a magnetostatic solution, as one anti-aliased path.
+fn draw_field_lines(pixmap: &mut Pixmap, result: &MeshResult, layout: &Layout) {
+    let mut path = PathBuilder::new();
+    for t in 0..result.triangles.len() {
+        layout.shading.field_lines(result, t, |p, q| {
+            let [p, q] = [p, q].map(|[x, y]| layout.to_picture(x, y));
+            path.move_to(p.0 as f32, p.1 as f32);
+            path.line_to(q.0 as f32, q.1 as f32);
+        });
+    }
+    let Some(path) = path.finish() else { return };
+    let stroke = Stroke { width: layout.field_line_width() as f32, ..Stroke::default() };
+    pixmap.stroke_path(
+        &path,
+        &line_paint(INK, picture::FIELD_LINE_OPACITY),
+        &stroke,
+        Transform::identity(),
+        None,
+    );
 }
 
 /// The colour bar, max at the top, one row of pixels at a time, in a thin frame.
@@ -265,7 +287,7 @@ mod tests {
     use super::*;
     use crate::output::colour;
     use crate::refine::Criterion;
-    use crate::result::testing::sample;
+    use crate::result::testing::{magnetic, sample};
 
     /// A decoded picture: width, height and RGB bytes.
     struct Decoded {
@@ -399,6 +421,37 @@ mod tests {
         let x = layout.bar.left + layout.bar.width / 2.0;
         assert!(close(image.at(x, layout.bar.top + 1.0), colour::of(hi, lo, hi), 6));
         assert!(close(image.at(x, layout.bar.bottom() - 2.0), colour::of(lo, lo, hi), 6));
+    }
+
+    #[test]
+    fn field_lines_are_dark_lines_where_a_takes_their_levels() {
+        // A = x on a solved mesh: the field lines are the verticals x = level.
+        let mut result = magnetic(3000);
+        result.vertices.iter_mut().for_each(|v| v.z = v.x);
+        let (image, layout) = picture(&result, 300);
+        // The same picture without field lines, to compare with.
+        let mut plain = Pixmap::new(image.width, image.height).unwrap();
+        fill_triangles(&mut plain, &result, &layout);
+        draw_edges(&mut plain, &result, &layout);
+        let plain =
+            Decoded { width: image.width, height: image.height, rgb: decode(&encode_png(&plain)).rgb };
+        let levels = &layout.shading.levels;
+        assert_eq!(levels.len(), 20);
+        let brightness = |c: [u8; 3]| c.iter().map(|&v| f64::from(v)).sum::<f64>();
+        for y in [0.13, 0.37, 0.52, 0.91] {
+            let row = layout.to_picture(0.0, y).1;
+            for pair in levels.windows(2) {
+                let (x, next) = (layout.to_picture(pair[0], y).0, layout.to_picture(pair[1], y).0);
+                let darkened = (x.floor() as i32 - 1..=x.ceil() as i32 + 1)
+                    .map(|c| {
+                        brightness(image.at(f64::from(c), row)) / brightness(plain.at(f64::from(c), row))
+                    })
+                    .fold(f64::INFINITY, f64::min);
+                assert!(darkened < 0.75, "no line at ({}, {y}): {darkened}", pair[0]);
+                let between = (x + next) / 2.0;
+                assert_eq!(image.at(between, row), plain.at(between, row), "a line at ({between}, {y})");
+            }
+        }
     }
 
     #[test]

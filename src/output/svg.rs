@@ -1,7 +1,8 @@
 //! The mesh seen from above as SVG: one `<polygon>` per triangle filled with the colour of its
-//! mean z, the edges as one `<path>`, a colour bar and the stats line.
+//! mean z (of its |B| for a magnetostatic solution), the edges as one `<path>`, a solution's
+//! field lines as another, a colour bar and the stats line.
 //!
-//! The triangles and edges are rows, so a 10^6-triangle picture streams like the JSON
+//! The triangles, edges and field lines are rows, so a 10^6-triangle picture streams like the JSON
 //! document. Coordinates are on a view box 1024 units wide, rounded to 0.01.
 
 use super::picture::{self, BACKGROUND, INK, Layout, TextMetrics};
@@ -28,7 +29,7 @@ const BAR_STOPS: usize = 16;
 /// The picture of `result`; the options change nothing (its size is the view box's).
 pub fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoding {
     let layout = Arc::new(Layout::new(result, VIEW_WIDTH, TEXT));
-    let z_range = layout.z_range;
+    let range = layout.shading.range;
     let mut head = String::new();
     let (w, h) = (layout.width, layout.height);
     let _ = write!(
@@ -57,7 +58,7 @@ pub fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoding {
                 point(out, p, b',');
             }
             out.extend_from_slice(b"\" fill=\"");
-            out.extend_from_slice(hex(picture::triangle_colour(&r, t, z_range)).as_bytes());
+            out.extend_from_slice(hex(l.shading.colour(&r, t)).as_bytes());
             out.extend_from_slice(b"\"/>\n");
         }),
         Part::Bytes(b"</g>\n".to_vec()),
@@ -89,7 +90,29 @@ pub fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoding {
             Part::Bytes(b"\"/>\n".to_vec()),
         ]);
     }
-    parts.push(Part::Bytes(trailer(&layout, z_range).into_bytes()));
+    if !layout.shading.levels.is_empty() {
+        let head = format!(
+            "<path id=\"field-lines\" fill=\"none\" stroke=\"{}\" stroke-opacity=\"{}\" stroke-width=\"{}\" \
+             stroke-linecap=\"round\" d=\"",
+            hex(INK),
+            picture::FIELD_LINE_OPACITY,
+            layout.field_line_width()
+        );
+        let (r, l) = (result.clone(), layout.clone());
+        parts.extend([
+            Part::Bytes(head.into_bytes()),
+            Part::rows(result.triangles.len(), move |t, out| {
+                l.shading.field_lines(&r, t, |p, q| {
+                    out.push(b'M');
+                    point(out, l.to_picture(p[0], p[1]), b' ');
+                    out.push(b'L');
+                    point(out, l.to_picture(q[0], q[1]), b' ');
+                });
+            }),
+            Part::Bytes(b"\"/>\n".to_vec()),
+        ]);
+    }
+    parts.push(Part::Bytes(trailer(&layout, range).into_bytes()));
     Encoding::new(parts)
 }
 
@@ -189,7 +212,7 @@ mod tests {
     use super::*;
     use crate::output::colour;
     use crate::refine::Criterion;
-    use crate::result::testing::sample;
+    use crate::result::testing::{magnetic, sample};
 
     fn svg(result: &Arc<MeshResult>) -> String {
         String::from_utf8(encode(result, &Options::default()).to_vec()).unwrap()
@@ -287,6 +310,39 @@ mod tests {
         let segments = edges.attribute("d").unwrap().matches('M').count();
         // Euler: E = V + T - 1 for a triangulated disk.
         assert_eq!(segments, result.vertices.len() + result.triangles.len() - 1);
+    }
+
+    #[test]
+    fn a_magnetostatic_solution_is_coloured_by_b_with_its_field_lines_over_it() {
+        let result = Arc::new(magnetic(600));
+        let text = svg(&result);
+        let doc = roxmltree::Document::parse(&text).unwrap();
+        let b: Vec<f64> = result.flux_density().unwrap().iter().map(|&[bx, by]| bx.hypot(by)).collect();
+        let layout = Layout::new(&result, VIEW_WIDTH, TEXT);
+        // The scale runs from the least |B| to below the greatest (picture's tests say where).
+        let (lo, hi) = layout.shading.range;
+        assert!(
+            lo == b.iter().copied().fold(f64::INFINITY, f64::min)
+                && hi < b.iter().copied().fold(0.0, f64::max)
+        );
+        let polygons: Vec<_> = doc.descendants().filter(|n| n.has_tag_name("polygon")).collect();
+        for t in 0..result.triangles.len() {
+            assert_eq!(parse_hex(polygons[t].attribute("fill").unwrap()), colour::of(b[t], lo, hi), "{t}");
+        }
+        // One piece per triangle and level that the level crosses.
+        let lines = doc.descendants().find(|n| n.attribute("id") == Some("field-lines")).unwrap();
+        let mut pieces = 0;
+        (0..result.triangles.len()).for_each(|t| layout.shading.field_lines(&result, t, |_, _| pieces += 1));
+        assert!(pieces > 100, "{pieces}");
+        assert_eq!(lines.attribute("d").unwrap().matches('M').count(), pieces);
+        let texts: Vec<&str> =
+            doc.descendants().filter(|n| n.has_tag_name("text")).filter_map(|n| n.text()).collect();
+        assert_eq!(texts[..2], [picture::short(hi), picture::short(lo)]);
+        let all = texts.join(" ");
+        assert!(all.contains("colour |B| in T") && all.contains("field lines every"), "{all}");
+        // A mesh has neither.
+        let mesh = svg(&Arc::new(sample(600, Criterion::Error)));
+        assert!(!mesh.contains("field-lines") && !mesh.contains("|B|"));
     }
 
     #[test]

@@ -170,6 +170,17 @@ pub(crate) mod testing {
         refine(&bump, rect(), &params, &mut ()).unwrap().into()
     }
 
+    /// The magnetostatic solution around a square conductor of 1 A in a box of air on
+    /// [0, 1]², on about `n` vertices.
+    pub(crate) fn magnetic(n: usize) -> MeshResult {
+        use crate::solve::{MU_0, Physics, Problem, Region, Settings, Shape, adapt};
+        let conductor = Rect::new(0.4, 0.6, 0.4, 0.6).unwrap();
+        let region = Region { f: Some(25.0), ..Region::new(Shape::Rect(conductor)) };
+        let problem = Problem::new(Rect::unit()).with_k(|_, _| 1.0 / MU_0).with_region(region);
+        let adapted = adapt(&problem, None, &Settings::new(n), &mut ()).unwrap();
+        MeshResult::solution(adapted, Physics::Magnetostatic)
+    }
+
     /// [`sample`] with its trace.
     pub(crate) fn traced(n: usize, criterion: Criterion) -> MeshResult {
         let params = Params::new(n).unwrap().with_criterion(criterion);

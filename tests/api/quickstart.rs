@@ -71,6 +71,7 @@ async fn the_readme_quick_start_runs_as_written_and_says_what_the_readme_says() 
         ("mesh.ply", &b"ply\n"[..]),
         ("mesh.glb", b"glTF"),
         ("mesh.png", b"\x89PNG"),
+        ("electromagnet.png", b"\x89PNG"),
         ("mesh.msh", b"$MeshFormat"),
         ("heights.ply", b"ply\n"),
     ] {
