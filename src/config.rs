@@ -1,7 +1,9 @@
 //! Service settings: environment variables (`MESHFIT_*`) over safe defaults, validated once.
 //!
 //! Two stages, as ripgrep's LowArgs/HiArgs: [`RawConfig`] holds the strings as given,
-//! [`Config`] the typed values. Nothing downstream parses a string.
+//! [`Config`] the typed values. Nothing downstream parses a string. Each setting is declared
+//! once, in [`SETTINGS`]: its variable, flag, default, help and parser; `meshfit serve`'s flags
+//! and `--help` are made from it, and tests hold the README's table and the defaults to it.
 
 use crate::http::access::{ApiKeys, MIN_KEY_LEN};
 use ipnet::IpNet;
@@ -23,85 +25,70 @@ pub enum LogFormat {
 /// Where the server listens unless told otherwise.
 pub const DEFAULT_ADDR: SocketAddr = SocketAddr::new(IpAddr::V4(std::net::Ipv4Addr::UNSPECIFIED), 8080);
 
-/// Validated service settings. Every field has a default; see the README's table.
+/// Validated service settings, each read from the variable of its [`Setting`] (named in
+/// brackets); [`SETTINGS`] holds their defaults and help.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Config {
-    /// Where to listen (`MESHFIT_ADDR`, default 0.0.0.0:8080).
+    /// Where to listen (`MESHFIT_ADDR`).
     pub addr: SocketAddr,
-    /// Refinements running at once (`MESHFIT_WORKERS`, default: available cores).
+    /// Refinements running at once (`MESHFIT_WORKERS`).
     pub workers: NonZeroUsize,
-    /// Jobs that may wait for a worker (`MESHFIT_QUEUE`, default 64); more get 503.
+    /// Jobs that may wait for a worker (`MESHFIT_QUEUE`).
     pub queue: usize,
-    /// Largest `max_vertices` a request may ask for (`MESHFIT_MAX_VERTICES`, default 2,000,000).
+    /// Largest `max_vertices` a request may ask for (`MESHFIT_MAX_VERTICES`).
     pub max_vertices: usize,
-    /// Largest nx·ny of a grid (`MESHFIT_MAX_GRID_POINTS`, default 16,785,409: 4097 × 4097).
+    /// Largest nx·ny of a grid (`MESHFIT_MAX_GRID_POINTS`).
     pub max_grid_points: usize,
-    /// Largest request body (`MESHFIT_MAX_BODY_BYTES`, default 256 MiB: a 4097 × 4097 grid
-    /// written with up to 14 characters per value; raise it for full-precision grids).
+    /// Largest request body (`MESHFIT_MAX_BODY_BYTES`).
     pub max_body_bytes: usize,
-    /// Longest expression in characters (`MESHFIT_MAX_EXPRESSION_LEN`, default 4096).
+    /// Longest expression in characters (`MESHFIT_MAX_EXPRESSION_LEN`).
     pub max_expression_len: usize,
-    /// Longest a job may run (`MESHFIT_JOB_TIME_LIMIT_MS`, default 60 s); caps `time_limit_ms`.
+    /// Longest a job may run; caps `time_limit_ms` (`MESHFIT_JOB_TIME_LIMIT_MS`).
     pub job_time_limit: Duration,
-    /// The memory budget (`MESHFIT_MEMORY_BYTES`, default half the machine's or the
-    /// container's memory): request bodies, jobs (by their vertex budgets) and cached meshes
-    /// are charged to it before they are taken; past it, 503.
+    /// The memory budget (`MESHFIT_MEMORY_BYTES`).
     pub memory_bytes: u64,
-    /// Memory for finished meshes (`MESHFIT_CACHE_BYTES`, default 1 GiB, and at most half
-    /// the memory budget); part of the budget.
+    /// Memory for finished meshes, part of the budget (`MESHFIT_CACHE_BYTES`).
     pub cache_bytes: u64,
-    /// Where finished meshes are also written, to survive restarts (`MESHFIT_CACHE_DIR`, unset).
+    /// Where finished meshes are also written, to survive restarts (`MESHFIT_CACHE_DIR`).
     pub cache_dir: Option<PathBuf>,
-    /// Disk for those files, least recently used deleted first (`MESHFIT_CACHE_DIR_BYTES`,
-    /// default 10 GiB).
+    /// Disk for those files (`MESHFIT_CACHE_DIR_BYTES`).
     pub cache_dir_bytes: u64,
-    /// How long running jobs may finish after SIGTERM before they are cancelled
-    /// (`MESHFIT_SHUTDOWN_GRACE_MS`, default 10 s).
+    /// How long running jobs may finish after SIGTERM (`MESHFIT_SHUTDOWN_GRACE_MS`).
     pub shutdown_grace: Duration,
-    /// `MESHFIT_LOG_FORMAT`: `text` (default) or `json`.
+    /// Log lines as text or JSON (`MESHFIT_LOG_FORMAT`).
     pub log_format: LogFormat,
-    /// Connections served at once (`MESHFIT_MAX_CONNECTIONS`, default: the file limit less
-    /// 256, at most 10,000); past it, a connection gets a 503 and is closed.
+    /// Connections served at once (`MESHFIT_MAX_CONNECTIONS`).
     pub max_connections: usize,
     /// Time from the end of a response, or a connection's start, to the end of the next
-    /// request's headers (`MESHFIT_HEADER_TIMEOUT_MS`, default 15 s): it closes idle
-    /// keep-alive connections and slow headers.
+    /// request's headers (`MESHFIT_HEADER_TIMEOUT_MS`).
     pub header_timeout: Duration,
-    /// Longest wait for the next part of a request body (`MESHFIT_BODY_TIMEOUT_MS`, default
-    /// 15 s); past it, 408.
+    /// Longest wait for the next part of a request body (`MESHFIT_BODY_TIMEOUT_MS`).
     pub body_timeout: Duration,
-    /// Longest a response may wait for the client to read (`MESHFIT_WRITE_TIMEOUT_MS`,
-    /// default 30 s); past it, the connection is closed.
+    /// Longest a response may wait for the client to read (`MESHFIT_WRITE_TIMEOUT_MS`).
     pub write_timeout: Duration,
-    /// API keys (`MESHFIT_API_KEYS`, comma-separated, and `MESHFIT_API_KEYS_FILE`, one per
-    /// line); with any, every `/v1` route needs `Authorization: Bearer <key>`. Default none.
+    /// API keys (`MESHFIT_API_KEYS`, `MESHFIT_API_KEYS_FILE`); none leaves the API open.
     pub api_keys: ApiKeys,
-    /// Origins whose web pages may call the API (`MESHFIT_CORS_ORIGINS`, comma-separated
-    /// `scheme://host[:port]`, or `*`). Default none: CORS is off.
+    /// Origins whose web pages may call the API (`MESHFIT_CORS_ORIGINS`).
     pub cors_origins: Vec<String>,
-    /// One client's (key's, or address's without keys) share of the jobs the server takes,
-    /// running and queued, and of the workers it runs before other clients' waiting jobs go
-    /// first; an idle worker takes any waiting job (`MESHFIT_CLIENT_SHARE`, in (0, 1],
-    /// default 0.5).
+    /// One client's share of the jobs and workers (`MESHFIT_CLIENT_SHARE`).
     pub client_share: f64,
-    /// Proxies whose `Forwarded` or `X-Forwarded-For` header names the client, for shares
-    /// without keys (`MESHFIT_TRUSTED_PROXIES`, comma-separated addresses or CIDR ranges).
-    /// Default none: a client is the address that connects.
+    /// Proxies whose forwarding headers name the client (`MESHFIT_TRUSTED_PROXIES`).
     pub trusted_proxies: Vec<IpNet>,
-    /// Replicas share results and jobs through this Redis (`MESHFIT_REDIS_URL`,
-    /// `redis://host:port/db`; unset: this process serves alone), with the settings below.
+    /// The Redis that replicas share results and jobs through (`MESHFIT_REDIS_URL`); none
+    /// and this process serves alone.
     pub redis_url: Option<String>,
-    /// How long Redis keeps results, records and requests (`MESHFIT_REDIS_TTL_MS`, default a
-    /// day).
+    /// How long Redis keeps results, records and requests (`MESHFIT_REDIS_TTL_MS`).
     pub redis_ttl: Duration,
     /// The largest result (compact form) or request body kept in Redis
-    /// (`MESHFIT_REDIS_MAX_BYTES`, default 256 MiB, a mesh of about 3·10^6 vertices); larger ones stay on their replica.
+    /// (`MESHFIT_REDIS_MAX_BYTES`).
     pub redis_max_bytes: u64,
-    /// A job's lease (`MESHFIT_REDIS_LEASE_MS`, default 10 s): how long after its replica
-    /// dies another takes it over.
+    /// A job's lease: how long after its replica dies another takes it over
+    /// (`MESHFIT_REDIS_LEASE_MS`).
     pub redis_lease: Duration,
 }
 
+/// The defaults. Those that are values are written again in [`SETTINGS`], and a test checks
+/// that the two agree.
 impl Default for Config {
     fn default() -> Self {
         Self {
@@ -157,11 +144,13 @@ impl RawConfig {
         self.flags.remove(name);
     }
 
-    /// Sets one variable from the command-line flag `flag` (flags override the environment),
-    /// so that a bad value is reported under the flag the user typed.
-    pub fn set_from_flag(&mut self, name: &str, flag: &'static str, value: impl Into<String>) {
-        self.set(name, value);
-        self.flags.insert(name.to_owned(), flag);
+    /// Sets `setting` from its command-line flag (flags override the environment), so that a
+    /// bad value is reported under the flag the user typed.
+    pub fn set_from_flag(&mut self, setting: &'static Setting, value: impl Into<String>) {
+        self.set(setting.name, value);
+        if let Some(flag) = setting.flag {
+            self.flags.insert(setting.name.to_owned(), flag);
+        }
     }
 }
 
@@ -176,7 +165,7 @@ impl FromIterator<(String, String)> for RawConfig {
 pub struct ConfigProblem {
     /// The variable, e.g. `MESHFIT_WORKERS`.
     pub name: String,
-    /// The flag it was given with, e.g. `--workers`, if it was.
+    /// The flag it was given with, without its dashes (`workers`), if it was.
     pub flag: Option<&'static str>,
     /// The value as given, quoted, or `<hidden>`.
     pub shown: String,
@@ -188,7 +177,7 @@ impl std::fmt::Display for ConfigProblem {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let Self { name, flag, shown, why } = self;
         match flag {
-            Some(flag) => write!(f, "{flag} {shown} ({name}): {why}"),
+            Some(flag) => write!(f, "--{flag} {shown} ({name}): {why}"),
             None => write!(f, "{name}={shown}: {why}"),
         }
     }
@@ -199,6 +188,361 @@ impl std::fmt::Display for ConfigProblem {
 #[error("invalid configuration:\n  {}", .0.iter().map(ToString::to_string).collect::<Vec<_>>().join("\n  "))]
 pub struct ConfigError(pub Vec<ConfigProblem>);
 
+/// One setting, declared once: the environment variable, the `meshfit serve` flag, its
+/// default and help (which `--help` and the README's table show) and its parser. The README's
+/// table is checked against [`SETTINGS`] by a test, and each default that is a value against
+/// [`Config::default`].
+pub struct Setting {
+    /// The environment variable, `MESHFIT_WORKERS`.
+    pub name: &'static str,
+    /// The flag of `meshfit serve` without its dashes; none for a value that would show in
+    /// the process list (keys) or that the log subscriber reads itself.
+    pub flag: Option<&'static str>,
+    /// What the value is, in `--help`: `N`, `MS`, `BYTES`.
+    pub value_name: &'static str,
+    /// The default.
+    pub default: Fallback,
+    /// What it does, in a sentence or two.
+    pub help: &'static str,
+    /// Reads the trimmed value into a config.
+    parse: fn(&str, &mut Config) -> Result<(), String>,
+}
+
+/// A setting's default: a value the parser takes, or what it is when it depends on the machine
+/// or means "off".
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Fallback {
+    /// This value, as it would be written.
+    Value(&'static str),
+    /// Described, not written: "available cores", "unset".
+    Described(&'static str),
+}
+
+impl std::fmt::Display for Fallback {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Fallback::Value(v) | Fallback::Described(v) => f.write_str(v),
+        }
+    }
+}
+
+impl Setting {
+    /// The setting whose variable is `name`.
+    pub fn named(name: &str) -> Option<&'static Setting> {
+        SETTINGS.iter().find(|s| s.name == name)
+    }
+
+    /// The line `meshfit serve --help` shows for its flag.
+    pub fn flag_help(&self) -> String {
+        format!("{}: {} [default: {}]", self.name, self.help, self.default)
+    }
+
+    /// Whether the value is a secret: a bad one is reported by name, never echoed.
+    fn is_secret(&self) -> bool {
+        matches!(self.name, "MESHFIT_API_KEYS" | "MESHFIT_REDIS_URL")
+    }
+}
+
+/// A whole number; `_` may group digits (`2_000_000`).
+fn number(v: &str) -> Result<u64, String> {
+    v.replace('_', "").parse::<u64>().map_err(|_| "expected a whole number".to_owned())
+}
+
+/// A whole number of at least `min`.
+fn at_least(v: &str, min: u64) -> Result<u64, String> {
+    number(v).and_then(|n| if n >= min { Ok(n) } else { Err(format!("must be at least {min}")) })
+}
+
+/// Milliseconds, at least `min`.
+fn millis(v: &str, min: u64) -> Result<Duration, String> {
+    at_least(v, min).map(Duration::from_millis)
+}
+
+/// Every setting, in the order the README's table and `--help` list them.
+pub const SETTINGS: &[Setting] = &[
+    Setting {
+        name: "MESHFIT_ADDR",
+        flag: Some("addr"),
+        value_name: "HOST:PORT",
+        default: Fallback::Value("0.0.0.0:8080"),
+        help: "listen address: `host:port`, an address or a host name (`localhost:8080`)",
+        parse: |v, c| listen_addr(v).map(|a| c.addr = a).map_err(str::to_owned),
+    },
+    Setting {
+        name: "MESHFIT_WORKERS",
+        flag: Some("workers"),
+        value_name: "N",
+        default: Fallback::Described("available cores"),
+        help: "refinements running at once",
+        parse: |v, c| {
+            c.workers = NonZeroUsize::new(number(v)? as usize).ok_or("must be at least 1")?;
+            Ok(())
+        },
+    },
+    Setting {
+        name: "MESHFIT_QUEUE",
+        flag: Some("queue"),
+        value_name: "N",
+        default: Fallback::Value("64"),
+        help: "jobs that may wait when every worker is busy; beyond that 503",
+        parse: |v, c| number(v).map(|n| c.queue = n as usize),
+    },
+    Setting {
+        name: "MESHFIT_MAX_VERTICES",
+        flag: Some("max-vertices"),
+        value_name: "N",
+        default: Fallback::Value("2000000"),
+        help: "largest `max_vertices` a request may ask for",
+        parse: |v, c| {
+            let n = at_least(v, 4)?;
+            if n > crate::refine::MAX_VERTICES as u64 {
+                return Err(format!("must be between 4 and {}", crate::refine::MAX_VERTICES));
+            }
+            c.max_vertices = n as usize;
+            Ok(())
+        },
+    },
+    Setting {
+        name: "MESHFIT_MAX_GRID_POINTS",
+        flag: Some("max-grid-points"),
+        value_name: "N",
+        default: Fallback::Value("16785409"),
+        help: "largest nx·ny of a grid (the default is 4097²), checked against a file's header before it is decoded",
+        parse: |v, c| at_least(v, 4).map(|n| c.max_grid_points = n as usize),
+    },
+    Setting {
+        name: "MESHFIT_MAX_BODY_BYTES",
+        flag: Some("max-body-bytes"),
+        value_name: "BYTES",
+        default: Fallback::Value("268435456"),
+        help: "largest request body (a 4097×4097 grid at full precision needs about 350 MB)",
+        parse: |v, c| at_least(v, 1024).map(|n| c.max_body_bytes = n as usize),
+    },
+    Setting {
+        name: "MESHFIT_MAX_EXPRESSION_LEN",
+        flag: Some("max-expression-len"),
+        value_name: "N",
+        default: Fallback::Value("4096"),
+        help: "longest expression, in characters",
+        parse: |v, c| at_least(v, 1).map(|n| c.max_expression_len = n as usize),
+    },
+    Setting {
+        name: "MESHFIT_JOB_TIME_LIMIT_MS",
+        flag: Some("job-time-limit-ms"),
+        value_name: "MS",
+        default: Fallback::Value("60000"),
+        help: "longest a job runs; caps `time_limit_ms`",
+        parse: |v, c| millis(v, 1).map(|d| c.job_time_limit = d),
+    },
+    Setting {
+        name: "MESHFIT_MEMORY_BYTES",
+        flag: Some("memory-bytes"),
+        value_name: "BYTES",
+        default: Fallback::Described("half the machine's memory, or the container's limit"),
+        help: "the memory budget that request bodies, jobs and cached meshes are charged to before they are taken; past it, 503",
+        parse: |v, c| at_least(v, 64 << 20).map(|n| c.memory_bytes = n),
+    },
+    Setting {
+        name: "MESHFIT_CACHE_BYTES",
+        flag: Some("cache-bytes"),
+        value_name: "BYTES",
+        default: Fallback::Value("1073741824"),
+        help: "memory for finished meshes, part of the budget and at most half of it (a default larger than half shrinks to it)",
+        parse: |v, c| number(v).map(|n| c.cache_bytes = n),
+    },
+    Setting {
+        name: "MESHFIT_CACHE_DIR",
+        flag: Some("cache-dir"),
+        value_name: "DIR",
+        default: Fallback::Described("unset"),
+        help: "also keep finished meshes here, across restarts",
+        parse: |v, c| {
+            c.cache_dir = (!v.is_empty()).then(|| PathBuf::from(v));
+            Ok(())
+        },
+    },
+    Setting {
+        name: "MESHFIT_CACHE_DIR_BYTES",
+        flag: Some("cache-dir-bytes"),
+        value_name: "BYTES",
+        default: Fallback::Value("10737418240"),
+        help: "disk for those meshes; the least recently used file is deleted first",
+        parse: |v, c| at_least(v, 1).map(|n| c.cache_dir_bytes = n),
+    },
+    Setting {
+        name: "MESHFIT_SHUTDOWN_GRACE_MS",
+        flag: Some("shutdown-grace-ms"),
+        value_name: "MS",
+        default: Fallback::Value("10000"),
+        help: "after SIGTERM or Ctrl-C: time running jobs get before they are cancelled",
+        parse: |v, c| millis(v, 0).map(|d| c.shutdown_grace = d),
+    },
+    Setting {
+        name: "MESHFIT_MAX_CONNECTIONS",
+        flag: Some("max-connections"),
+        value_name: "N",
+        default: Fallback::Described("the file limit less 256 (at most 10000)"),
+        help: "connections served at once; past it, a connection gets a 503 and is closed",
+        parse: |v, c| at_least(v, 1).map(|n| c.max_connections = n as usize),
+    },
+    Setting {
+        name: "MESHFIT_HEADER_TIMEOUT_MS",
+        flag: Some("header-timeout-ms"),
+        value_name: "MS",
+        default: Fallback::Value("15000"),
+        help: "time to send a request's headers, counted from the end of the previous response: it also closes idle keep-alive connections",
+        parse: |v, c| millis(v, 1).map(|d| c.header_timeout = d),
+    },
+    Setting {
+        name: "MESHFIT_BODY_TIMEOUT_MS",
+        flag: Some("body-timeout-ms"),
+        value_name: "MS",
+        default: Fallback::Value("15000"),
+        help: "longest pause in a request body; a body may also take no longer than this plus its length at 64 KiB/s; then 408",
+        parse: |v, c| millis(v, 1).map(|d| c.body_timeout = d),
+    },
+    Setting {
+        name: "MESHFIT_WRITE_TIMEOUT_MS",
+        flag: Some("write-timeout-ms"),
+        value_name: "MS",
+        default: Fallback::Value("30000"),
+        help: "longest a response may wait for its client to read; then the connection is closed and its buffers freed",
+        parse: |v, c| millis(v, 1).map(|d| c.write_timeout = d),
+    },
+    Setting {
+        name: "MESHFIT_API_KEYS",
+        flag: None,
+        value_name: "KEYS",
+        default: Fallback::Described("unset"),
+        help: "comma-separated API keys (16 characters or more); with any, every /v1 route needs `Authorization: Bearer <key>`",
+        parse: |v, c| add_keys(v.split(','), &mut c.api_keys),
+    },
+    Setting {
+        name: "MESHFIT_API_KEYS_FILE",
+        flag: Some("api-keys-file"),
+        value_name: "FILE",
+        default: Fallback::Described("unset"),
+        help: "a file of API keys, one per line (`#` comments); keys are never flags, which the process list would show",
+        parse: |v, c| {
+            let text = std::fs::read_to_string(v).map_err(|e| format!("cannot read the file: {e}"))?;
+            add_keys(text.lines().filter(|l| !l.trim_start().starts_with('#')), &mut c.api_keys)
+        },
+    },
+    Setting {
+        name: "MESHFIT_CORS_ORIGINS",
+        flag: Some("cors-origins"),
+        value_name: "ORIGINS",
+        default: Fallback::Described("unset (CORS off)"),
+        help: "comma-separated origins, `https://app.example`, whose pages may call the API; `*` for any",
+        parse: |v, c| {
+            let origins = v.split(',').map(str::trim).filter(|o| !o.is_empty());
+            c.cors_origins = origins
+                .map(|o| {
+                    is_origin(o)
+                        .then(|| o.to_owned())
+                        .ok_or_else(|| "expected `*` or scheme://host[:port], comma-separated".to_owned())
+                })
+                .collect::<Result<_, _>>()?;
+            Ok(())
+        },
+    },
+    Setting {
+        name: "MESHFIT_CLIENT_SHARE",
+        flag: Some("client-share"),
+        value_name: "FRACTION",
+        default: Fallback::Value("0.5"),
+        help: "one client's share of the jobs a server takes (workers plus queue), and of the workers it runs before others' waiting jobs go first (an idle worker takes any job); 1 for a single-tenant server",
+        parse: |v, c| match v.parse::<f64>() {
+            Ok(x) if x > 0.0 && x <= 1.0 => {
+                c.client_share = x;
+                Ok(())
+            }
+            _ => Err("expected a number in (0, 1], e.g. 0.5".to_owned()),
+        },
+    },
+    Setting {
+        name: "MESHFIT_TRUSTED_PROXIES",
+        flag: Some("trusted-proxies"),
+        value_name: "RANGES",
+        default: Fallback::Described("none"),
+        help: "proxies (comma-separated addresses or CIDR ranges) whose `Forwarded` / `X-Forwarded-For` names the client",
+        parse: |v, c| {
+            let proxies = v.split(',').map(str::trim).filter(|p| !p.is_empty());
+            c.trusted_proxies = proxies
+                .map(|p| {
+                    p.parse::<IpNet>().or_else(|_| p.parse::<IpAddr>().map(IpNet::from)).map_err(|_| {
+                        "expected addresses or CIDR ranges, comma-separated: 10.0.0.0/8, ::1".to_owned()
+                    })
+                })
+                .collect::<Result<_, _>>()?;
+            Ok(())
+        },
+    },
+    Setting {
+        name: "MESHFIT_REDIS_URL",
+        flag: Some("redis-url"),
+        value_name: "URL",
+        default: Fallback::Described("unset"),
+        help: "share results and jobs with other replicas through this Redis (a password in it would show in the process list as a flag: give that one as the variable)",
+        // TLS (rediss://) would need one of redis-rs's TLS features, which are not built.
+        parse: |v, c| match redis::parse_redis_url(v).filter(|u| u.scheme() == "redis") {
+            Some(_) => {
+                c.redis_url = Some(v.to_owned());
+                Ok(())
+            }
+            None => Err("expected redis://[user:password@]host[:port][/db]".to_owned()),
+        },
+    },
+    Setting {
+        name: "MESHFIT_REDIS_TTL_MS",
+        flag: Some("redis-ttl-ms"),
+        value_name: "MS",
+        default: Fallback::Value("86400000"),
+        help: "how long Redis keeps results, job records and requests",
+        parse: |v, c| millis(v, 1).map(|d| c.redis_ttl = d),
+    },
+    Setting {
+        name: "MESHFIT_REDIS_MAX_BYTES",
+        flag: Some("redis-max-bytes"),
+        value_name: "BYTES",
+        default: Fallback::Value("268435456"),
+        help: "largest result or request kept in Redis; larger ones stay on their replica",
+        parse: |v, c| number(v).map(|n| c.redis_max_bytes = n),
+    },
+    Setting {
+        name: "MESHFIT_REDIS_LEASE_MS",
+        flag: Some("redis-lease-ms"),
+        value_name: "MS",
+        default: Fallback::Value("10000"),
+        help: "a job's lease: how soon another replica takes over the job of one that died",
+        parse: |v, c| millis(v, 30).map(|d| c.redis_lease = d),
+    },
+    Setting {
+        name: "MESHFIT_LOG_FORMAT",
+        flag: Some("log-format"),
+        value_name: "FORMAT",
+        default: Fallback::Value("text"),
+        help: "`json` for one JSON object per line",
+        parse: |v, c| {
+            c.log_format = match v {
+                "text" => LogFormat::Text,
+                "json" => LogFormat::Json,
+                _ => return Err("expected text or json".to_owned()),
+            };
+            Ok(())
+        },
+    },
+    Setting {
+        name: "MESHFIT_LOG",
+        flag: None,
+        value_name: "FILTER",
+        default: Fallback::Value("info"),
+        help: "log filter, in `RUST_LOG` syntax",
+        // Read by the tracing subscriber itself.
+        parse: |_, _| Ok(()),
+    },
+];
+
 impl TryFrom<RawConfig> for Config {
     type Error = ConfigError;
 
@@ -206,125 +550,15 @@ impl TryFrom<RawConfig> for Config {
         let mut config = Config::default();
         let mut problems = Vec::new();
         for (name, value) in &raw.values {
-            let v = value.trim();
-            let number = || v.replace('_', "").parse::<u64>().map_err(|_| "expected a whole number");
-            let millis = || {
-                number().and_then(|n| (n >= 1).then(|| Duration::from_millis(n)).ok_or("must be at least 1"))
-            };
-            let outcome: Result<(), &str> = match name.as_str() {
-                "MESHFIT_ADDR" => listen_addr(v).map(|a| config.addr = a),
-                "MESHFIT_WORKERS" => number().and_then(|n| {
-                    NonZeroUsize::new(n as usize).map(|n| config.workers = n).ok_or("must be at least 1")
-                }),
-                "MESHFIT_QUEUE" => number().map(|n| config.queue = n as usize),
-                "MESHFIT_MAX_VERTICES" => number().and_then(|n| {
-                    (4..=crate::refine::MAX_VERTICES as u64)
-                        .contains(&n)
-                        .then(|| config.max_vertices = n as usize)
-                        .ok_or("must be between 4 and 400000000")
-                }),
-                "MESHFIT_MAX_GRID_POINTS" => number().and_then(|n| {
-                    (n >= 4).then(|| config.max_grid_points = n as usize).ok_or("must be at least 4")
-                }),
-                "MESHFIT_MAX_BODY_BYTES" => number().and_then(|n| {
-                    (n >= 1024).then(|| config.max_body_bytes = n as usize).ok_or("must be at least 1024")
-                }),
-                "MESHFIT_MAX_EXPRESSION_LEN" => number().and_then(|n| {
-                    (n >= 1).then(|| config.max_expression_len = n as usize).ok_or("must be at least 1")
-                }),
-                "MESHFIT_JOB_TIME_LIMIT_MS" => millis().map(|d| config.job_time_limit = d),
-                "MESHFIT_CACHE_BYTES" => number().map(|n| config.cache_bytes = n),
-                "MESHFIT_MEMORY_BYTES" => number().and_then(|n| {
-                    (n >= 64 << 20)
-                        .then(|| config.memory_bytes = n)
-                        .ok_or("must be at least 67108864 (64 MiB)")
-                }),
-                "MESHFIT_CACHE_DIR" => {
-                    config.cache_dir = (!v.is_empty()).then(|| PathBuf::from(v));
-                    Ok(())
-                }
-                "MESHFIT_CACHE_DIR_BYTES" => number()
-                    .and_then(|n| (n >= 1).then(|| config.cache_dir_bytes = n).ok_or("must be at least 1")),
-                "MESHFIT_SHUTDOWN_GRACE_MS" => {
-                    number().map(|n| config.shutdown_grace = Duration::from_millis(n))
-                }
-                "MESHFIT_LOG_FORMAT" => match v {
-                    "text" => Ok(LogFormat::Text),
-                    "json" => Ok(LogFormat::Json),
-                    _ => Err("expected text or json"),
-                }
-                .map(|f| config.log_format = f),
-                "MESHFIT_MAX_CONNECTIONS" => number().and_then(|n| {
-                    (n >= 1).then(|| config.max_connections = n as usize).ok_or("must be at least 1")
-                }),
-                "MESHFIT_HEADER_TIMEOUT_MS" => millis().map(|d| config.header_timeout = d),
-                "MESHFIT_BODY_TIMEOUT_MS" => millis().map(|d| config.body_timeout = d),
-                "MESHFIT_WRITE_TIMEOUT_MS" => millis().map(|d| config.write_timeout = d),
-                "MESHFIT_API_KEYS" => add_keys(v.split(','), &mut config.api_keys),
-                "MESHFIT_API_KEYS_FILE" => match std::fs::read_to_string(v) {
-                    Ok(text) => add_keys(
-                        text.lines().filter(|l| !l.trim_start().starts_with('#')),
-                        &mut config.api_keys,
-                    ),
-                    Err(e) => {
-                        let why = format!("cannot read the file: {e}");
-                        problems.push(problem(&raw, name, format!("{value:?}"), why));
-                        Ok(())
-                    }
-                },
-                "MESHFIT_CORS_ORIGINS" => v
-                    .split(',')
-                    .map(str::trim)
-                    .filter(|o| !o.is_empty())
-                    .map(|o| {
-                        is_origin(o)
-                            .then(|| o.to_owned())
-                            .ok_or("expected `*` or scheme://host[:port], comma-separated")
-                    })
-                    .collect::<Result<_, _>>()
-                    .map(|origins| config.cors_origins = origins),
-                "MESHFIT_CLIENT_SHARE" => match v.parse::<f64>() {
-                    Ok(x) if x > 0.0 && x <= 1.0 => {
-                        config.client_share = x;
-                        Ok(())
-                    }
-                    _ => Err("expected a number in (0, 1], e.g. 0.5"),
-                },
-                "MESHFIT_TRUSTED_PROXIES" => v
-                    .split(',')
-                    .map(str::trim)
-                    .filter(|p| !p.is_empty())
-                    .map(|p| {
-                        p.parse::<IpNet>().or_else(|_| p.parse::<IpAddr>().map(IpNet::from)).map_err(
-                            |_| "expected addresses or CIDR ranges, comma-separated: 10.0.0.0/8, ::1",
-                        )
-                    })
-                    .collect::<Result<_, _>>()
-                    .map(|proxies| config.trusted_proxies = proxies),
-                // TLS (rediss://) would need one of redis-rs's TLS features, which are not built.
-                "MESHFIT_REDIS_URL" => match redis::parse_redis_url(v).filter(|u| u.scheme() == "redis") {
-                    Some(_) => {
-                        config.redis_url = Some(v.to_owned());
-                        Ok(())
-                    }
-                    None => Err("expected redis://[user:password@]host[:port][/db]"),
-                },
-                "MESHFIT_REDIS_TTL_MS" => millis().map(|d| config.redis_ttl = d),
-                "MESHFIT_REDIS_MAX_BYTES" => number().map(|n| config.redis_max_bytes = n),
-                "MESHFIT_REDIS_LEASE_MS" => millis().and_then(|d| {
-                    (d >= Duration::from_millis(30))
-                        .then(|| config.redis_lease = d)
-                        .ok_or("must be at least 30")
-                }),
-                // RUST_LOG-style filtering is read by the tracing subscriber itself.
-                "MESHFIT_LOG" => Ok(()),
-                _ => Err("unknown setting"),
+            let outcome = match Setting::named(name) {
+                Some(setting) => (setting.parse)(value.trim(), &mut config),
+                None => Err("unknown setting".to_owned()),
             };
             if let Err(why) = outcome {
                 // A key, or a URL with a password, is a secret: name the variable, not its value.
-                let secret = matches!(name.as_str(), "MESHFIT_API_KEYS" | "MESHFIT_REDIS_URL");
+                let secret = Setting::named(name).is_some_and(Setting::is_secret);
                 let shown = if secret { "<hidden>".to_owned() } else { format!("{value:?}") };
-                problems.push(problem(&raw, name, shown, why.to_owned()));
+                problems.push(problem(&raw, name, shown, why));
             }
         }
         // The cache is part of the budget; a default cache larger than half of it shrinks,
@@ -365,10 +599,10 @@ pub fn listen_addr(v: &str) -> Result<SocketAddr, &'static str> {
 }
 
 /// Adds each non-blank key; every key must be long enough to be a secret.
-fn add_keys<'a>(keys: impl Iterator<Item = &'a str>, into: &mut ApiKeys) -> Result<(), &'static str> {
+fn add_keys<'a>(keys: impl Iterator<Item = &'a str>, into: &mut ApiKeys) -> Result<(), String> {
     for key in keys.map(str::trim).filter(|k| !k.is_empty()) {
         if key.len() < MIN_KEY_LEN || key.contains(char::is_whitespace) {
-            return Err("each key must be at least 16 characters, with no spaces");
+            return Err(format!("each key must be at least {MIN_KEY_LEN} characters, with no spaces"));
         }
         into.insert(key);
     }
@@ -468,16 +702,60 @@ mod tests {
     #[test]
     fn a_setting_given_as_a_flag_is_reported_under_the_flag() {
         let mut r = raw(&[("MESHFIT_QUEUE", "many")]);
-        r.set_from_flag("MESHFIT_WORKERS", "--workers", "0");
+        let workers = Setting::named("MESHFIT_WORKERS").unwrap();
+        r.set_from_flag(workers, "0");
         let err = Config::try_from(r).unwrap_err();
         let text = err.to_string();
         assert!(text.contains("--workers \"0\" (MESHFIT_WORKERS): must be at least 1"), "{text}");
         assert!(text.contains("MESHFIT_QUEUE=\"many\": expected a whole number"), "{text}");
         // The environment's value, replaced by a later `set`, is no longer the flag's.
         let mut r = RawConfig::default();
-        r.set_from_flag("MESHFIT_WORKERS", "--workers", "0");
+        r.set_from_flag(workers, "0");
         r.set("MESHFIT_WORKERS", "0");
         assert_eq!(Config::try_from(r).unwrap_err().0[0].flag, None);
+    }
+
+    #[test]
+    fn each_default_written_in_the_table_is_the_one_the_code_uses() {
+        let defaults = Config::default();
+        for setting in SETTINGS {
+            if let Fallback::Value(v) = setting.default {
+                let mut config = defaults.clone();
+                (setting.parse)(v, &mut config).unwrap_or_else(|e| panic!("{}: {e}", setting.name));
+                assert_eq!(config, defaults, "{} documents {v}", setting.name);
+            }
+        }
+    }
+
+    #[test]
+    fn names_and_flags_are_unique_and_every_flag_is_its_variables_name() {
+        let mut names: Vec<&str> = SETTINGS.iter().map(|s| s.name).collect();
+        names.sort_unstable();
+        names.dedup();
+        assert_eq!(names.len(), SETTINGS.len());
+        for s in SETTINGS {
+            if let Some(flag) = s.flag {
+                let from_name = s.name.trim_start_matches("MESHFIT_").to_lowercase().replace('_', "-");
+                assert_eq!(flag, from_name, "{}", s.name);
+            }
+        }
+    }
+
+    #[test]
+    fn the_readmes_table_is_the_settings_table() {
+        let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+        let rows: Vec<&str> = readme.lines().filter(|l| l.starts_with("| `MESHFIT_")).collect();
+        let expected: Vec<String> = SETTINGS
+            .iter()
+            .map(|s| {
+                let default = match s.default {
+                    Fallback::Value(v) => format!("`{v}`"),
+                    Fallback::Described(d) => d.to_owned(),
+                };
+                format!("| `{}` | {default} | {} |", s.name, s.help)
+            })
+            .collect();
+        assert_eq!(rows, expected, "the README's table of settings differs from config::SETTINGS");
     }
 
     #[test]

@@ -4,7 +4,7 @@
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 use meshfit::api::SolveRequest;
-use meshfit::config::{Config, RawConfig};
+use meshfit::config::{Config, RawConfig, SETTINGS, Setting};
 use meshfit::geom::Rect;
 use meshfit::jobs::{
     Limits, SOLUTION_BYTES_PER_VERTEX, SolveSpec, available_memory, cli_mesh_bytes_per_vertex,
@@ -84,135 +84,47 @@ fn health(args: &HealthArgs) -> Result<()> {
     }
 }
 
-/// Each flag sets the MESHFIT_* variable named in its help; see the README's table.
-#[derive(Args, Default)]
+/// `meshfit serve`'s flags: one for each of [`SETTINGS`] that has one, which sets its
+/// variable over the environment's.
+#[derive(Default)]
 struct ServeArgs {
-    /// MESHFIT_ADDR: where to listen [default: 0.0.0.0:8080].
-    #[arg(long, value_name = "HOST:PORT")]
-    addr: Option<String>,
-    /// MESHFIT_WORKERS: refinements at once [default: available cores].
-    #[arg(long, value_name = "N")]
-    workers: Option<String>,
-    /// MESHFIT_QUEUE: jobs that may wait for a worker [default: 64].
-    #[arg(long, value_name = "N")]
-    queue: Option<String>,
-    /// MESHFIT_MAX_VERTICES: largest max_vertices per job [default: 2000000].
-    #[arg(long, value_name = "N")]
-    max_vertices: Option<String>,
-    /// MESHFIT_MAX_GRID_POINTS: largest nx*ny [default: 16785409, 4097 x 4097].
-    #[arg(long, value_name = "N")]
-    max_grid_points: Option<String>,
-    /// MESHFIT_MAX_BODY_BYTES: largest request body [default: 268435456].
-    #[arg(long, value_name = "BYTES")]
-    max_body_bytes: Option<String>,
-    /// MESHFIT_MAX_EXPRESSION_LEN: longest expression in characters [default: 4096].
-    #[arg(long, value_name = "N")]
-    max_expression_len: Option<String>,
-    /// MESHFIT_JOB_TIME_LIMIT_MS: longest a job may run [default: 60000].
-    #[arg(long, value_name = "MS")]
-    job_time_limit_ms: Option<String>,
-    /// MESHFIT_MEMORY_BYTES: the memory budget for bodies, jobs and cached meshes [default:
-    /// half the machine's or the container's memory].
-    #[arg(long, value_name = "BYTES")]
-    memory_bytes: Option<String>,
-    /// MESHFIT_CACHE_BYTES: memory for finished meshes [default: 1073741824].
-    #[arg(long, value_name = "BYTES")]
-    cache_bytes: Option<String>,
-    /// MESHFIT_CACHE_DIR: also keep finished meshes here, across restarts [default: unset].
-    #[arg(long, value_name = "DIR")]
-    cache_dir: Option<String>,
-    /// MESHFIT_CACHE_DIR_BYTES: disk for those meshes, least recently used deleted first
-    /// [default: 10737418240].
-    #[arg(long, value_name = "BYTES")]
-    cache_dir_bytes: Option<String>,
-    /// MESHFIT_SHUTDOWN_GRACE_MS: time running jobs get after SIGTERM [default: 10000].
-    #[arg(long, value_name = "MS")]
-    shutdown_grace_ms: Option<String>,
-    /// MESHFIT_LOG_FORMAT: text or json [default: text].
-    #[arg(long, value_name = "FORMAT")]
-    log_format: Option<String>,
-    /// MESHFIT_MAX_CONNECTIONS: connections served at once [default: the file limit less 256].
-    #[arg(long, value_name = "N")]
-    max_connections: Option<String>,
-    /// MESHFIT_HEADER_TIMEOUT_MS: time to send a request's headers, idle time included
-    /// [default: 15000].
-    #[arg(long, value_name = "MS")]
-    header_timeout_ms: Option<String>,
-    /// MESHFIT_BODY_TIMEOUT_MS: longest pause in a request body [default: 15000].
-    #[arg(long, value_name = "MS")]
-    body_timeout_ms: Option<String>,
-    /// MESHFIT_WRITE_TIMEOUT_MS: longest a response waits for its reader [default: 30000].
-    #[arg(long, value_name = "MS")]
-    write_timeout_ms: Option<String>,
-    /// MESHFIT_API_KEYS_FILE: a file of API keys, one per line; with keys, /v1 needs one
-    /// [default: unset, the API is open]. Keys are not taken as flags: they would show in
-    /// the process list.
-    #[arg(long, value_name = "FILE")]
-    api_keys_file: Option<String>,
-    /// MESHFIT_CORS_ORIGINS: origins whose pages may call the API [default: none].
-    #[arg(long, value_name = "ORIGINS")]
-    cors_origins: Option<String>,
-    /// MESHFIT_CLIENT_SHARE: one client's share of the jobs (workers plus queue), and of the
-    /// workers it runs before others' waiting jobs go first [default: 0.5].
-    #[arg(long, value_name = "FRACTION")]
-    client_share: Option<String>,
-    /// MESHFIT_TRUSTED_PROXIES: proxies (addresses or CIDR ranges) whose Forwarded or
-    /// X-Forwarded-For header names the client [default: none].
-    #[arg(long, value_name = "RANGES")]
-    trusted_proxies: Option<String>,
-    /// MESHFIT_REDIS_URL: share results and jobs with other replicas through this Redis
-    /// [default: unset, this process serves alone]. A password in it would show in the
-    /// process list: give that one as the variable.
-    #[arg(long, value_name = "URL")]
-    redis_url: Option<String>,
-    /// MESHFIT_REDIS_TTL_MS: how long Redis keeps results, records and requests
-    /// [default: 86400000].
-    #[arg(long, value_name = "MS")]
-    redis_ttl_ms: Option<String>,
-    /// MESHFIT_REDIS_MAX_BYTES: largest result or request kept in Redis [default: 268435456].
-    #[arg(long, value_name = "BYTES")]
-    redis_max_bytes: Option<String>,
-    /// MESHFIT_REDIS_LEASE_MS: a job's lease, how soon another replica takes over the job of
-    /// one that died [default: 10000].
-    #[arg(long, value_name = "MS")]
-    redis_lease_ms: Option<String>,
+    /// The settings given as flags, with their values.
+    given: Vec<(&'static Setting, String)>,
+}
+
+impl clap::FromArgMatches for ServeArgs {
+    fn from_arg_matches(matches: &clap::ArgMatches) -> Result<Self, clap::Error> {
+        let given =
+            SETTINGS.iter().filter_map(|s| Some((s, matches.get_one::<String>(s.flag?)?.clone()))).collect();
+        Ok(Self { given })
+    }
+
+    fn update_from_arg_matches(&mut self, matches: &clap::ArgMatches) -> Result<(), clap::Error> {
+        *self = Self::from_arg_matches(matches)?;
+        Ok(())
+    }
+}
+
+impl clap::Args for ServeArgs {
+    fn augment_args(command: clap::Command) -> clap::Command {
+        SETTINGS.iter().fold(command, |command, s| match s.flag {
+            Some(flag) => {
+                command.arg(clap::Arg::new(flag).long(flag).value_name(s.value_name).help(s.flag_help()))
+            }
+            None => command,
+        })
+    }
+
+    fn augment_args_for_update(command: clap::Command) -> clap::Command {
+        Self::augment_args(command)
+    }
 }
 
 impl ServeArgs {
     fn config(&self) -> Result<Config> {
         let mut raw = RawConfig::from_env();
-        let flags = [
-            ("MESHFIT_ADDR", "--addr", &self.addr),
-            ("MESHFIT_WORKERS", "--workers", &self.workers),
-            ("MESHFIT_QUEUE", "--queue", &self.queue),
-            ("MESHFIT_MAX_VERTICES", "--max-vertices", &self.max_vertices),
-            ("MESHFIT_MAX_GRID_POINTS", "--max-grid-points", &self.max_grid_points),
-            ("MESHFIT_MAX_BODY_BYTES", "--max-body-bytes", &self.max_body_bytes),
-            ("MESHFIT_MAX_EXPRESSION_LEN", "--max-expression-len", &self.max_expression_len),
-            ("MESHFIT_JOB_TIME_LIMIT_MS", "--job-time-limit-ms", &self.job_time_limit_ms),
-            ("MESHFIT_MEMORY_BYTES", "--memory-bytes", &self.memory_bytes),
-            ("MESHFIT_CACHE_BYTES", "--cache-bytes", &self.cache_bytes),
-            ("MESHFIT_CACHE_DIR", "--cache-dir", &self.cache_dir),
-            ("MESHFIT_CACHE_DIR_BYTES", "--cache-dir-bytes", &self.cache_dir_bytes),
-            ("MESHFIT_SHUTDOWN_GRACE_MS", "--shutdown-grace-ms", &self.shutdown_grace_ms),
-            ("MESHFIT_LOG_FORMAT", "--log-format", &self.log_format),
-            ("MESHFIT_MAX_CONNECTIONS", "--max-connections", &self.max_connections),
-            ("MESHFIT_HEADER_TIMEOUT_MS", "--header-timeout-ms", &self.header_timeout_ms),
-            ("MESHFIT_BODY_TIMEOUT_MS", "--body-timeout-ms", &self.body_timeout_ms),
-            ("MESHFIT_WRITE_TIMEOUT_MS", "--write-timeout-ms", &self.write_timeout_ms),
-            ("MESHFIT_API_KEYS_FILE", "--api-keys-file", &self.api_keys_file),
-            ("MESHFIT_CORS_ORIGINS", "--cors-origins", &self.cors_origins),
-            ("MESHFIT_CLIENT_SHARE", "--client-share", &self.client_share),
-            ("MESHFIT_TRUSTED_PROXIES", "--trusted-proxies", &self.trusted_proxies),
-            ("MESHFIT_REDIS_URL", "--redis-url", &self.redis_url),
-            ("MESHFIT_REDIS_TTL_MS", "--redis-ttl-ms", &self.redis_ttl_ms),
-            ("MESHFIT_REDIS_MAX_BYTES", "--redis-max-bytes", &self.redis_max_bytes),
-            ("MESHFIT_REDIS_LEASE_MS", "--redis-lease-ms", &self.redis_lease_ms),
-        ];
-        for (name, flag, value) in flags {
-            if let Some(v) = value {
-                raw.set_from_flag(name, flag, v.clone());
-            }
+        for (setting, value) in &self.given {
+            raw.set_from_flag(setting, value.clone());
         }
         Ok(Config::try_from(raw)?)
     }

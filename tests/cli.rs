@@ -286,6 +286,31 @@ fn serve_names_the_flag_of_a_bad_setting_and_the_variable_it_sets() {
     assert!(stderr.contains(r#"MESHFIT_QUEUE="lots": expected a whole number"#), "{stderr}");
 }
 
+#[test]
+fn serve_help_has_a_flag_for_every_setting_but_the_secrets_with_its_variable_and_default() {
+    let out =
+        Command::new(env!("CARGO_BIN_EXE_meshfit")).args(["serve", "--help"]).output().expect("meshfit runs");
+    let help = String::from_utf8(out.stdout).unwrap();
+    let mut flags = 0;
+    for setting in meshfit::config::SETTINGS {
+        let Some(flag) = setting.flag else {
+            assert!(!help.contains(&format!("{}:", setting.name)), "{} is not a flag", setting.name);
+            continue;
+        };
+        let line =
+            help.lines().find(|l| l.trim_start().starts_with(&format!("--{flag} <"))).unwrap_or_else(|| {
+                panic!("no --{flag} in:\n{help}");
+            });
+        assert!(line.contains(&format!("<{}>", setting.value_name)) && line.contains(setting.name), "{line}");
+        assert!(help.contains(&format!("[default: {}]", setting.default)), "{}", setting.name);
+        flags += 1;
+    }
+    assert!(flags >= 25, "{flags}");
+    // A flag given twice, or one that does not exist, is clap's error, not a start.
+    let out = Command::new(env!("CARGO_BIN_EXE_meshfit")).args(["serve", "--wokers", "2"]).output().unwrap();
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("--workers"));
+}
+
 /// A port that was free a moment ago.
 fn free_port() -> u16 {
     std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
