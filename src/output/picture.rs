@@ -102,7 +102,8 @@ pub(crate) struct Shading {
     /// Each triangle's |B| in tesla, for a magnetostatic solution; without it a triangle takes
     /// the mean of its corners' z.
     flux_density: Option<Vec<f64>>,
-    /// The smallest and largest coloured value: the ends of the colour scale.
+    /// The ends of the colour scale: the smallest coloured value, and the largest (for |B|,
+    /// the value `SCALE_AREA` of the area lies under).
     pub range: (f64, f64),
     /// The largest coloured value: above the scale when the scale stops short of it.
     max: f64,
