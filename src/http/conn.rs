@@ -9,10 +9,14 @@
 //!   request's headers, so it closes idle keep-alive connections and slow headers alike;
 //! - a write timeout on the socket (`tokio-io-timeout`): a response the client has not read
 //!   for that long ends the connection, and the response's buffers are dropped with it;
-//! - a cap: past `max_connections`, a few more connections are served one request each,
-//!   `/healthz` as usual and everything else a 503 problem, and beyond those a connection
-//!   is closed as soon as it is accepted. The cap sits below the file limit, so `accept`
-//!   keeps working and the health check keeps answering.
+//! - a cap: at `max_connections`, a new connection closes the oldest open one that has no
+//!   request in flight (one that has sent nothing yet, or sits idle between requests), as
+//!   mature servers drain idle connections when out of slots, so an idle flood cannot keep
+//!   `/healthz` or real requests out until the header timeout. When every connection is
+//!   busy, a few more are served one request each, `/healthz` as usual and everything else a
+//!   503 problem, and beyond those a connection is closed as soon as it is accepted. The cap
+//!   sits below the file limit, so `accept` keeps working and the health check keeps
+//!   answering.
 //!
 //! The body timeouts are kept where the body is read, in `super::extract::Body`.
 
@@ -22,16 +26,20 @@ use axum::Router;
 use axum::body::Body;
 use axum::extract::{ConnectInfo, Request};
 use axum::response::IntoResponse;
-use hyper::body::Incoming;
+use hyper::body::{Frame, Incoming, SizeHint};
 use hyper::server::conn::http1;
 use hyper_util::rt::{TokioIo, TokioTimer};
 use hyper_util::server::graceful::GracefulShutdown;
 use hyper_util::service::TowerToHyperService;
+use std::collections::BTreeMap;
 use std::future::Future;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::pin::Pin;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+use std::task::{Context, Poll};
 use std::time::Duration;
 use tokio::net::{TcpListener, TcpStream};
+use tokio::sync::Notify;
 use tokio_io_timeout::TimeoutStream;
 use tower::ServiceExt;
 
@@ -72,6 +80,8 @@ pub async fn serve(
 ) -> std::io::Result<()> {
     let graceful = GracefulShutdown::new();
     let (open, overflow) = (Arc::new(AtomicUsize::new(0)), Arc::new(AtomicUsize::new(0)));
+    let below_cap = Arc::new(Registry::default());
+    let mut next_id = 0u64;
     let mut shutdown = std::pin::pin!(shutdown);
     loop {
         let (stream, peer) = tokio::select! {
@@ -85,37 +95,75 @@ pub async fn serve(
             () = &mut shutdown => break,
         };
         let _ = stream.set_nodelay(true);
-        let (counter, full) = if open.load(Ordering::SeqCst) < settings.max_connections {
-            (&open, false)
-        } else if overflow.load(Ordering::SeqCst) < OVERFLOW {
-            metrics.connections_refused.inc();
-            (&overflow, true)
-        } else {
-            // Dropping the stream closes it; the client sees the connection end at once.
-            metrics.connections_refused.inc();
-            continue;
-        };
+        let (counter, full) =
+            if open.load(Ordering::SeqCst) < settings.max_connections || below_cap.close_oldest_idle() {
+                (&open, false)
+            } else if overflow.load(Ordering::SeqCst) < OVERFLOW {
+                metrics.connections_refused.inc();
+                (&overflow, true)
+            } else {
+                // Dropping the stream closes it; the client sees the connection end at once.
+                metrics.connections_refused.inc();
+                continue;
+            };
         let slot = Slot::take(counter, &metrics);
+        next_id += 1;
+        let activity = (!full).then(|| below_cap.add(next_id));
         let io = TokioIo::new(Box::pin(with_write_timeout(stream, settings.write_timeout)));
         let mut builder = http1::Builder::new();
         let header_timeout = if full { OVERFLOW_HEADER_TIMEOUT } else { settings.header_timeout };
         builder.timer(TokioTimer::new()).header_read_timeout(header_timeout).keep_alive(!full);
-        let app = app.clone();
+        let (app, busy) = (app.clone(), activity.clone());
         let service = TowerToHyperService::new(tower::service_fn(move |req: Request<Incoming>| {
             let mut req = req.map(Body::new);
             req.extensions_mut().insert(ConnectInfo(peer));
             let app = app.clone();
+            // In flight from the request's headers to the end of its response's body.
+            let in_flight = InFlight::start(busy.clone());
             async move {
-                if full && req.uri().path() != "/healthz" {
-                    return Ok(ApiError::TooManyConnections.into_response());
-                }
-                app.oneshot(req).await
+                let response = if full && req.uri().path() != "/healthz" {
+                    ApiError::TooManyConnections.into_response()
+                } else {
+                    app.oneshot(req).await?
+                };
+                Ok::<_, std::convert::Infallible>(
+                    response.map(|body| Tracked { body, _in_flight: in_flight }),
+                )
             }
         }));
         let connection = graceful.watch(builder.serve_connection(io, service));
+        let registry = below_cap.clone();
+        let id = next_id;
         tokio::spawn(async move {
-            if let Err(e) = connection.await {
-                tracing::debug!(%peer, error = %e, "connection ended with an error");
+            let mut connection = std::pin::pin!(connection);
+            loop {
+                let told_to_close = async {
+                    match &activity {
+                        Some(a) => a.close.notified().await,
+                        None => std::future::pending().await,
+                    }
+                };
+                tokio::select! {
+                    ended = &mut connection => {
+                        if let Err(e) = ended {
+                            tracing::debug!(%peer, error = %e, "connection ended with an error");
+                        }
+                        break;
+                    }
+                    () = told_to_close => {
+                        let a = activity.as_ref().expect("only a registered connection is told");
+                        // Idle: dropping the connection closes it and cuts no response short.
+                        if a.in_flight.load(Ordering::SeqCst) == 0 {
+                            tracing::debug!(%peer, "closed an idle connection to admit a new one");
+                            break;
+                        }
+                        // A request came in first: keep serving it.
+                        a.closing.store(false, Ordering::SeqCst);
+                    }
+                }
+            }
+            if activity.is_some() {
+                registry.remove(id);
             }
             drop(slot);
         });
@@ -141,6 +189,97 @@ async fn on_accept_error(e: &std::io::Error) {
         tokio::time::sleep(ACCEPT_BACKOFF).await;
     } else {
         tracing::debug!(error = %e, "accept failed");
+    }
+}
+
+/// The connections below the cap, oldest first, so that at the cap the oldest idle one can be
+/// closed.
+#[derive(Default)]
+struct Registry {
+    connections: Mutex<BTreeMap<u64, Arc<Activity>>>,
+}
+
+/// What the accept loop knows of a connection below the cap.
+#[derive(Default)]
+struct Activity {
+    /// Requests whose response has not been written to its end.
+    in_flight: AtomicUsize,
+    /// Set once it has been told to close.
+    closing: AtomicBool,
+    /// Tells its task to close it.
+    close: Notify,
+}
+
+impl Registry {
+    fn add(&self, id: u64) -> Arc<Activity> {
+        let activity = Arc::new(Activity::default());
+        self.lock().insert(id, activity.clone());
+        activity
+    }
+
+    fn remove(&self, id: u64) {
+        self.lock().remove(&id);
+    }
+
+    /// Tells the oldest connection with no request in flight to close; whether there was one.
+    fn close_oldest_idle(&self) -> bool {
+        let connections = self.lock();
+        let idle = connections
+            .values()
+            .find(|a| a.in_flight.load(Ordering::SeqCst) == 0 && !a.closing.swap(true, Ordering::SeqCst));
+        // notify_one keeps the permit if the task is not waiting yet.
+        idle.map(|a| a.close.notify_one()).is_some()
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, BTreeMap<u64, Arc<Activity>>> {
+        // The map stays whole whatever panicked while it was held: take it anyway.
+        self.connections.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+}
+
+/// A request in flight on a connection below the cap, until dropped.
+struct InFlight(Option<Arc<Activity>>);
+
+impl InFlight {
+    fn start(activity: Option<Arc<Activity>>) -> Self {
+        if let Some(a) = &activity {
+            a.in_flight.fetch_add(1, Ordering::SeqCst);
+        }
+        Self(activity)
+    }
+}
+
+impl Drop for InFlight {
+    fn drop(&mut self) {
+        if let Some(a) = &self.0 {
+            a.in_flight.fetch_sub(1, Ordering::SeqCst);
+        }
+    }
+}
+
+/// A response body that keeps its request in flight until hyper has written it and drops it.
+struct Tracked {
+    body: Body,
+    _in_flight: InFlight,
+}
+
+impl hyper::body::Body for Tracked {
+    type Data = <Body as hyper::body::Body>::Data;
+    type Error = <Body as hyper::body::Body>::Error;
+
+    fn poll_frame(
+        mut self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+    ) -> Poll<Option<Result<Frame<Self::Data>, Self::Error>>> {
+        Pin::new(&mut self.body).poll_frame(cx)
+    }
+
+    fn is_end_stream(&self) -> bool {
+        self.body.is_end_stream()
+    }
+
+    fn size_hint(&self) -> SizeHint {
+        self.body.size_hint()
     }
 }
 

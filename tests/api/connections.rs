@@ -184,12 +184,30 @@ async fn bodies_and_jobs_are_charged_to_the_memory_budget_before_they_are_taken(
     app.shutdown().await;
 }
 
+/// A connection with a request in flight: its headers promise a body that never comes. The
+/// server's `100 Continue`, sent when the handler starts reading the body, says it is in flight.
+async fn busy(addr: std::net::SocketAddr) -> TcpStream {
+    let mut stream = TcpStream::connect(addr).await.unwrap();
+    let head = "POST /v1/meshes HTTP/1.1\r\nhost: x\r\ncontent-type: application/json\r\n\
+                content-length: 100\r\nexpect: 100-continue\r\n\r\n";
+    stream.write_all(head.as_bytes()).await.unwrap();
+    let mut got = Vec::new();
+    let mut buf = [0u8; 256];
+    while !got.ends_with(b"\r\n\r\n") {
+        let n = timeout(GUARD, stream.read(&mut buf)).await.expect("no 100 Continue").unwrap();
+        assert!(n > 0, "closed before 100 Continue: {}", String::from_utf8_lossy(&got));
+        got.extend_from_slice(&buf[..n]);
+    }
+    assert!(got.starts_with(b"HTTP/1.1 100 Continue"), "{}", String::from_utf8_lossy(&got));
+    stream
+}
+
 #[tokio::test]
-async fn past_the_connection_cap_healthz_answers_and_other_routes_get_503() {
+async fn past_the_connection_cap_of_busy_connections_healthz_answers_and_other_routes_get_503() {
     let app = spawn_with(meshfit::config::Config { max_connections: 4, ..test_config() }).await;
     let mut held = Vec::new();
     for _ in 0..4 {
-        held.push(TcpStream::connect(app.addr).await.unwrap());
+        held.push(busy(app.addr).await);
     }
     let client = unpooled();
     let health = client.get(app.url("/healthz")).send().await.unwrap();
@@ -206,5 +224,28 @@ async fn past_the_connection_cap_healthz_answers_and_other_routes_get_503() {
     })
     .await;
     assert!(app.metric("meshfit_connections_refused_total").await >= 2.0);
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn at_the_cap_an_idle_flood_gives_way_oldest_first_to_healthz_and_real_requests() {
+    let app = spawn_with(meshfit::config::Config { max_connections: 4, ..test_config() }).await;
+    let mut idle = Vec::new();
+    for _ in 0..12 {
+        idle.push(TcpStream::connect(app.addr).await.unwrap());
+    }
+    let client = unpooled();
+    for _ in 0..3 {
+        assert_eq!(client.get(app.url("/healthz")).send().await.unwrap().status(), 200);
+        let body = json!({"function": "x*y", "max_vertices": 100});
+        let mesh = client.post(app.url("/v1/meshes")).json(&body).send().await.unwrap();
+        assert_eq!(mesh.status(), 200);
+    }
+    // The first eight gave way to the last four, without a byte, well before the header
+    // timeout (30 s, past the guard); then the requests took the places of the next ones.
+    for stream in &mut idle[..8] {
+        assert!(read_to_close(stream).await.is_empty());
+    }
+    assert_eq!(app.metric("meshfit_connections_refused_total").await, 0.0, "none was refused");
     app.shutdown().await;
 }
