@@ -29,7 +29,6 @@ use axum::response::IntoResponse;
 use hyper::body::{Frame, Incoming, SizeHint};
 use hyper::server::conn::http1;
 use hyper_util::rt::{TokioIo, TokioTimer};
-use hyper_util::server::graceful::GracefulShutdown;
 use hyper_util::service::TowerToHyperService;
 use std::collections::BTreeMap;
 use std::future::Future;
@@ -39,7 +38,7 @@ use std::sync::{Arc, Mutex};
 use std::task::{Context, Poll};
 use std::time::Duration;
 use tokio::net::{TcpListener, TcpStream};
-use tokio::sync::Notify;
+use tokio::sync::{Notify, mpsc, watch};
 use tokio_io_timeout::TimeoutStream;
 use tower::ServiceExt;
 
@@ -78,7 +77,10 @@ pub async fn serve(
     metrics: Arc<Metrics>,
     shutdown: impl Future<Output = ()>,
 ) -> std::io::Result<()> {
-    let graceful = GracefulShutdown::new();
+    // Told to every connection at shutdown; `finished` yields once every connection has
+    // dropped its sender (mini-redis's shutdown pattern).
+    let (stopping, _) = watch::channel(false);
+    let (alive, mut finished) = mpsc::channel::<()>(1);
     let (open, overflow) = (Arc::new(AtomicUsize::new(0)), Arc::new(AtomicUsize::new(0)));
     let below_cap = Arc::new(Registry::default());
     let mut next_id = 0u64;
@@ -108,7 +110,8 @@ pub async fn serve(
             };
         let slot = Slot::take(counter, &metrics);
         next_id += 1;
-        let activity = (!full).then(|| below_cap.add(next_id));
+        let registered = (!full).then(|| Registered::new(&below_cap, next_id));
+        let activity = registered.as_ref().map(|r| r.activity.clone());
         let io = TokioIo::new(Box::pin(with_write_timeout(stream, settings.write_timeout)));
         let mut builder = http1::Builder::new();
         let header_timeout = if full { OVERFLOW_HEADER_TIMEOUT } else { settings.header_timeout };
@@ -131,11 +134,11 @@ pub async fn serve(
                 )
             }
         }));
-        let connection = graceful.watch(builder.serve_connection(io, service));
-        let registry = below_cap.clone();
-        let id = next_id;
+        let connection = builder.serve_connection(io, service);
+        let (mut stopping, alive) = (stopping.subscribe(), alive.clone());
         tokio::spawn(async move {
             let mut connection = std::pin::pin!(connection);
+            let mut closing = false;
             loop {
                 let told_to_close = async {
                     match &activity {
@@ -144,32 +147,32 @@ pub async fn serve(
                     }
                 };
                 tokio::select! {
-                    ended = &mut connection => {
+                    ended = connection.as_mut() => {
                         if let Err(e) = ended {
                             tracing::debug!(%peer, error = %e, "connection ended with an error");
                         }
                         break;
                     }
-                    () = told_to_close => {
-                        let a = activity.as_ref().expect("only a registered connection is told");
-                        // Idle: dropping the connection closes it and cuts no response short.
-                        if a.in_flight.load(Ordering::SeqCst) == 0 {
-                            tracing::debug!(%peer, "closed an idle connection to admit a new one");
-                            break;
-                        }
-                        // A request came in first: keep serving it.
-                        a.closing.store(false, Ordering::SeqCst);
+                    // Given way to a new connection, or the server stops: hyper closes an idle
+                    // connection at once and a busy one once its response is written.
+                    () = told_to_close, if !closing => {
+                        tracing::debug!(%peer, "closing an idle connection to admit a new one");
+                        closing = true;
+                        connection.as_mut().graceful_shutdown();
+                    }
+                    _ = stopping.wait_for(|&s| s), if !closing => {
+                        closing = true;
+                        connection.as_mut().graceful_shutdown();
                     }
                 }
             }
-            if activity.is_some() {
-                registry.remove(id);
-            }
-            drop(slot);
+            drop((registered, slot, alive));
         });
     }
     drop(listener);
-    graceful.shutdown().await;
+    stopping.send_replace(true);
+    drop(alive);
+    let _ = finished.recv().await;
     Ok(())
 }
 
@@ -202,25 +205,36 @@ struct Registry {
 /// What the accept loop knows of a connection below the cap.
 #[derive(Default)]
 struct Activity {
-    /// Requests whose response has not been written to its end.
+    /// Requests whose response body hyper has not yet taken to its end.
     in_flight: AtomicUsize,
-    /// Set once it has been told to close.
+    /// Set once it has been told to close: it is not chosen again.
     closing: AtomicBool,
     /// Tells its task to close it.
     close: Notify,
 }
 
-impl Registry {
-    fn add(&self, id: u64) -> Arc<Activity> {
+/// A connection's place in the registry, given up when dropped (however its task ends).
+struct Registered {
+    registry: Arc<Registry>,
+    id: u64,
+    activity: Arc<Activity>,
+}
+
+impl Registered {
+    fn new(registry: &Arc<Registry>, id: u64) -> Self {
         let activity = Arc::new(Activity::default());
-        self.lock().insert(id, activity.clone());
-        activity
+        registry.lock().insert(id, activity.clone());
+        Self { registry: registry.clone(), id, activity }
     }
+}
 
-    fn remove(&self, id: u64) {
-        self.lock().remove(&id);
+impl Drop for Registered {
+    fn drop(&mut self) {
+        self.registry.lock().remove(&self.id);
     }
+}
 
+impl Registry {
     /// Tells the oldest connection with no request in flight to close; whether there was one.
     fn close_oldest_idle(&self) -> bool {
         let connections = self.lock();

@@ -249,3 +249,47 @@ async fn at_the_cap_an_idle_flood_gives_way_oldest_first_to_healthz_and_real_req
     assert_eq!(app.metric("meshfit_connections_refused_total").await, 0.0, "none was refused");
     app.shutdown().await;
 }
+
+#[tokio::test]
+async fn at_the_cap_a_slow_reader_keeps_its_whole_response_while_idle_connections_give_way() {
+    let app = spawn_with(meshfit::config::Config { max_connections: 2, ..test_config() }).await;
+    let client = unpooled();
+    let request = json!({"function": "sin(9*x)*cos(7*y)", "max_vertices": 20_000, "criterion": "variation"});
+    let document =
+        client.post(app.url("/v1/meshes")).json(&request).send().await.unwrap().bytes().await.unwrap();
+    let id = serde_json::from_slice::<Value>(&document).unwrap()["id"].as_str().unwrap().to_owned();
+
+    // A reader with a small buffer that reads nothing until the flood is over.
+    let socket = TcpSocket::new_v4().unwrap();
+    socket.set_recv_buffer_size(4096).unwrap();
+    let mut slow = socket.connect(app.addr).await.unwrap();
+    let get = format!("GET /v1/jobs/{id}/mesh HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n");
+    slow.write_all(get.as_bytes()).await.unwrap();
+    let mut idle = Vec::new();
+    for _ in 0..6 {
+        idle.push(TcpStream::connect(app.addr).await.unwrap());
+    }
+    assert_eq!(client.get(app.url("/healthz")).send().await.unwrap().status(), 200);
+
+    let received = read_to_close(&mut slow).await;
+    let head_end = received.windows(4).position(|w| w == b"\r\n\r\n").unwrap() + 4;
+    assert!(received.starts_with(b"HTTP/1.1 200"), "{}", String::from_utf8_lossy(&received[..head_end]));
+    let body = dechunk(&received[head_end..]);
+    assert!(body == document[..], "{} of {} bytes", body.len(), document.len());
+    app.shutdown().await;
+}
+
+/// A chunked body's data; panics on a body cut short.
+fn dechunk(mut chunked: &[u8]) -> Vec<u8> {
+    let mut out = Vec::new();
+    loop {
+        let line_end = chunked.windows(2).position(|w| w == b"\r\n").expect("a chunk size line");
+        let size = usize::from_str_radix(std::str::from_utf8(&chunked[..line_end]).unwrap(), 16).unwrap();
+        chunked = &chunked[line_end + 2..];
+        if size == 0 {
+            return out;
+        }
+        out.extend_from_slice(&chunked[..size]);
+        chunked = &chunked[size + 2..];
+    }
+}
