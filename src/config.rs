@@ -294,8 +294,8 @@ pub const SETTINGS: &[Setting] = &[
         default: Fallback::Value("2000000"),
         help: "largest `max_vertices` a request may ask for",
         parse: |v, c| {
-            let n = at_least(v, 4)?;
-            if n > crate::refine::MAX_VERTICES as u64 {
+            let n = number(v)?;
+            if !(4..=crate::refine::MAX_VERTICES as u64).contains(&n) {
                 return Err(format!("must be between 4 and {}", crate::refine::MAX_VERTICES));
             }
             c.max_vertices = n as usize;
@@ -340,7 +340,11 @@ pub const SETTINGS: &[Setting] = &[
         value_name: "BYTES",
         default: Fallback::Described("half the machine's memory, or the container's limit"),
         help: "the memory budget that request bodies, jobs and cached meshes are charged to before they are taken; past it, 503",
-        parse: |v, c| at_least(v, 64 << 20).map(|n| c.memory_bytes = n),
+        parse: |v, c| {
+            let n = at_least(v, 64 << 20).map_err(|_| "must be at least 67108864 (64 MiB)".to_owned())?;
+            c.memory_bytes = n;
+            Ok(())
+        },
     },
     Setting {
         name: "MESHFIT_CACHE_BYTES",
@@ -556,7 +560,8 @@ impl TryFrom<RawConfig> for Config {
             };
             if let Err(why) = outcome {
                 // A key, or a URL with a password, is a secret: name the variable, not its value.
-                let secret = Setting::named(name).is_some_and(Setting::is_secret);
+                // A misspelt one (MESHFIT_API_KEY) may be a secret too: unknown values are not shown.
+                let secret = Setting::named(name).is_none_or(Setting::is_secret);
                 let shown = if secret { "<hidden>".to_owned() } else { format!("{value:?}") };
                 problems.push(problem(&raw, name, shown, why));
             }
@@ -685,6 +690,9 @@ mod tests {
         assert_eq!(err.0.len(), 4, "{err}");
         assert!(err.0.iter().any(|p| p.to_string().starts_with("MESHFIT_WORKERS=\"0\"")), "{err}");
         assert!(err.0.iter().any(|p| p.name == "MESHFIT_QEUE" && p.why == "unknown setting"), "{err}");
+        // A misspelt variable may hold a key: its value is not echoed.
+        let err = Config::try_from(raw(&[("MESHFIT_API_KEY", "secret-0123456789abcdef")])).unwrap_err();
+        assert_eq!(err.to_string(), "invalid configuration:\n  MESHFIT_API_KEY=<hidden>: unknown setting");
     }
 
     #[test]
@@ -724,6 +732,32 @@ mod tests {
                 (setting.parse)(v, &mut config).unwrap_or_else(|e| panic!("{}: {e}", setting.name));
                 assert_eq!(config, defaults, "{} documents {v}", setting.name);
             }
+        }
+    }
+
+    #[test]
+    fn each_parser_sets_its_own_setting() {
+        // A value other than the default, per setting, that its parser takes.
+        let other = |name: &str| match name {
+            "MESHFIT_ADDR" => "127.0.0.1:9",
+            "MESHFIT_CLIENT_SHARE" => "0.25",
+            "MESHFIT_CACHE_DIR" => "/tmp/meshfit-cache",
+            "MESHFIT_CORS_ORIGINS" => "https://app.example",
+            "MESHFIT_TRUSTED_PROXIES" => "10.0.0.0/8",
+            "MESHFIT_REDIS_URL" => "redis://cache:6379",
+            "MESHFIT_LOG_FORMAT" => "json",
+            "MESHFIT_API_KEYS" => "key-0123456789abcdef",
+            "MESHFIT_MEMORY_BYTES" => "68719476736",
+            _ => "12345",
+        };
+        let defaults = Config::default();
+        // Read by the log subscriber, or by a file: not in Config's fields this way.
+        for setting in SETTINGS.iter().filter(|s| !matches!(s.name, "MESHFIT_LOG" | "MESHFIT_API_KEYS_FILE"))
+        {
+            let mut config = defaults.clone();
+            (setting.parse)(other(setting.name), &mut config)
+                .unwrap_or_else(|e| panic!("{}: {e}", setting.name));
+            assert_ne!(config, defaults, "{} changed nothing", setting.name);
         }
     }
 

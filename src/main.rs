@@ -100,7 +100,11 @@ impl clap::FromArgMatches for ServeArgs {
     }
 
     fn update_from_arg_matches(&mut self, matches: &clap::ArgMatches) -> Result<(), clap::Error> {
-        *self = Self::from_arg_matches(matches)?;
+        // Settings given again replace their earlier values; the others stay.
+        for (setting, value) in Self::from_arg_matches(matches)?.given {
+            self.given.retain(|(s, _)| s.name != setting.name);
+            self.given.push((setting, value));
+        }
         Ok(())
     }
 }

@@ -302,12 +302,17 @@ fn serve_help_has_a_flag_for_every_setting_but_the_secrets_with_its_variable_and
                 panic!("no --{flag} in:\n{help}");
             });
         assert!(line.contains(&format!("<{}>", setting.value_name)) && line.contains(setting.name), "{line}");
-        assert!(help.contains(&format!("[default: {}]", setting.default)), "{}", setting.name);
+        assert!(line.contains(&format!("[default: {}]", setting.default)), "{line}");
         flags += 1;
     }
     assert!(flags >= 25, "{flags}");
     // A flag given twice, or one that does not exist, is clap's error, not a start.
     let out = Command::new(env!("CARGO_BIN_EXE_meshfit")).args(["serve", "--wokers", "2"]).output().unwrap();
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("--workers"));
+    let out = Command::new(env!("CARGO_BIN_EXE_meshfit"))
+        .args(["serve", "--workers", "2", "--workers", "3"])
+        .output()
+        .unwrap();
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("--workers"));
 }
 
