@@ -253,6 +253,16 @@ fn at_least(v: &str, min: u64) -> Result<u64, String> {
     number(v).and_then(|n| if n >= min { Ok(n) } else { Err(format!("must be at least {min}")) })
 }
 
+/// The non-blank items of a comma-separated list, each read by `item`; `expected` says what
+/// it takes when one is not.
+fn comma_separated<T>(v: &str, item: impl Fn(&str) -> Option<T>, expected: &str) -> Result<Vec<T>, String> {
+    v.split(',')
+        .map(str::trim)
+        .filter(|i| !i.is_empty())
+        .map(|i| item(i).ok_or_else(|| expected.to_owned()))
+        .collect()
+}
+
 /// Milliseconds, at least `min`.
 fn millis(v: &str, min: u64) -> Result<Duration, String> {
     at_least(v, min).map(Duration::from_millis)
@@ -439,14 +449,9 @@ pub const SETTINGS: &[Setting] = &[
         default: Fallback::Described("unset (CORS off)"),
         help: "comma-separated origins, `https://app.example`, whose pages may call the API; `*` for any",
         parse: |v, c| {
-            let origins = v.split(',').map(str::trim).filter(|o| !o.is_empty());
-            c.cors_origins = origins
-                .map(|o| {
-                    is_origin(o)
-                        .then(|| o.to_owned())
-                        .ok_or_else(|| "expected `*` or scheme://host[:port], comma-separated".to_owned())
-                })
-                .collect::<Result<_, _>>()?;
+            let origin = |o: &str| is_origin(o).then(|| o.to_owned());
+            c.cors_origins =
+                comma_separated(v, origin, "expected `*` or scheme://host[:port], comma-separated")?;
             Ok(())
         },
     },
@@ -471,14 +476,12 @@ pub const SETTINGS: &[Setting] = &[
         default: Fallback::Described("none"),
         help: "proxies (comma-separated addresses or CIDR ranges) whose `Forwarded` / `X-Forwarded-For` names the client",
         parse: |v, c| {
-            let proxies = v.split(',').map(str::trim).filter(|p| !p.is_empty());
-            c.trusted_proxies = proxies
-                .map(|p| {
-                    p.parse::<IpNet>().or_else(|_| p.parse::<IpAddr>().map(IpNet::from)).map_err(|_| {
-                        "expected addresses or CIDR ranges, comma-separated: 10.0.0.0/8, ::1".to_owned()
-                    })
-                })
-                .collect::<Result<_, _>>()?;
+            let proxy = |p: &str| p.parse::<IpNet>().or_else(|_| p.parse::<IpAddr>().map(IpNet::from)).ok();
+            c.trusted_proxies = comma_separated(
+                v,
+                proxy,
+                "expected addresses or CIDR ranges, comma-separated: 10.0.0.0/8, ::1",
+            )?;
             Ok(())
         },
     },
@@ -554,14 +557,15 @@ impl TryFrom<RawConfig> for Config {
         let mut config = Config::default();
         let mut problems = Vec::new();
         for (name, value) in &raw.values {
-            let outcome = match Setting::named(name) {
+            let setting = Setting::named(name);
+            let outcome = match setting {
                 Some(setting) => (setting.parse)(value.trim(), &mut config),
                 None => Err("unknown setting".to_owned()),
             };
             if let Err(why) = outcome {
                 // A key, or a URL with a password, is a secret: name the variable, not its value.
                 // A misspelt one (MESHFIT_API_KEY) may be a secret too: unknown values are not shown.
-                let secret = Setting::named(name).is_none_or(Setting::is_secret);
+                let secret = setting.is_none_or(Setting::is_secret);
                 let shown = if secret { "<hidden>".to_owned() } else { format!("{value:?}") };
                 problems.push(problem(&raw, name, shown, why));
             }

@@ -18,6 +18,7 @@
 //! Lengths are in picture units: pixels for png, view-box units for svg.
 
 use super::{colour, contour};
+use crate::geom::predicates::signed_area_x2;
 use crate::result::{MeshResult, Summary};
 
 /// A rectangle on the picture, y downward.
@@ -290,10 +291,10 @@ impl Layout {
     }
 }
 
-/// The area of `triangle`.
+/// The area of `triangle` (counter-clockwise, as a result's triangles are).
 fn area(result: &MeshResult, triangle: [u32; 3]) -> f64 {
-    let [a, b, c] = triangle.map(|v| result.vertices[v as usize]);
-    ((b.x - a.x) * (c.y - a.y) - (c.x - a.x) * (b.y - a.y)).abs() / 2.0
+    let [a, b, c] = triangle.map(|v| result.vertices[v as usize].point());
+    signed_area_x2(a, b, c) / 2.0
 }
 
 /// The smallest of `values` that at least `fraction` of the total weight lies at or under
