@@ -27,8 +27,9 @@
 //! - [`jobs`]: validated, hashed job specs, the job record, the registry with its bounded
 //!   worker pool, each client's share of it, the memory budget, the worker, and the cache of
 //!   results. The only bridge between async code and the engine.
-//! - [`cluster`]: Redis, for replicas that share results and jobs: keys, leases, records
-//!   and messages. `jobs` decides what to do with them.
+//! - [`cluster`]: Redis, for replicas that share results and jobs: implements
+//!   [`jobs::peers::Peers`] in keys, scripts and channels. `jobs` decides what to do with
+//!   them, and knows nothing of Redis.
 //! - [`http`]: connections (their cap and timeouts), access (keys, origins), routes,
 //!   handlers, problem documents, server-sent events, and the page at `/`.
 //! - [`cpu`]: where CPU-bound work runs: the blocking pool, below the async workers' priority.
@@ -37,9 +38,9 @@
 //! ```text
 //! http ──▶ jobs ──▶ refine ──▶ geom
 //!   │        │        └──────▶ source ──▶ geom
-//!   │        ├──▶ result ──▶ refine
-//!   │        └──▶ cluster ──▶ api, result (Redis)
+//!   │        └──▶ result ──▶ refine
 //!   └──▶ api, output ──▶ result
+//! cluster ──▶ jobs::peers (Redis behind the trait jobs talks to replicas through)
 //! solve ──▶ geom
 //! ```
 #![forbid(unsafe_code)]
@@ -119,7 +120,7 @@ pub async fn serve(
         let cluster = cluster::Cluster::connect(settings, metrics.redis_errors.clone())
             .map_err(|e| std::io::Error::other(format!("MESHFIT_REDIS_URL: {e}")))?;
         tracing::info!(replica = cluster.replica(), "sharing results and jobs through redis");
-        jobs = jobs.shared(cluster, Arc::new(http::Replicas::new(limits)));
+        jobs = jobs.shared(Arc::new(cluster), Arc::new(http::Replicas::new(limits)));
     }
     // Indexes are rebuilt in milliseconds; a quarter of the result cache's budget holds plenty.
     let body = http::BodyLimits { max_bytes: config.max_body_bytes, timeout: config.body_timeout };

@@ -1,21 +1,13 @@
-//! The one subscription of a replica: records and control messages from every replica, handed
+//! The one subscription of a replica: postings and control messages from every replica, handed
 //! out through a broadcast channel; reconnects by itself.
 
-use super::{CONTROL, Control, EVENTS, Inner, Record};
+use super::{CONTROL, EVENTS, Inner};
+use crate::jobs::peers::{Control, Message};
 use futures_util::StreamExt;
 use std::sync::Weak;
 use std::time::Duration;
 
-/// A message from a replica.
-#[derive(Debug, Clone)]
-pub enum Message {
-    /// Job `id` changed.
-    Record(String, Box<Record>),
-    /// The replica running job `id` is asked to act.
-    Control(String, Control),
-}
-
-/// The payload of a record on `meshfit:events`: the id, a space, the record's JSON.
+/// The payload of a posting on `meshfit:events`: the id, a space, the posting's JSON.
 pub(super) fn event(id: &str, json: &str) -> String {
     format!("{id} {json}")
 }
@@ -32,7 +24,7 @@ pub(super) fn control(id: &str, what: Control) -> String {
 fn parse(channel: &str, payload: &str) -> Option<Message> {
     let (head, rest) = payload.split_once(' ')?;
     match channel {
-        EVENTS => Some(Message::Record(head.to_owned(), Box::new(serde_json::from_str(rest).ok()?))),
+        EVENTS => Some(Message::Posted(head.to_owned(), Box::new(serde_json::from_str(rest).ok()?))),
         CONTROL => {
             let what = match head {
                 "cancel" => Control::Cancel,
@@ -85,10 +77,11 @@ pub(super) async fn run(client: redis::Client, inner: Weak<Inner>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::jobs::peers::Posting;
 
     #[test]
     fn messages_read_back_as_sent_and_anything_else_is_ignored() {
-        let record = Record {
+        let record = Posting {
             status: "running".into(),
             seq: 7,
             progress: None,
@@ -98,7 +91,7 @@ mod tests {
             run: "a#0".into(),
         };
         let json = serde_json::to_string(&record).unwrap();
-        let Some(Message::Record(id, got)) = parse(EVENTS, &event("abc", &json)) else { panic!() };
+        let Some(Message::Posted(id, got)) = parse(EVENTS, &event("abc", &json)) else { panic!() };
         assert_eq!((id.as_str(), *got), ("abc", record));
         for what in [Control::Cancel, Control::Detach] {
             let Some(Message::Control(id, got)) = parse(CONTROL, &control("abc", what)) else { panic!() };

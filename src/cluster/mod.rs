@@ -1,8 +1,9 @@
 //! Replicas that share results and jobs through Redis (`MESHFIT_REDIS_URL`).
 //!
-//! This module is the transport: keys, leases, records and messages, in bytes and wire types.
-//! What a replica does with them (follow a job another replica runs, take over one whose
-//! replica died) is in [`crate::jobs`].
+//! This module is the transport: [`Cluster`] implements [`Peers`], the store that
+//! [`crate::jobs`] shares with the other replicas, in Redis keys, scripts and channels. What a
+//! replica does with it (follow a job another replica runs, take over one whose replica died)
+//! is decided in `jobs`, which knows nothing of Redis.
 //!
 //! redis-rs rather than a hand-written client: its `ConnectionManager` multiplexes commands
 //! over one connection (a replica keeps two: small commands, and results and requests) and
@@ -13,24 +14,23 @@
 //! |---|---|---|
 //! | `meshfit:result:{id}` | a finished result, compact and checksummed | `MESHFIT_REDIS_TTL_MS` |
 //! | `meshfit:partial:{id}` | a result a time limit stopped (never a new request's answer) | same |
-//! | `meshfit:job:{id}` | the job's [`Record`] as JSON | same |
+//! | `meshfit:job:{id}` | the job's [`Posting`] as JSON | same |
 //! | `meshfit:lease:{id}` | the token of the run holding it: replica and run number | `MESHFIT_REDIS_LEASE_MS`, renewed |
 //! | `meshfit:request:{id}` | the request body, so another replica can take the job over | same as results |
 //! | `meshfit:pending` | ids of jobs not finished, with a stored request | |
 //! | `meshfit:cancel:{id}`, `meshfit:detach:{id}` | asked of the run by a replica that follows it | three leases |
 //!
-//! Only the run holding the lease writes the job's record (a script checks the token), so a
-//! run that lost its lease cannot overwrite its successor's. Records go out on the channel
+//! Only the run holding the lease writes the job's posting (a script checks the token), so a
+//! run that lost its lease cannot overwrite its successor's. Postings go out on the channel
 //! `meshfit:events` as they are written; `meshfit:control` carries `cancel {id}` and
 //! `detach {id}` to the replica that runs the job, and the keys of the same names keep the
 //! request for the run's next renewal in case the message is missed.
 
 mod listen;
-mod record;
 
-pub use listen::Message;
-pub use record::Record;
-
+use crate::jobs::peers::{
+    Claim, Control, Kept, KeptRequest, Message, Peers, Posting, Result, Take, Unavailable,
+};
 use redis::AsyncCommands;
 use redis::aio::ConnectionManager;
 use std::sync::Arc;
@@ -52,42 +52,6 @@ pub struct Settings {
     /// job whose replica died. Renewed every third of it.
     pub lease: Duration,
 }
-
-/// A request as a client sent it, kept so that another replica can run the job again.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Request {
-    /// `mesh` or `solution`: what the body was read as.
-    pub kind: String,
-    /// The body's `Content-Type`.
-    pub content_type: String,
-    /// The body.
-    pub body: bytes::Bytes,
-}
-
-/// What a control message asks of the replica running a job.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Control {
-    /// Stop it.
-    Cancel,
-    /// Run it to the end even if its own clients leave: a client on another replica waits.
-    Detach,
-}
-
-/// What taking a lease found.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Claim {
-    /// This run holds it now.
-    Won,
-    /// Another run holds it: this token's.
-    Held(String),
-}
-
-/// Why a Redis operation did not complete: the replica then acts on its own.
-#[derive(Debug, thiserror::Error)]
-#[error("redis: {0}")]
-pub struct Unavailable(#[from] redis::RedisError);
-
-type Result<T> = std::result::Result<T, Unavailable>;
 
 /// The connection to Redis, shared by every task of a replica. Cheap to clone.
 #[derive(Clone)]
@@ -119,6 +83,13 @@ const PENDING: &str = "meshfit:pending";
 
 fn key(kind: &str, id: &str) -> String {
     format!("meshfit:{kind}:{id}")
+}
+
+fn result_key(kept: Kept, id: &str) -> String {
+    match kept {
+        Kept::Whole => key("result", id),
+        Kept::Partial => key("partial", id),
+    }
 }
 
 /// A script, hashed once: redis-rs sends its SHA-1 (EVALSHA) and the body only when Redis
@@ -213,26 +184,6 @@ impl Cluster {
         &self.inner.replica
     }
 
-    /// A token for a new run of a job on this replica.
-    pub fn token(&self) -> String {
-        format!("{}#{}", self.inner.replica, self.inner.runs.fetch_add(1, Ordering::Relaxed))
-    }
-
-    /// Whether `token` names a run of this replica.
-    pub fn is_mine(&self, token: &str) -> bool {
-        token.strip_prefix(&self.inner.replica).is_some_and(|rest| rest.starts_with('#'))
-    }
-
-    /// Whether the last command reached Redis.
-    pub fn is_up(&self) -> bool {
-        self.inner.up.load(Ordering::Relaxed)
-    }
-
-    /// Messages from the other replicas (and this one), as they arrive.
-    pub fn messages(&self) -> broadcast::Receiver<Message> {
-        self.inner.messages.subscribe()
-    }
-
     /// Notes the outcome of a command in `up` and the error count.
     fn note<T>(&self, result: redis::RedisResult<T>) -> Result<T> {
         self.inner.note(result)
@@ -253,19 +204,39 @@ impl Cluster {
     fn while_up(&self, conn: &ConnectionManager) -> Result<ConnectionManager> {
         match self.is_up() {
             true => Ok(conn.clone()),
-            false => Err(Unavailable(std::io::Error::from(std::io::ErrorKind::NotConnected).into())),
+            false => Err(Unavailable("redis is not connected".into())),
         }
     }
 
     fn ttl_ms(&self) -> u64 {
         self.inner.settings.ttl.as_millis() as u64
     }
+}
 
-    /// Checks that Redis answers within a second (whether or not it did last time).
-    ///
-    /// # Errors
-    /// When it does not.
-    pub async fn ping(&self) -> Result<()> {
+#[async_trait::async_trait]
+impl Peers for Cluster {
+    fn lease(&self) -> Duration {
+        self.inner.settings.lease
+    }
+
+    fn token(&self) -> String {
+        format!("{}#{}", self.inner.replica, self.inner.runs.fetch_add(1, Ordering::Relaxed))
+    }
+
+    fn is_mine(&self, token: &str) -> bool {
+        token.strip_prefix(&self.inner.replica).is_some_and(|rest| rest.starts_with('#'))
+    }
+
+    fn is_up(&self) -> bool {
+        self.inner.up.load(Ordering::Relaxed)
+    }
+
+    fn messages(&self) -> broadcast::Receiver<Message> {
+        self.inner.messages.subscribe()
+    }
+
+    // Within a second, whether or not Redis answered last time.
+    async fn ping(&self) -> Result<()> {
         let mut conn = self.inner.conn.clone();
         let ping = redis::cmd("PING");
         let pong = ping.query_async::<String>(&mut conn);
@@ -275,37 +246,20 @@ impl Cluster {
         }
     }
 
-    /// The stored result `id` in compact form (`partial`: one a time limit stopped).
-    ///
-    /// # Errors
-    /// When Redis does not answer.
-    pub async fn result(&self, id: &str, partial: bool) -> Result<Option<Vec<u8>>> {
-        let name = if partial { "partial" } else { "result" };
-        let got = self.bulk()?.get(key(name, id)).await;
+    async fn result(&self, id: &str, kept: Kept) -> Result<Option<Vec<u8>>> {
+        let got = self.bulk()?.get(result_key(kept, id)).await;
         self.note(got)
     }
 
-    /// Stores result `id` in compact form, unless it is larger than `max_bytes`; says whether
-    /// it was stored.
-    ///
-    /// # Errors
-    /// When Redis does not answer.
-    pub async fn put_result(&self, id: &str, partial: bool, bytes: &[u8]) -> Result<bool> {
+    async fn keep_result(&self, id: &str, kept: Kept, bytes: &[u8]) -> Result<bool> {
         if bytes.len() as u64 > self.inner.settings.max_bytes {
             return Ok(false);
         }
-        let name = if partial { "partial" } else { "result" };
-        let set = self.bulk()?.pset_ex::<_, _, ()>(key(name, id), bytes, self.ttl_ms()).await;
+        let set = self.bulk()?.pset_ex::<_, _, ()>(result_key(kept, id), bytes, self.ttl_ms()).await;
         self.note(set).map(|()| true)
     }
 
-    /// Takes the lease on job `id` for run `token` if nobody holds it. A `fresh` submission
-    /// also drops the record of an earlier run (its end is not this run's) and what clients
-    /// asked of it (a cancel must not stop a new run).
-    ///
-    /// # Errors
-    /// When Redis does not answer.
-    pub async fn acquire(&self, id: &str, token: &str, fresh: bool) -> Result<Claim> {
+    async fn acquire(&self, id: &str, token: &str, take: Take) -> Result<Claim> {
         let lease = self.inner.settings.lease.as_millis() as u64;
         let held = ACQUIRE
             .key(key("lease", id))
@@ -314,49 +268,31 @@ impl Cluster {
             .key(key("job", id))
             .arg(token)
             .arg(lease)
-            .arg(u8::from(fresh))
+            .arg(u8::from(take == Take::Fresh))
             .invoke_async::<Option<String>>(&mut self.conn()?)
             .await;
         Ok(self.note(held)?.map_or(Claim::Won, Claim::Held))
     }
 
-    /// Extends run `token`'s lease on `id`; false when it no longer holds it.
-    ///
-    /// # Errors
-    /// When Redis does not answer.
-    pub async fn renew(&self, id: &str, token: &str) -> Result<bool> {
+    async fn renew(&self, id: &str, token: &str) -> Result<bool> {
         let lease = self.inner.settings.lease.as_millis() as u64;
         let renewed =
             RENEW.key(key("lease", id)).arg(token).arg(lease).invoke_async::<i64>(&mut self.conn()?).await;
         self.note(renewed).map(|n| n == 1)
     }
 
-    /// Gives up run `token`'s lease on `id`, so another may take the job at once.
-    ///
-    /// # Errors
-    /// When Redis does not answer.
-    pub async fn release(&self, id: &str, token: &str) -> Result<()> {
+    async fn release(&self, id: &str, token: &str) -> Result<()> {
         let released = RELEASE.key(key("lease", id)).arg(token).invoke_async::<i64>(&mut self.conn()?).await;
         self.note(released).map(drop)
     }
 
-    /// The token of the run holding the lease on `id`, if any.
-    ///
-    /// # Errors
-    /// When Redis does not answer.
-    pub async fn holder(&self, id: &str) -> Result<Option<String>> {
+    async fn holder(&self, id: &str) -> Result<Option<String>> {
         let held = self.conn()?.get(key("lease", id)).await;
         self.note(held)
     }
 
-    /// Stores job `id`'s record and sends it to every replica, if run `token` holds the lease,
-    /// or, for `None`, if no run does (a follower ending a job it found run nowhere); says
-    /// whether it did.
-    ///
-    /// # Errors
-    /// When Redis does not answer.
-    pub async fn put_record(&self, id: &str, token: Option<&str>, record: &Record) -> Result<bool> {
-        let json = serde_json::to_string(record).expect("a record serializes");
+    async fn post(&self, id: &str, token: Option<&str>, posting: &Posting) -> Result<bool> {
+        let json = serde_json::to_string(posting).expect("a posting serializes");
         let written = PUT_RECORD
             .key(key("job", id))
             .key(key("lease", id))
@@ -370,22 +306,12 @@ impl Cluster {
         self.note(written).map(|n| n == 1)
     }
 
-    /// Job `id`'s record, if any replica stored one (a record that does not parse, from
-    /// another version, counts as none).
-    ///
-    /// # Errors
-    /// When Redis does not answer.
-    pub async fn record(&self, id: &str) -> Result<Option<Record>> {
+    async fn posting(&self, id: &str) -> Result<Option<Posting>> {
         let got = self.conn()?.get::<_, Option<String>>(key("job", id)).await;
         Ok(self.note(got)?.and_then(|json| serde_json::from_str(&json).ok()))
     }
 
-    /// Keeps the request of job `id` and lists the job as pending, so that another replica
-    /// can take it over; says whether it was kept (not when larger than `max_bytes`).
-    ///
-    /// # Errors
-    /// When Redis does not answer.
-    pub async fn put_request(&self, id: &str, request: &Request) -> Result<bool> {
+    async fn keep_request(&self, id: &str, request: &KeptRequest) -> Result<bool> {
         if request.body.len() as u64 > self.inner.settings.max_bytes {
             return Ok(false);
         }
@@ -410,11 +336,7 @@ impl Cluster {
         self.note(done).map(|()| true)
     }
 
-    /// The request of job `id`, if kept.
-    ///
-    /// # Errors
-    /// When Redis does not answer.
-    pub async fn request(&self, id: &str) -> Result<Option<Request>> {
+    async fn request(&self, id: &str) -> Result<Option<KeptRequest>> {
         let got = redis::cmd("HMGET")
             .arg(key("request", id))
             .arg(&["kind", "content_type", "body"])
@@ -422,36 +344,23 @@ impl Cluster {
             .await;
         Ok(match self.note(got)? {
             (Some(kind), Some(content_type), Some(body)) => {
-                Some(Request { kind, content_type, body: body.into() })
+                Some(KeptRequest { kind, content_type, body: body.into() })
             }
             _ => None,
         })
     }
 
-    /// The jobs listed as pending.
-    ///
-    /// # Errors
-    /// When Redis does not answer.
-    pub async fn pending(&self) -> Result<Vec<String>> {
+    async fn pending(&self) -> Result<Vec<String>> {
         let members = self.conn()?.smembers(PENDING).await;
         self.note(members)
     }
 
-    /// Whether job `id` is on the pending list (a replica will take it over if its own dies).
-    ///
-    /// # Errors
-    /// When Redis does not answer.
-    pub async fn is_pending(&self, id: &str) -> Result<bool> {
+    async fn is_pending(&self, id: &str) -> Result<bool> {
         let member = self.conn()?.sismember(PENDING, id).await;
         self.note(member)
     }
 
-    /// Takes job `id` off the pending list and drops its request and what clients asked of
-    /// the run: it finished.
-    ///
-    /// # Errors
-    /// When Redis does not answer.
-    pub async fn forget(&self, id: &str) -> Result<()> {
+    async fn forget(&self, id: &str) -> Result<()> {
         let done = redis::pipe()
             .srem(PENDING, id)
             .ignore()
@@ -462,13 +371,9 @@ impl Cluster {
         self.note(done)
     }
 
-    /// Asks the run of job `id` to act: a message now, and a key it reads at its next
-    /// renewal (a message can be missed, a key cannot), kept for three leases: past that the
-    /// run has either read it or been taken over by a run that reads it.
-    ///
-    /// # Errors
-    /// When Redis does not answer.
-    pub async fn control(&self, id: &str, what: Control) -> Result<()> {
+    // The key is kept for three leases: past that the run has either read it or been taken
+    // over by a run that reads it.
+    async fn control(&self, id: &str, what: Control) -> Result<()> {
         let name = match what {
             Control::Cancel => key("cancel", id),
             Control::Detach => key("detach", id),
@@ -484,11 +389,7 @@ impl Cluster {
         self.note(done)
     }
 
-    /// Whether a client asked for job `id` to be cancelled, and to be detached.
-    ///
-    /// # Errors
-    /// When Redis does not answer.
-    pub async fn asked(&self, id: &str) -> Result<(bool, bool)> {
+    async fn asked(&self, id: &str) -> Result<(bool, bool)> {
         let asked = redis::pipe()
             .exists(key("cancel", id))
             .exists(key("detach", id))
@@ -521,7 +422,7 @@ impl Inner {
             Err(e) => {
                 self.errors.inc();
                 tracing::warn!(error = %e, "redis command failed");
-                Err(Unavailable(e))
+                Err(Unavailable(e.to_string()))
             }
         }
     }
@@ -532,6 +433,6 @@ impl Inner {
         if self.up.swap(false, Ordering::Relaxed) {
             tracing::warn!(error = %e, "redis unreachable; serving from this replica alone");
         }
-        Unavailable(e)
+        Unavailable(e.to_string())
     }
 }

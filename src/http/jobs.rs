@@ -6,10 +6,10 @@ use super::negotiate::{self, Wanted};
 use super::problem::ApiError;
 use super::sse;
 use crate::api::{JobRequest, JobStatus, JsonError, Links, SolveRequest};
-use crate::cluster::Request;
+use crate::jobs::peers::KeptRequest;
 use crate::jobs::{
-    Client, Found, JobError, JobKeys, JobSpec, Limits, Outcome, Record, Snapshot, Status, Ticket, Waiter,
-    Wire, Work, job_keys,
+    Client, Found, JobError, JobKeys, JobSpec, Lifetime, Limits, Outcome, Record, Snapshot, Status, Ticket,
+    Waiter, Wire, Work, job_keys,
 };
 use crate::refine::StopReason;
 use crate::result::MeshResult;
@@ -98,7 +98,7 @@ async fn prepare(
     headers: &HeaderMap,
     body: Body,
     kind: Kind,
-) -> Result<(JobKeys, JobSpec, Option<Request>), ApiError> {
+) -> Result<(JobKeys, JobSpec, Option<KeptRequest>), ApiError> {
     let limits = state.limits;
     // The bytes are shared, not copied.
     let kept = state.jobs.redis().is_some().then(|| body.bytes.clone());
@@ -115,7 +115,7 @@ async fn prepare(
             .map_err(|e| ApiError::Internal(format!("request parsing panicked: {e}")))??
     };
     tracing::Span::current().record("job_id", keys.id.as_str());
-    let request = kept.map(|body| Request {
+    let request = kept.map(|body| KeptRequest {
         kind: if let Work::Solve(_) = spec.work { "solution" } else { "mesh" }.to_owned(),
         content_type: headers
             .get(header::CONTENT_TYPE)
@@ -140,7 +140,7 @@ impl Replicas {
 }
 
 impl Wire for Replicas {
-    fn parse(&self, request: Request) -> BoxFuture<'static, Result<(JobKeys, JobSpec), String>> {
+    fn parse(&self, request: KeptRequest) -> BoxFuture<'static, Result<(JobKeys, JobSpec), String>> {
         let limits = self.limits;
         Box::pin(async move {
             let kind = if request.kind == "solution" { Kind::Solution } else { Kind::Mesh };
@@ -242,7 +242,7 @@ async fn create(
     let wanted = if stream { None } else { Some(Wanted::from_request(&uri, &headers)?) };
     let (keys, spec, request) = prepare(&state, &headers, body, kind).await?;
     let id = keys.id.clone();
-    let ticket = state.jobs.submit_request(keys, spec, false, client, request).await?;
+    let ticket = state.jobs.submit_request(keys, spec, Lifetime::WhileWaited, client, request).await?;
     let Some(wanted) = wanted else {
         // An answer at once is the stream's one event, id 1.
         return Ok(match ticket {
@@ -283,21 +283,24 @@ pub async fn jobs_create(
 ) -> Result<Response, ApiError> {
     let (keys, spec, request) = prepare(&state, &headers, body, Kind::Any).await?;
     let id = keys.id.clone();
-    let (code, status) = match state.jobs.submit_request(keys, spec, true, &client, request).await? {
-        Ticket::Cached(f) | Ticket::Prefix(f) => (StatusCode::OK, status_body(&id, &Found::Cached(f))),
-        Ticket::Failed(e) => {
-            let record = Record {
-                status: Status::Failed,
-                progress: None,
-                stats: None,
-                error: Some(e),
-                elapsed: None,
-                last_event: 0,
-            };
-            (StatusCode::OK, status_body(&id, &Found::Done(Arc::new(record))))
-        }
-        Ticket::Job(waiter) => (StatusCode::ACCEPTED, status_body(&id, &Found::Job(waiter.job().clone()))),
-    };
+    let (code, status) =
+        match state.jobs.submit_request(keys, spec, Lifetime::Detached, &client, request).await? {
+            Ticket::Cached(f) | Ticket::Prefix(f) => (StatusCode::OK, status_body(&id, &Found::Cached(f))),
+            Ticket::Failed(e) => {
+                let record = Record {
+                    status: Status::Failed,
+                    progress: None,
+                    stats: None,
+                    error: Some(e),
+                    elapsed: None,
+                    last_event: 0,
+                };
+                (StatusCode::OK, status_body(&id, &Found::Done(Arc::new(record))))
+            }
+            Ticket::Job(waiter) => {
+                (StatusCode::ACCEPTED, status_body(&id, &Found::Job(waiter.job().clone())))
+            }
+        };
     let location = HeaderValue::from_str(&status.links.this).expect("ascii path");
     Ok((code, [(header::LOCATION, location)], axum::Json(status)).into_response())
 }

@@ -1,4 +1,4 @@
-//! Following a job another replica runs: a local mirror [`Job`] whose state comes from Redis,
+//! Following a job another replica runs: a local mirror [`Job`] whose state comes from the store,
 //! so that clients here wait on it, stream it and fetch its result as if it ran here.
 //!
 //! One task per mirror ([`keep_current`]) reads the job's stored record and lease holder at
@@ -7,10 +7,10 @@
 //! holding the lease, so that a final record of an earlier run (cancelled, say) is not taken
 //! for this one's.
 
-use super::job::{Job, JobError, Outcome, Record, Status};
+use super::job::{Job, JobError, Lifetime, Outcome, Record, Status};
+use super::peers::{Control, Kept, Message, Peers, Posting};
 use super::registry::{Entry, Inner, Waiter};
 use super::takeover::sweep_every;
-use crate::cluster::{self, Cluster, Control, Message};
 use crate::refine::StopReason;
 use crate::result::{MeshResult, compact};
 use std::sync::atomic::Ordering;
@@ -28,14 +28,14 @@ const LOST_AFTER: u32 = 3;
 pub(super) fn follow(inner: &Arc<Inner>, id: String, family: String, run: Option<String>) -> Waiter {
     let mut table = inner.table.lock().expect("job table poisoned");
     let live = match table.jobs.get(&id) {
-        Some(Entry::Live(job)) if job.is_joinable() => return inner.attach(job, false),
+        Some(Entry::Live(job)) if job.is_joinable() => return inner.attach(job, Lifetime::WhileWaited),
         Some(Entry::Live(_)) => true,
         _ => false,
     };
-    // Detached: a client leaving here never cancels the job; `DELETE` does, through Redis.
+    // Detached: a client leaving here never cancels the job; `DELETE` does, through the store.
     // Its family is unknown here; a mirror notes no runs for replays.
-    let job = Arc::new(Job::new(id.clone(), family, true, true, 0));
-    let waiter = inner.attach(&job, false);
+    let job = Arc::new(Job::new(id.clone(), family, Lifetime::Detached, true, 0));
+    let waiter = inner.attach(&job, Lifetime::WhileWaited);
     // A run of this replica still ending keeps its place in the table, where shutdown and
     // the sweep look for it; the mirror lives on for its clients alone.
     if !live {
@@ -48,12 +48,12 @@ pub(super) fn follow(inner: &Arc<Inner>, id: String, family: String, run: Option
 }
 
 /// The record of a job that has finished, as clients see it; `None` while it runs.
-pub(super) fn record(r: &cluster::Record) -> Option<Record> {
+pub(super) fn record(r: &Posting) -> Option<Record> {
     r.is_final().then(|| view(r))
 }
 
 /// A stored record as clients see it.
-pub(super) fn view(r: &cluster::Record) -> Record {
+pub(super) fn view(r: &Posting) -> Record {
     Record {
         status: Status::parse(&r.status).unwrap_or(Status::Queued),
         progress: r.progress,
@@ -68,9 +68,9 @@ pub(super) fn view(r: &cluster::Record) -> Record {
 pub(super) enum Fetched {
     /// The result, now also kept here.
     Found(Arc<MeshResult>),
-    /// Redis answered: it has no such result.
+    /// The store answered: it has no such result.
     Missing,
-    /// No Redis, or it did not answer: nothing is known.
+    /// No store, or it did not answer: nothing is known.
     Unreachable,
 }
 
@@ -84,21 +84,21 @@ impl Fetched {
     }
 }
 
-/// Result `id` from this replica's memory, or else from Redis, checked, and kept here from
+/// Result `id` from this replica's memory, or else from the store, checked, and kept here from
 /// now on. One look per id at a time: the clients of a result just made elsewhere arrive
 /// together, and each copy of a large mesh is megabytes.
-pub(super) async fn fetch(inner: &Arc<Inner>, id: &str, partial: bool) -> Fetched {
+pub(super) async fn fetch(inner: &Arc<Inner>, id: &str, kept: Kept) -> Fetched {
     let Some(shared) = inner.shared.as_ref() else { return Fetched::Unreachable };
     let turn = shared.fetching.get_with_by_ref(id, Default::default);
     let _turn = turn.lock().await;
-    let here = match partial {
-        true => inner.cache.get_partial(id),
-        false => inner.cache.get_memory(id),
+    let here = match kept {
+        Kept::Whole => inner.cache.get_memory(id),
+        Kept::Partial => inner.cache.get_partial(id),
     };
     if let Some(result) = here {
         return Fetched::Found(result);
     }
-    let bytes = match shared.cluster.result(id, partial).await {
+    let bytes = match shared.peers.result(id, kept).await {
         Ok(Some(bytes)) => bytes,
         Ok(None) => return Fetched::Missing,
         Err(_) => return Fetched::Unreachable,
@@ -108,9 +108,9 @@ pub(super) async fn fetch(inner: &Arc<Inner>, id: &str, partial: bool) -> Fetche
     // blocking work.
     let read = crate::cpu::spawn(move || {
         let result = Arc::new(compact::read(&bytes, &key).map_err(|e| e.to_string())?);
-        match partial {
-            true => cache.insert_partial(&key, result.clone()),
-            false => cache.insert(&key, result.clone()),
+        match kept {
+            Kept::Whole => cache.insert(&key, result.clone()),
+            Kept::Partial => cache.insert_partial(&key, result.clone()),
         }
         Ok::<_, String>(result)
     });
@@ -128,7 +128,7 @@ pub(super) async fn fetch(inner: &Arc<Inner>, id: &str, partial: bool) -> Fetche
 }
 
 /// Applies a running job's record to its mirror, if newer than what the mirror shows.
-fn apply(job: &Job, r: &cluster::Record) {
+fn apply(job: &Job, r: &Posting) {
     let Some(status) = Status::parse(&r.status) else { return };
     job.state.send_if_modified(|s| {
         let newer = s.outcome.is_none() && (r.seq > s.seq || (r.seq == s.seq && s.status != status));
@@ -140,12 +140,12 @@ fn apply(job: &Job, r: &cluster::Record) {
 }
 
 /// The outcome of a finished job's record: its result, or its problem; `None` while the
-/// result cannot be looked for (Redis away), to look again later.
-async fn outcome(inner: &Arc<Inner>, id: &str, r: &cluster::Record) -> Option<Outcome> {
+/// result cannot be looked for (the store away), to look again later.
+async fn outcome(inner: &Arc<Inner>, id: &str, r: &Posting) -> Option<Outcome> {
     Some(match Status::parse(&r.status) {
         Some(Status::Succeeded) => {
-            let partial = r.stats.as_ref().is_some_and(|s| s.stop() == StopReason::TimeLimit);
-            match fetch(inner, id, partial).await {
+            let timed_out = r.stats.as_ref().is_some_and(|s| s.stop() == StopReason::TimeLimit);
+            match fetch(inner, id, if timed_out { Kept::Partial } else { Kept::Whole }).await {
                 Fetched::Found(result) => Outcome::Succeeded(result),
                 // Larger than MESHFIT_REDIS_MAX_BYTES, or expired: only its replica has it.
                 Fetched::Missing => Outcome::Failed(JobError::Evicted),
@@ -168,20 +168,20 @@ enum Look {
     Alive,
     /// No run holds it, none will take it over, and it left no result.
     Nowhere,
-    /// Redis did not answer.
+    /// The store did not answer.
     Unknown,
 }
 
-/// Looks at job `job` in Redis, following run `run` (updated to the lease's holder).
-async fn look(inner: &Arc<Inner>, cluster: &Cluster, job: &Job, run: &mut Option<String>) -> Look {
-    let Ok(holder) = cluster.holder(&job.id).await else { return Look::Unknown };
+/// Looks at job `job` in the store, following run `run` (updated to the lease's holder).
+async fn look(inner: &Arc<Inner>, peers: &dyn Peers, job: &Job, run: &mut Option<String>) -> Look {
+    let Ok(holder) = peers.holder(&job.id).await else { return Look::Unknown };
     if let Some(holder) = &holder {
         *run = Some(holder.clone());
     }
-    let Ok(record) = cluster.record(&job.id).await else { return Look::Unknown };
+    let Ok(record) = peers.posting(&job.id).await else { return Look::Unknown };
     // A run leaves its final record before its lease, so a final record of the run followed
     // is its end; one of an earlier run is not.
-    let ours = |r: &cluster::Record| run.as_ref().is_none_or(|run| *run == r.run);
+    let ours = |r: &Posting| run.as_ref().is_none_or(|run| *run == r.run);
     match record {
         Some(r) if ours(&r) && r.is_final() => match outcome(inner, &job.id, &r).await {
             Some(outcome) => {
@@ -197,9 +197,9 @@ async fn look(inner: &Arc<Inner>, cluster: &Cluster, job: &Job, run: &mut Option
         }
         // Nobody holds the lease: a sweep takes the job over if it is pending, or it finished
         // and its result is here.
-        _ => match cluster.is_pending(&job.id).await {
+        _ => match peers.is_pending(&job.id).await {
             Ok(true) => Look::Alive,
-            Ok(false) => match fetch(inner, &job.id, false).await {
+            Ok(false) => match fetch(inner, &job.id, Kept::Whole).await {
                 Fetched::Found(result) => Look::Finished(Outcome::Succeeded(result), None),
                 Fetched::Missing => Look::Nowhere,
                 Fetched::Unreachable => Look::Unknown,
@@ -213,16 +213,16 @@ async fn look(inner: &Arc<Inner>, cluster: &Cluster, job: &Job, run: &mut Option
 /// once nobody has waited on it for two looks, drops it.
 async fn keep_current(inner: Arc<Inner>, job: Arc<Job>, mut run: Option<String>) {
     let Some(shared) = &inner.shared else { return };
-    let cluster = &shared.cluster;
-    let every = sweep_every(cluster.settings().lease);
+    let peers = &*shared.peers;
+    let every = sweep_every(peers.lease());
     let (mut told, mut idle, mut lost) = (None, 0, 0);
     loop {
         // A client waits here: the run must not be cancelled when its own clients leave.
         // Told again to each new run (a fresh run drops what was asked of an earlier one).
-        if run.is_some() && told != run && cluster.control(&job.id, Control::Detach).await.is_ok() {
+        if run.is_some() && told != run && peers.control(&job.id, Control::Detach).await.is_ok() {
             told.clone_from(&run);
         }
-        match look(&inner, cluster, &job, &mut run).await {
+        match look(&inner, peers, &job, &mut run).await {
             Look::Finished(outcome, elapsed) => {
                 job.finish(outcome, elapsed);
                 break;
@@ -236,12 +236,12 @@ async fn keep_current(inner: Arc<Inner>, job: Arc<Job>, mut run: Option<String>)
                     // Ended for every replica, unless a run has taken the job meanwhile.
                     let problem = Some(shared.wire.problem(&error));
                     let record = super::publish::ended(Status::Failed, None, problem, job.snapshot().seq, "");
-                    let _ = cluster.put_record(&job.id, None, &record).await;
+                    let _ = peers.post(&job.id, None, &record).await;
                     job.finish(Outcome::Failed(error), None);
                     break;
                 }
             }
-            // Redis is away: the clients wait for it to come back, or for their own timeout.
+            // The store is away: the clients wait for it to come back, or for their own timeout.
             Look::Unknown => {}
         }
         idle = if job.waiters.load(Ordering::SeqCst) == 0 { idle + 1 } else { 0 };
@@ -274,11 +274,11 @@ pub(super) async fn dispatch(inner: Weak<Inner>, mut messages: broadcast::Receiv
             Err(broadcast::error::RecvError::Closed) => return,
         };
         let Some(inner) = inner.upgrade() else { return };
-        let (Message::Record(id, _) | Message::Control(id, _)) = &message;
+        let (Message::Posted(id, _) | Message::Control(id, _)) = &message;
         let table = inner.table.lock().expect("job table poisoned");
         let Some(Entry::Live(job)) = table.jobs.get(id) else { continue };
         match message {
-            Message::Record(..) if job.follows => job.cancel_notify.notify_one(),
+            Message::Posted(..) if job.follows => job.cancel_notify.notify_one(),
             Message::Control(_, Control::Cancel) if !job.follows => {
                 tracing::info!(job = %id, "cancelled from another replica");
                 job.cancel();

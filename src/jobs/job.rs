@@ -99,6 +99,16 @@ pub struct Snapshot {
     pub elapsed: Option<Duration>,
 }
 
+/// How long a submitted job runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Lifetime {
+    /// While a client waits on it: the last one leaving cancels it (a synchronous request or
+    /// an event stream whose client hung up).
+    WhileWaited,
+    /// To its end, whoever waits (`POST /v1/jobs`).
+    Detached,
+}
+
 /// One refinement, shared by everyone waiting on it.
 pub struct Job {
     pub(super) id: String,
@@ -118,19 +128,19 @@ pub struct Job {
     /// for viewers that follow the mesh as it grows; emptied when the job finishes (the
     /// result has them all).
     pub(super) points: Mutex<Vec<Vertex>>,
-    /// Whether another replica runs the job and this one follows it through Redis.
+    /// Whether another replica runs the job and this one follows it through the store.
     pub(super) follows: bool,
     /// Set when shutdown cancels the job: its lease is given up unfinished, so that another
     /// replica takes it over, instead of telling its clients it was cancelled.
     pub(super) handed_back: AtomicBool,
-    /// Whether its request is kept in Redis, so that another replica can take it over.
+    /// Whether its request is kept in the store, so that another replica can take it over.
     pub(super) kept: AtomicBool,
 }
 
 impl Job {
     /// A queued job whose events are numbered after `seq` (a job taken over from another
     /// replica continues that replica's numbering).
-    pub(super) fn new(id: String, family: String, detached: bool, follows: bool, seq: u64) -> Self {
+    pub(super) fn new(id: String, family: String, lifetime: Lifetime, follows: bool, seq: u64) -> Self {
         let (state, _) = watch::channel(Snapshot {
             seq,
             status: Status::Queued,
@@ -144,7 +154,7 @@ impl Job {
             state,
             cancel: AtomicBool::new(false),
             cancel_notify: Notify::new(),
-            detached: AtomicBool::new(detached),
+            detached: AtomicBool::new(lifetime == Lifetime::Detached),
             waiters: AtomicUsize::new(0),
             points: Mutex::new(Vec::new()),
             follows,

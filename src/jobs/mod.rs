@@ -16,9 +16,12 @@
 //! - `worker`: one job's run on the blocking pool;
 //! - `cache`, `key`, `spec`, `solution`: stored results, ids, and validated requests of meshes
 //!   and of boundary value problems.
-//! - `publish`, `follow`, `takeover`: replicas sharing through Redis ([`crate::cluster`]):
-//!   the replica holding a job's lease publishes it, the others follow it, and a job whose
-//!   replica died is run again by the first replica to take its expired lease.
+//! - [`peers`]: the store replicas share, as the one trait [`Peers`](peers::Peers) that jobs
+//!   talk to other replicas through, with its wire types (postings, kept requests, controls);
+//!   [`crate::cluster`] implements it over Redis, and the tests in memory;
+//! - `publish`, `follow`, `takeover`: the replica protocol over that trait: the replica
+//!   holding a job's lease publishes it, the others follow it, and a job whose replica died is
+//!   run again by the first replica to take its expired lease.
 
 mod budget;
 mod cache;
@@ -26,6 +29,7 @@ mod dispatch;
 mod follow;
 mod job;
 mod key;
+pub mod peers;
 mod publish;
 mod registry;
 mod share;
@@ -39,19 +43,20 @@ pub use budget::{
     default_limit as default_memory_bytes,
 };
 pub use cache::{Cache, Hit};
-pub use job::{Job, JobError, Outcome, Record, Snapshot, Status};
+pub use job::{Job, JobError, Lifetime, Outcome, Record, Snapshot, Status};
 pub use key::{ENGINE_VERSION, JobKeys, job_id, job_keys};
 pub use registry::{Found, Jobs, SubmitError, Ticket, Waiter};
 pub use share::Client;
 pub use solution::{Coef, SolveSpec};
 pub use spec::{DEFAULT_MAX_VERTICES, JobSpec, Limits, MeshSpec, SpecError, Work};
 
-/// How requests and problems travel between replicas; the HTTP layer knows both.
+/// How kept requests are read and problems written when replicas share: the server's own
+/// parsing of a request body and its problem documents, given to the registry by the caller.
 pub trait Wire: Send + Sync + 'static {
     /// Reads a request another replica kept, as if a client had just sent it here.
     fn parse(
         &self,
-        request: crate::cluster::Request,
+        request: peers::KeptRequest,
     ) -> futures_util::future::BoxFuture<'static, Result<(JobKeys, JobSpec), String>>;
 
     /// The problem document of a job that failed, as clients get it.

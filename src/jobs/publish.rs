@@ -4,8 +4,8 @@
 //! final record, so that a replica that reads the record can fetch the result.
 
 use super::job::{Job, JobError, Outcome, Snapshot, Status};
+use super::peers::{Claim, Kept, KeptRequest, Peers, Posting, Take};
 use super::registry::{Inner, Lease};
-use crate::cluster::{self, Claim, Cluster, Request};
 use crate::refine::StopReason;
 use crate::result::{MeshResult, Summary, compact};
 use std::sync::Arc;
@@ -17,16 +17,16 @@ use tokio::time::Instant;
 const PUBLISH_EVERY: Duration = Duration::from_millis(100);
 
 /// Publishes job `job` for run `lease` until it finishes.
-pub(super) async fn run(inner: &Arc<Inner>, job: Arc<Job>, lease: Lease, request: Option<Request>) {
+pub(super) async fn run(inner: &Arc<Inner>, job: Arc<Job>, lease: Lease, request: Option<KeptRequest>) {
     let Some(shared) = &inner.shared else { return };
-    let (cluster, token) = (&shared.cluster, lease.token.as_str());
+    let (peers, token) = (&*shared.peers, lease.token.as_str());
     let mut rx = job.subscribe();
     // The first record first: the submission's client waits for it, and a large request
     // would keep it waiting.
     // (A job that has ended already gets its final record from `finish` alone.)
     let first = rx.borrow_and_update().clone();
     if first.outcome.is_none() {
-        let _ = cluster.put_record(&job.id, Some(token), &wire(&first, None, token)).await;
+        let _ = peers.post(&job.id, Some(token), &wire(&first, None, token)).await;
     }
     let mut sent = Some((first.seq, first.status));
     let mut last = Some(Instant::now());
@@ -34,29 +34,27 @@ pub(super) async fn run(inner: &Arc<Inner>, job: Arc<Job>, lease: Lease, request
         let _ = announced.send(());
     }
     match request {
-        Some(request) => {
-            match renewing(cluster, &job.id, token, cluster.put_request(&job.id, &request)).await {
-                Ok(true) => job.kept.store(true, Ordering::SeqCst),
-                _ => {
-                    tracing::info!(job = %job.id, "request not kept in redis: no other replica can take this job over")
-                }
+        Some(request) => match renewing(peers, &job.id, token, peers.keep_request(&job.id, &request)).await {
+            Ok(true) => job.kept.store(true, Ordering::SeqCst),
+            _ => {
+                tracing::info!(job = %job.id, "request not kept in redis: no other replica can take this job over")
             }
-        }
+        },
         // A job taken over: its request is kept already.
         None => job.kept.store(true, Ordering::SeqCst),
     }
-    let mut renew = tokio::time::interval(renew_every(cluster));
+    let mut renew = tokio::time::interval(renew_every(peers));
     renew.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     renew.tick().await;
     loop {
         let snapshot = rx.borrow_and_update().clone();
         if snapshot.outcome.is_some() {
-            return finish(inner, cluster, &job, token, &snapshot).await;
+            return finish(inner, peers, &job, token, &snapshot).await;
         }
         let fresh = sent != Some((snapshot.seq, snapshot.status));
         let due = last.map(|t| t + PUBLISH_EVERY).filter(|_| fresh);
         if fresh && due.is_none_or(|due| Instant::now() >= due) {
-            let _ = cluster.put_record(&job.id, Some(token), &wire(&snapshot, None, token)).await;
+            let _ = peers.post(&job.id, Some(token), &wire(&snapshot, None, token)).await;
             (sent, last) = (Some((snapshot.seq, snapshot.status)), Some(Instant::now()));
             continue;
         }
@@ -69,45 +67,45 @@ pub(super) async fn run(inner: &Arc<Inner>, job: Arc<Job>, lease: Lease, request
         tokio::select! {
             changed = rx.changed() => if changed.is_err() { return },
             () = wait => {}
-            _ = renew.tick() => keep(inner, cluster, &job, token).await,
+            _ = renew.tick() => keep(inner, peers, &job, token).await,
         }
     }
 }
 
 /// How often a run renews its lease: three times a lease.
-fn renew_every(cluster: &Cluster) -> Duration {
-    cluster.settings().lease / 3
+fn renew_every(peers: &dyn Peers) -> Duration {
+    peers.lease() / 3
 }
 
 /// Awaits `work` while renewing run `token`'s lease. Sending a large request,
 /// or encoding and storing a large result, can take longer than a lease: a job whose lease
 /// lapsed before it was listed as pending would look to its followers as if it ran nowhere,
 /// and one whose lease lapsed at its end would be taken over and run again.
-async fn renewing<T>(cluster: &Cluster, id: &str, token: &str, work: impl Future<Output = T>) -> T {
+async fn renewing<T>(peers: &dyn Peers, id: &str, token: &str, work: impl Future<Output = T>) -> T {
     let mut work = std::pin::pin!(work);
-    let every = renew_every(cluster);
+    let every = renew_every(peers);
     let mut renew = tokio::time::interval_at(Instant::now() + every, every);
     loop {
         tokio::select! {
             done = &mut work => return done,
             _ = renew.tick() => {
-                let _ = cluster.renew(id, token).await;
+                let _ = peers.renew(id, token).await;
             }
         }
     }
 }
 
-/// Renews run `token`'s lease, taking it again if it lapsed while Redis was away, and acts on
+/// Renews run `token`'s lease, taking it again if it lapsed while the store was away, and acts on
 /// what followers asked of the run.
-async fn keep(inner: &Inner, cluster: &Cluster, job: &Job, token: &str) {
-    if let Ok(false) = cluster.renew(&job.id, token).await
-        && let Ok(Claim::Held(_)) = cluster.acquire(&job.id, token, false).await
+async fn keep(inner: &Inner, peers: &dyn Peers, job: &Job, token: &str) {
+    if let Ok(false) = peers.renew(&job.id, token).await
+        && let Ok(Claim::Held(_)) = peers.acquire(&job.id, token, Take::Over).await
     {
         // Another replica took the job over meanwhile: both runs make the same bytes, and
         // only the holder's records are written, so this one goes on quietly.
         tracing::warn!(job = %job.id, "lease lost to another replica");
     }
-    if let Ok((cancel, detach)) = cluster.asked(&job.id).await {
+    if let Ok((cancel, detach)) = peers.asked(&job.id).await {
         if cancel {
             job.cancel();
         }
@@ -118,110 +116,111 @@ async fn keep(inner: &Inner, cluster: &Cluster, job: &Job, token: &str) {
     }
 }
 
-/// How long a finished run keeps trying to tell Redis of its end while Redis is away.
+/// How long a finished run keeps trying to tell the store of its end while the store is away.
 const DELIVER_FOR: Duration = Duration::from_secs(600);
 
 /// Stores the result and the final record, takes the job off the pending list and gives up
 /// the lease; a job handed back at shutdown only gives up its lease, for a takeover. While
-/// Redis is away this is tried again at each sweep, so that a job that finished during an
-/// outage is known to every replica once Redis is back.
-async fn finish(inner: &Arc<Inner>, cluster: &Cluster, job: &Job, token: &str, snapshot: &Snapshot) {
+/// the store is away this is tried again at each sweep, so that a job that finished during an
+/// outage is known to every replica once the store is back.
+async fn finish(inner: &Arc<Inner>, peers: &dyn Peers, job: &Job, token: &str, snapshot: &Snapshot) {
     let Some(shared) = &inner.shared else { return };
     let (problem, result) = match snapshot.outcome.as_ref().expect("finished") {
         Outcome::Failed(JobError::HandedBack) => {
             tracing::info!(job = %job.id, "handed back for another replica to take over");
-            let _ = cluster.release(&job.id, token).await;
+            let _ = peers.release(&job.id, token).await;
             return;
         }
         // Renewed meanwhile: encoding and storing a large result can outlast a short lease,
         // and a follower would then take the job over and run it again.
-        Outcome::Succeeded(result) => {
-            (None, renewing(cluster, &job.id, token, encode(&job.id, result)).await)
-        }
+        Outcome::Succeeded(result) => (None, renewing(peers, &job.id, token, encode(&job.id, result)).await),
         Outcome::Failed(e) => (Some(shared.wire.problem(e)), None),
         Outcome::Cancelled => (None, None),
     };
     let record = wire(snapshot, problem, token);
     let give_up = Instant::now() + DELIVER_FOR;
-    while !renewing(cluster, &job.id, token, deliver(cluster, &job.id, token, result.as_ref(), &record)).await
-    {
+    while !renewing(peers, &job.id, token, deliver(peers, &job.id, token, result.as_ref(), &record)).await {
         if inner.closed.load(Ordering::SeqCst) || Instant::now() >= give_up {
             tracing::warn!(job = %job.id, "redis away: other replicas will not know this job finished");
             return;
         }
-        tokio::time::sleep(super::takeover::sweep_every(cluster.settings().lease)).await;
+        tokio::time::sleep(super::takeover::sweep_every(peers.lease())).await;
     }
 }
 
-/// A result in compact form, and whether a time limit stopped its run.
-async fn encode(id: &str, result: &Arc<MeshResult>) -> Option<(Vec<u8>, bool)> {
-    let partial = result.stats.stop() == StopReason::TimeLimit;
+/// A result in compact form, and how the store keeps it (partial when a time limit stopped
+/// its run).
+async fn encode(id: &str, result: &Arc<MeshResult>) -> Option<(Vec<u8>, Kept)> {
+    let kept = match result.stats.stop() {
+        StopReason::TimeLimit => Kept::Partial,
+        _ => Kept::Whole,
+    };
     let (result, key) = (result.clone(), id.to_owned());
     let bytes = crate::cpu::spawn(move || {
         let mut bytes = Vec::with_capacity(compact::size(&result, &key) as usize);
         compact::write(&result, &key, &mut bytes).map(|_| bytes)
     })
     .await;
-    Some((bytes.ok()?.ok()?, partial))
+    Some((bytes.ok()?.ok()?, kept))
 }
 
-/// Tells Redis that run `token` of job `id` ended: its result, then its final record. Says
-/// whether that is done (or can never be: another run holds the job now), false while Redis
+/// Tells the store that run `token` of job `id` ended: its result, then its final record. Says
+/// whether that is done (or can never be: another run holds the job now), false while the store
 /// is away.
 async fn deliver(
-    cluster: &Cluster,
+    peers: &dyn Peers,
     id: &str,
     token: &str,
-    result: Option<&(Vec<u8>, bool)>,
-    record: &cluster::Record,
+    result: Option<&(Vec<u8>, Kept)>,
+    record: &Posting,
 ) -> bool {
     // A whole result first, lease or not: every run of an id makes the same bytes, so a run
-    // that took the job over while this one could not reach Redis finds it stored instead
+    // that took the job over while this one could not reach the store finds it stored instead
     // of running the job again. A partial one is this run's own (another run stops at
     // another count): only while it holds the lease.
-    if let Some((bytes, false)) = result
-        && !store(cluster, id, false, bytes).await
+    if let Some((bytes, Kept::Whole)) = result
+        && !store(peers, id, Kept::Whole, bytes).await
     {
         return false;
     }
-    // The lease may be gone: it lapsed while Redis was away, or Redis restarted empty.
-    match cluster.renew(id, token).await {
+    // The lease may be gone: it lapsed while the store was away, or the store restarted empty.
+    match peers.renew(id, token).await {
         Ok(true) => {}
-        Ok(false) => match cluster.acquire(id, token, false).await {
+        Ok(false) => match peers.acquire(id, token, Take::Over).await {
             Ok(Claim::Won) => {}
             Ok(Claim::Held(_)) => return true,
             Err(_) => return false,
         },
         Err(_) => return false,
     }
-    if let Some((bytes, true)) = result
-        && !store(cluster, id, true, bytes).await
+    if let Some((bytes, Kept::Partial)) = result
+        && !store(peers, id, Kept::Partial, bytes).await
     {
         return false;
     }
-    match cluster.put_record(id, Some(token), record).await {
+    match peers.post(id, Some(token), record).await {
         Ok(true) => {}
         // Another run holds the job now: what it keeps is its own.
         Ok(false) => return true,
         Err(_) => return false,
     }
-    let _ = cluster.forget(id).await;
-    let _ = cluster.release(id, token).await;
+    let _ = peers.forget(id).await;
+    let _ = peers.release(id, token).await;
     true
 }
 
-/// Stores a whole result in Redis; false while Redis is away (or it cannot be encoded).
-pub(super) async fn store_result(cluster: &Cluster, id: &str, result: &Arc<MeshResult>) -> bool {
+/// Stores a whole result in the store; false while the store is away (or it cannot be encoded).
+pub(super) async fn store_result(peers: &dyn Peers, id: &str, result: &Arc<MeshResult>) -> bool {
     match encode(id, result).await {
-        Some((bytes, partial)) => store(cluster, id, partial, &bytes).await,
+        Some((bytes, kept)) => store(peers, id, kept, &bytes).await,
         None => false,
     }
 }
 
-/// Stores a result's compact bytes; false while Redis is away. One larger than
+/// Stores a result's compact bytes; false while the store is away. One larger than
 /// `MESHFIT_REDIS_MAX_BYTES` is not stored, and only its replica serves it.
-async fn store(cluster: &Cluster, id: &str, partial: bool, bytes: &[u8]) -> bool {
-    match cluster.put_result(id, partial, bytes).await {
+async fn store(peers: &dyn Peers, id: &str, kept: Kept, bytes: &[u8]) -> bool {
+    match peers.keep_result(id, kept, bytes).await {
         Ok(true) => true,
         Ok(false) => {
             tracing::info!(job = id, bytes = bytes.len(), "result not stored in redis");
@@ -233,12 +232,12 @@ async fn store(cluster: &Cluster, id: &str, partial: bool, bytes: &[u8]) -> bool
 
 /// Ends run `token` of job `id` with its final `record`: stored and sent, the job off the
 /// pending list, the lease given up.
-pub(super) async fn close(cluster: &Cluster, id: &str, token: &str, record: &cluster::Record) {
+pub(super) async fn close(peers: &dyn Peers, id: &str, token: &str, record: &Posting) {
     // Only while this run holds the lease: another run's pending entry and keys are its own.
-    if let Ok(true) = cluster.put_record(id, Some(token), record).await {
-        let _ = cluster.forget(id).await;
+    if let Ok(true) = peers.post(id, Some(token), record).await {
+        let _ = peers.forget(id).await;
     }
-    let _ = cluster.release(id, token).await;
+    let _ = peers.release(id, token).await;
 }
 
 /// The final record of a run that ended `status`, numbered after `seq`, written by another
@@ -249,8 +248,8 @@ pub(super) fn ended(
     problem: Option<serde_json::Value>,
     seq: u64,
     token: &str,
-) -> cluster::Record {
-    cluster::Record {
+) -> Posting {
+    Posting {
         status: status.as_str().to_owned(),
         seq: seq + 1,
         progress: None,
@@ -262,12 +261,12 @@ pub(super) fn ended(
 }
 
 /// A snapshot as replicas exchange it.
-fn wire(s: &Snapshot, problem: Option<serde_json::Value>, token: &str) -> cluster::Record {
+fn wire(s: &Snapshot, problem: Option<serde_json::Value>, token: &str) -> Posting {
     let stats = match &s.outcome {
         Some(Outcome::Succeeded(result)) => Some(result.stats.clone()),
         _ => None,
     };
-    cluster::Record {
+    Posting {
         status: s.status.as_str().to_owned(),
         seq: s.seq,
         progress: s.progress,

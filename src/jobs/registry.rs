@@ -3,10 +3,10 @@
 use super::budget::Budget;
 use super::dispatch::Dispatch;
 use super::follow::Fetched;
-use super::job::{Job, JobError, Record, Status};
+use super::job::{Job, JobError, Lifetime, Record, Status};
+use super::peers::{self, Claim, Control, Kept, KeptRequest, Peers, Take};
 use super::share::{Charge, Client, Shares};
 use super::{Cache, JobKeys, JobSpec, Wire, follow, publish, takeover, worker};
-use crate::cluster::{Claim, Cluster, Control, Request};
 use crate::metrics::Metrics;
 use crate::refine::trace::replay;
 use crate::result::MeshResult;
@@ -116,9 +116,9 @@ pub(super) const FINISHED_KEPT: usize = 10_000;
 
 /// Whether run `token` of job `id` has stored its final record (and is about to let go of
 /// its lease), or was asked to stop: a new request must not be given its end.
-async fn has_ended(cluster: &Cluster, id: &str, token: &str) -> bool {
-    let ended = matches!(cluster.record(id).await, Ok(Some(r)) if r.run == token && r.is_final());
-    ended || matches!(cluster.asked(id).await, Ok((true, _)))
+async fn has_ended(peers: &dyn Peers, id: &str, token: &str) -> bool {
+    let ended = matches!(peers.posting(id).await, Ok(Some(r)) if r.run == token && r.is_final());
+    ended || matches!(peers.asked(id).await, Ok((true, _)))
 }
 
 /// How often a submission looks again at a run that holds the job's lease and will not run
@@ -127,7 +127,7 @@ async fn has_ended(cluster: &Cluster, id: &str, token: &str) -> bool {
 /// most a lease, then the submission is refused with `Retry-After`).
 const OWN_RUN_WAIT: Duration = Duration::from_millis(25);
 
-/// How many results being read from Redis keep their turn (see [`follow::fetch`]).
+/// How many results being read from the store keep their turn (see [`follow::fetch`]).
 const FETCHES_KEPT: u64 = 10_000;
 
 /// How many families remember their furthest run.
@@ -158,23 +158,23 @@ pub(super) struct Inner {
     /// The mean time a job ran, in seconds (f64 bits; a moving average): the basis of every
     /// `Retry-After`.
     pub(super) mean_run: AtomicU64,
-    /// Redis, when replicas share results and jobs.
+    /// The store, when replicas share results and jobs.
     pub(super) shared: Option<Shared>,
-    /// Jobs whose state is still being told to Redis: shutdown waits for them too, so that a
+    /// Jobs whose state is still being told to the store: shutdown waits for them too, so that a
     /// job handed back gives up its lease before the process ends.
     pub(super) publishing: AtomicUsize,
 }
 
-/// What a replica needs to share: Redis, and the HTTP layer's reading of requests and
+/// What a replica needs to share: the store, and the HTTP layer's reading of requests and
 /// writing of problems.
 pub(super) struct Shared {
-    pub(super) cluster: Cluster,
+    pub(super) peers: Arc<dyn Peers>,
     pub(super) wire: Arc<dyn Wire>,
-    /// A turn per result being read from Redis (see [`follow::fetch`]).
+    /// A turn per result being read from the store (see [`follow::fetch`]).
     pub(super) fetching: moka::sync::Cache<String, Arc<tokio::sync::Mutex<()>>>,
 }
 
-/// A new job's id, family and place in the cluster.
+/// A new job's id, family and place in the peers.
 pub(super) struct Start {
     pub(super) id: String,
     pub(super) family: String,
@@ -183,8 +183,8 @@ pub(super) struct Start {
     /// The lease this replica holds for the job, if replicas share: the run then publishes
     /// the job's state.
     pub(super) lease: Option<Lease>,
-    /// The request, to keep in Redis for a takeover.
-    pub(super) request: Option<Request>,
+    /// The request, to keep in the store for a takeover.
+    pub(super) request: Option<KeptRequest>,
 }
 
 /// A run's lease on a job.
@@ -198,7 +198,7 @@ pub(super) struct Lease {
 /// Gives a lease back unless disarmed: a submission abandoned between taking a lease and
 /// starting its run (its client hung up, or the run was refused) leaves no lease behind.
 struct LeaseGuard {
-    cluster: Cluster,
+    peers: Arc<dyn Peers>,
     id: String,
     token: Option<String>,
 }
@@ -212,8 +212,8 @@ impl LeaseGuard {
 impl Drop for LeaseGuard {
     fn drop(&mut self) {
         if let (Some(token), Ok(runtime)) = (self.token.take(), tokio::runtime::Handle::try_current()) {
-            let (cluster, id) = (self.cluster.clone(), std::mem::take(&mut self.id));
-            runtime.spawn(async move { cluster.release(&id, &token).await });
+            let (peers, id) = (self.peers.clone(), std::mem::take(&mut self.id));
+            runtime.spawn(async move { peers.release(&id, &token).await });
         }
     }
 }
@@ -272,12 +272,12 @@ impl Inner {
 
     /// Answers from the table under its lock: joins a live job, repeats a failure on the
     /// input, or finds a result cached since the caller's lookup.
-    fn join(self: &Arc<Self>, id: &str, detached: bool) -> Option<Ticket> {
+    fn join(self: &Arc<Self>, id: &str, lifetime: Lifetime) -> Option<Ticket> {
         let table = self.table.lock().expect("job table poisoned");
         match table.jobs.get(id)? {
             Entry::Live(job) if job.is_joinable() => {
                 self.metrics.cache_misses.inc();
-                Some(Ticket::Job(self.attach(job, detached)))
+                Some(Ticket::Job(self.attach(job, lifetime)))
             }
             Entry::Done(record) => match &record.error {
                 // A failure on the input is deterministic: it is the answer again.
@@ -305,7 +305,7 @@ impl Inner {
         self: &Arc<Self>,
         start: Start,
         spec: JobSpec,
-        detached: bool,
+        lifetime: Lifetime,
         client: &Client,
     ) -> Result<(Ticket, bool), SubmitError> {
         let Start { id, family, seq, lease, request } = start;
@@ -316,7 +316,7 @@ impl Inner {
             && !(lease.is_some() && job.follows)
         {
             self.metrics.cache_misses.inc();
-            return Ok((Ticket::Job(self.attach(job, detached)), false));
+            return Ok((Ticket::Job(self.attach(job, lifetime)), false));
         }
         self.metrics.cache_misses.inc();
         if self.closed.load(Ordering::SeqCst) {
@@ -340,8 +340,8 @@ impl Inner {
         })?;
         self.waiting.fetch_add(1, Ordering::SeqCst);
         self.metrics.jobs_queued.inc();
-        let job = Arc::new(Job::new(id.clone(), family, detached, false, seq));
-        let waiter = self.attach(&job, detached);
+        let job = Arc::new(Job::new(id.clone(), family, lifetime, false, seq));
+        let waiter = self.attach(&job, lifetime);
         table.jobs.insert(id, Entry::Live(job.clone()));
         drop(table);
         if let Some(lease) = lease {
@@ -374,10 +374,10 @@ impl Inner {
         }
     }
 
-    pub(super) fn attach(self: &Arc<Self>, job: &Arc<Job>, detached: bool) -> Waiter {
+    pub(super) fn attach(self: &Arc<Self>, job: &Arc<Job>, lifetime: Lifetime) -> Waiter {
         // Caller holds the table lock.
         job.waiters.fetch_add(1, Ordering::SeqCst);
-        if detached {
+        if lifetime == Lifetime::Detached {
             job.detached.store(true, Ordering::SeqCst);
         }
         Waiter { job: job.clone(), inner: self.clone() }
@@ -419,26 +419,26 @@ impl Jobs {
         }
     }
 
-    /// Shares results and jobs with the other replicas through `cluster`; `wire` reads the
+    /// Shares results and jobs with the other replicas through `peers`; `wire` reads the
     /// requests of jobs taken over and writes the problems of jobs that failed. Call it
     /// before the registry is cloned, from within the runtime.
     ///
     /// # Panics
     /// When the registry has been cloned.
     #[must_use]
-    pub fn shared(mut self, cluster: Cluster, wire: Arc<dyn Wire>) -> Self {
+    pub fn shared(mut self, peers: Arc<dyn Peers>, wire: Arc<dyn Wire>) -> Self {
         let inner = Arc::get_mut(&mut self.inner).expect("shared before the registry is cloned");
-        let messages = cluster.messages();
+        let messages = peers.messages();
         let fetching = moka::sync::Cache::new(FETCHES_KEPT);
-        inner.shared = Some(Shared { cluster, wire, fetching });
+        inner.shared = Some(Shared { peers, wire, fetching });
         tokio::spawn(follow::dispatch(Arc::downgrade(&self.inner), messages));
         tokio::spawn(takeover::sweep(Arc::downgrade(&self.inner)));
         self
     }
 
-    /// Whether replicas share through Redis, and if so whether Redis answered last.
+    /// Whether replicas share through the store, and if so whether The store answered last.
     pub fn redis(&self) -> Option<bool> {
-        self.inner.shared.as_ref().map(|s| s.cluster.is_up())
+        self.inner.shared.as_ref().map(|s| s.peers.is_up())
     }
 
     /// The metrics the registry updates.
@@ -473,7 +473,7 @@ impl Jobs {
     }
 
     /// Answers from the cache, joins an identical job, or starts a new one charged to
-    /// `client`. `detached` jobs (from `POST /v1/jobs`) run to the end even when nobody waits.
+    /// `client`, to run for `lifetime`.
     ///
     /// # Errors
     /// When the queue is full, the client holds its share, or the server is shutting down.
@@ -481,13 +481,13 @@ impl Jobs {
         &self,
         keys: JobKeys,
         spec: JobSpec,
-        detached: bool,
+        lifetime: Lifetime,
         client: &Client,
     ) -> Result<Ticket, SubmitError> {
-        self.submit_request(keys, spec, detached, client, None).await
+        self.submit_request(keys, spec, lifetime, client, None).await
     }
 
-    /// As [`submit`](Self::submit); when replicas share through Redis, a job this replica
+    /// As [`submit`](Self::submit); when replicas share through the store, a job this replica
     /// runs keeps `request` there, so that another replica can take it over, and a job
     /// another replica runs is followed rather than run again.
     ///
@@ -497,9 +497,9 @@ impl Jobs {
         &self,
         keys: JobKeys,
         spec: JobSpec,
-        detached: bool,
+        lifetime: Lifetime,
         client: &Client,
-        request: Option<Request>,
+        request: Option<KeptRequest>,
     ) -> Result<Ticket, SubmitError> {
         let inner = &self.inner;
         let JobKeys { id, family } = keys;
@@ -513,38 +513,38 @@ impl Jobs {
             inner.metrics.prefix_hits.inc();
             return Ok(Ticket::Prefix(result));
         }
-        if let Some(ticket) = inner.join(&id, detached) {
+        if let Some(ticket) = inner.join(&id, lifetime) {
             return Ok(ticket);
         }
         let Some(shared) = &inner.shared else {
             let start = Start { id, family, seq: 0, lease: None, request: None };
-            return inner.start(start, spec, detached, client).map(|(ticket, _)| ticket);
+            return inner.start(start, spec, lifetime, client).map(|(ticket, _)| ticket);
         };
-        let cluster = &shared.cluster;
+        let peers = &*shared.peers;
         // One replica runs a job: the one whose run takes its lease. Guarded from before the
         // first try: a client hanging up while the lease is being taken leaves none behind.
-        let token = cluster.token();
-        let mut guard = LeaseGuard { cluster: cluster.clone(), id: id.clone(), token: Some(token.clone()) };
+        let token = peers.token();
+        let mut guard =
+            LeaseGuard { peers: shared.peers.clone(), id: id.clone(), token: Some(token.clone()) };
         // An ended run lets go of its lease within a lease, even if its release was lost.
-        let patience =
-            (cluster.settings().lease + Duration::from_secs(1)).as_millis() / OWN_RUN_WAIT.as_millis();
+        let patience = (peers.lease() + Duration::from_secs(1)).as_millis() / OWN_RUN_WAIT.as_millis();
         let mut waits: u128 = 0;
         let won = loop {
-            let held = match cluster.acquire(&id, &token, true).await {
+            let held = match peers.acquire(&id, &token, Take::Fresh).await {
                 Ok(Claim::Won) => break true,
                 Ok(Claim::Held(holder)) => holder,
-                // Redis is away: run it here, unshared.
+                // The store is away: run it here, unshared.
                 Err(_) => break false,
             };
             waits += 1;
-            if cluster.is_mine(&held) {
+            if peers.is_mine(&held) {
                 // A run of this replica: one a concurrent identical request is starting (join
                 // it), or one ending after a cancel (let it end, then run again). Never a
                 // mirror of it.
-                if let Some(ticket) = inner.join(&id, detached) {
+                if let Some(ticket) = inner.join(&id, lifetime) {
                     return Ok(ticket);
                 }
-            } else if !has_ended(cluster, &id, &held).await {
+            } else if !has_ended(peers, &id, &held).await {
                 inner.metrics.cache_misses.inc();
                 return Ok(Ticket::Job(follow::follow(inner, id, family, Some(held))));
             }
@@ -557,17 +557,17 @@ impl Jobs {
         };
         if !won {
             let start = Start { id, family, seq: 0, lease: None, request: None };
-            return inner.start(start, spec, detached, client).map(|(ticket, _)| ticket);
+            return inner.start(start, spec, lifetime, client).map(|(ticket, _)| ticket);
         }
         // Finished elsewhere between the lookup above and the lease.
-        if let Fetched::Found(result) = follow::fetch(inner, &id, false).await {
+        if let Fetched::Found(result) = follow::fetch(inner, &id, Kept::Whole).await {
             inner.metrics.cache_hits.inc();
             return Ok(Ticket::Cached(result));
         }
         let (announced, first_record) = tokio::sync::oneshot::channel();
         let lease = Lease { token, announced: Some(announced) };
         let start = Start { id, family, seq: 0, lease: Some(lease), request };
-        let (ticket, started) = inner.start(start, spec, detached, client)?;
+        let (ticket, started) = inner.start(start, spec, lifetime, client)?;
         if started {
             guard.disarm();
             // Stored before the client hears of the job, so that any replica finds it at once.
@@ -595,18 +595,18 @@ impl Jobs {
             return Some(Found::Cached(result));
         }
         let Some(shared) = &self.inner.shared else { return found };
-        let cluster = &shared.cluster;
-        let record = match cluster.record(id).await.ok().flatten() {
+        let peers = &*shared.peers;
+        let record = match peers.posting(id).await.ok().flatten() {
             Some(record) => record,
             // A job whose run has taken its lease and not yet stored its record.
-            None if matches!(cluster.holder(id).await, Ok(Some(_))) => {
+            None if matches!(peers.holder(id).await, Ok(Some(_))) => {
                 return Some(Found::Remote(Arc::new(Record::queued())));
             }
             None => return found,
         };
         Some(match follow::record(&record) {
             // The end of an earlier run, while a new one holds the lease.
-            Some(_) if matches!(cluster.holder(id).await, Ok(Some(h)) if h != record.run) => {
+            Some(_) if matches!(peers.holder(id).await, Ok(Some(h)) if h != record.run) => {
                 Found::Remote(Arc::new(Record::queued()))
             }
             Some(done) => Found::Done(Arc::new(done)),
@@ -620,14 +620,14 @@ impl Jobs {
         let shared = {
             let table = self.inner.table.lock().expect("job table poisoned");
             match (table.jobs.get(id), &self.inner.shared) {
-                (Some(Entry::Live(job)), _) => return Some(self.inner.attach(job, false)),
+                (Some(Entry::Live(job)), _) => return Some(self.inner.attach(job, Lifetime::WhileWaited)),
                 // A job that failed or was cancelled here may run again elsewhere.
                 (Some(Entry::Done(r)), Some(shared)) if r.status != Status::Succeeded => shared,
                 (None, Some(shared)) => shared,
                 _ => return None,
             }
         };
-        let (holder, record) = (shared.cluster.holder(id).await.ok()?, shared.cluster.record(id).await.ok()?);
+        let (holder, record) = (shared.peers.holder(id).await.ok()?, shared.peers.posting(id).await.ok()?);
         let running = match (&holder, &record) {
             // A run holds the lease and has not stored its end.
             (Some(h), record) => record.as_ref().is_none_or(|r| !(r.run == *h && r.is_final())),
@@ -641,10 +641,10 @@ impl Jobs {
     /// Asks job `job` to stop, wherever it runs.
     ///
     /// # Errors
-    /// When another replica runs it and Redis cannot be reached to tell it.
-    pub async fn cancel(&self, job: &Job) -> Result<(), crate::cluster::Unavailable> {
+    /// When another replica runs it and the store cannot be reached to tell it.
+    pub async fn cancel(&self, job: &Job) -> Result<(), peers::Unavailable> {
         match (&self.inner.shared, job.follows) {
-            (Some(shared), true) => shared.cluster.control(&job.id, Control::Cancel).await,
+            (Some(shared), true) => shared.peers.control(&job.id, Control::Cancel).await,
             _ => {
                 job.cancel();
                 Ok(())
@@ -677,11 +677,11 @@ impl Jobs {
     }
 
     /// The result a time limit stopped for job `id`, if still held here or, when replicas
-    /// share, in Redis (never a new request's answer; see [`Cache::insert_partial`]).
+    /// share, in the store (never a new request's answer; see [`Cache::insert_partial`]).
     pub async fn partial(&self, id: &str) -> Option<Arc<MeshResult>> {
         match self.inner.cache.get_partial(id) {
             Some(result) => Some(result),
-            None => follow::fetch(&self.inner, id, true).await.found(),
+            None => follow::fetch(&self.inner, id, Kept::Partial).await.found(),
         }
     }
 
@@ -698,7 +698,7 @@ impl Jobs {
                 return Some(found);
             }
         }
-        follow::fetch(&self.inner, id, false).await.found()
+        follow::fetch(&self.inner, id, Kept::Whole).await.found()
     }
 
     /// Refuses new jobs from now on.
@@ -723,7 +723,7 @@ impl Jobs {
         }
     }
 
-    /// Whether any job is queued or running, or still being told to Redis.
+    /// Whether any job is queued or running, or still being told to the store.
     pub fn is_busy(&self) -> bool {
         if self.inner.publishing.load(Ordering::SeqCst) > 0 {
             return true;
@@ -731,6 +731,16 @@ impl Jobs {
         let table = self.inner.table.lock().expect("job table poisoned");
         // A job followed from another replica is that replica's to finish.
         table.jobs.values().any(|e| matches!(e, Entry::Live(job) if !job.follows))
+    }
+}
+
+#[cfg(test)]
+impl Jobs {
+    /// Takes a worker, as a job would: tests hold every worker to keep jobs queued, and so
+    /// decide when the engine runs.
+    pub(super) async fn hold_worker(&self) -> super::dispatch::Worker {
+        let client = Client::from("test:holder".to_owned());
+        self.inner.dispatch.acquire(&client).await.expect("a worker")
     }
 }
 
@@ -766,13 +776,8 @@ mod tests {
         Client::from("addr:test".to_owned())
     }
 
-    /// A job long enough to still be running when the test looks again.
-    fn long() -> (JobKeys, JobSpec) {
-        request(serde_json::json!({"function": "sin(40*x)*cos(40*y)", "max_vertices": 4_000_000}))
-    }
-
-    async fn submit(jobs: &Jobs, (keys, spec): (JobKeys, JobSpec), detached: bool) -> Ticket {
-        jobs.submit(keys, spec, detached, &client()).await.unwrap_or_else(|e| panic!("refused: {e}"))
+    async fn submit(jobs: &Jobs, (keys, spec): (JobKeys, JobSpec), lifetime: Lifetime) -> Ticket {
+        jobs.submit(keys, spec, lifetime, &client()).await.unwrap_or_else(|e| panic!("refused: {e}"))
     }
 
     fn waiter(ticket: Ticket) -> Waiter {
@@ -782,44 +787,41 @@ mod tests {
         }
     }
 
-    async fn running(job: &Job) {
-        let mut rx = job.subscribe();
-        rx.wait_for(|s| s.status != Status::Queued).await.unwrap();
-    }
-
     #[tokio::test]
     async fn identical_submissions_join_one_job_and_the_engine_runs_once() {
         let jobs = jobs(2, 4);
         let body = serde_json::json!({"function": "x*y", "max_vertices": 3000});
         let (a, b) = (
-            waiter(submit(&jobs, request(body.clone()), false).await),
-            waiter(submit(&jobs, request(body.clone()), false).await),
+            waiter(submit(&jobs, request(body.clone()), Lifetime::WhileWaited).await),
+            waiter(submit(&jobs, request(body.clone()), Lifetime::WhileWaited).await),
         );
         assert!(Arc::ptr_eq(a.job(), b.job()));
         assert!(matches!(a.job().outcome().await, Outcome::Succeeded(_)));
         assert_eq!(jobs.metrics().engine_runs.get(), 1);
-        assert!(matches!(submit(&jobs, request(body), false).await, Ticket::Cached(_)), "then cached");
+        assert!(
+            matches!(submit(&jobs, request(body), Lifetime::WhileWaited).await, Ticket::Cached(_)),
+            "then cached"
+        );
     }
 
     #[tokio::test]
     async fn a_full_queue_refuses_and_counts_who_waits() {
         let jobs = jobs(1, 1);
-        let first = waiter(submit(&jobs, long(), true).await);
-        running(first.job()).await;
+        // The only worker is busy: the next job waits, and fills the queue.
+        let busy = jobs.hold_worker().await;
         let queued = waiter(
-            submit(&jobs, request(serde_json::json!({"function": "x", "max_vertices": 5})), true).await,
-        );
-        let refused = jobs
-            .submit(
-                request(serde_json::json!({"function": "y"})).0,
-                request(serde_json::json!({"function": "y"})).1,
-                true,
-                &client(),
+            submit(
+                &jobs,
+                request(serde_json::json!({"function": "x", "max_vertices": 5})),
+                Lifetime::Detached,
             )
-            .await;
+            .await,
+        );
+        let (keys, spec) = request(serde_json::json!({"function": "y"}));
+        let refused = jobs.submit(keys, spec, Lifetime::Detached, &client()).await;
         assert!(matches!(refused.err(), Some(SubmitError::QueueFull { waiting: 1, retry_after: 1.. })));
         assert!(!jobs.is_ready());
-        first.job().cancel();
+        drop(busy);
         assert!(matches!(queued.job().outcome().await, Outcome::Succeeded(_)), "the queued job runs next");
         assert!(jobs.is_ready());
     }
@@ -827,34 +829,45 @@ mod tests {
     #[tokio::test]
     async fn the_last_client_leaving_cancels_a_job_nobody_detached() {
         let jobs = jobs(1, 4);
-        let w = waiter(submit(&jobs, long(), false).await);
-        let job = w.job().clone();
-        running(&job).await;
-        drop(w);
+        let busy = jobs.hold_worker().await;
+        let (first, second) = (
+            waiter(
+                submit(&jobs, request(serde_json::json!({"function": "x*x"})), Lifetime::WhileWaited).await,
+            ),
+            waiter(
+                submit(&jobs, request(serde_json::json!({"function": "x*x"})), Lifetime::WhileWaited).await,
+            ),
+        );
+        let job = first.job().clone();
+        drop(first);
+        assert!(!job.is_finished(), "a client still waits");
+        drop(second);
         assert_eq!(job.outcome().await, Outcome::Cancelled);
         assert_eq!(job.snapshot().status, Status::Cancelled);
+        drop(busy);
+        assert_eq!(jobs.metrics().engine_runs.get(), 0, "it never ran");
     }
 
     #[tokio::test]
     async fn a_detached_job_runs_on_with_nobody_waiting() {
         let jobs = jobs(1, 4);
         let body = serde_json::json!({"function": "x*x", "max_vertices": 2000});
-        let job = waiter(submit(&jobs, request(body.clone()), true).await).job().clone();
+        let job = waiter(submit(&jobs, request(body.clone()), Lifetime::Detached).await).job().clone();
         // Its waiter is gone; it still finishes and is cached.
         assert!(matches!(job.outcome().await, Outcome::Succeeded(_)));
-        assert!(matches!(submit(&jobs, request(body), false).await, Ticket::Cached(_)));
+        assert!(matches!(submit(&jobs, request(body), Lifetime::WhileWaited).await, Ticket::Cached(_)));
     }
 
     #[tokio::test]
     async fn a_failure_on_the_input_is_answered_again_without_running() {
         let jobs = jobs(1, 4);
         let body = serde_json::json!({"function": "1/(x-0.5)", "max_vertices": 100});
-        let w = waiter(submit(&jobs, request(body.clone()), false).await);
+        let w = waiter(submit(&jobs, request(body.clone()), Lifetime::WhileWaited).await);
         assert!(matches!(w.job().outcome().await, Outcome::Failed(JobError::Refine(_))));
         // The record replaces the live job once the worker files it.
         tokio::task::yield_now().await;
         for _ in 0..1000 {
-            if let Ticket::Failed(_) = submit(&jobs, request(body.clone()), false).await {
+            if let Ticket::Failed(_) = submit(&jobs, request(body.clone()), Lifetime::WhileWaited).await {
                 assert_eq!(jobs.metrics().engine_runs.get(), 1);
                 return;
             }
@@ -867,22 +880,25 @@ mod tests {
     async fn a_closed_registry_takes_no_new_job_but_answers_from_the_cache() {
         let jobs = jobs(1, 4);
         let body = serde_json::json!({"function": "x+y", "max_vertices": 50});
-        let w = waiter(submit(&jobs, request(body.clone()), false).await);
+        let w = waiter(submit(&jobs, request(body.clone()), Lifetime::WhileWaited).await);
         w.job().outcome().await;
         jobs.close();
-        assert!(matches!(submit(&jobs, request(body), false).await, Ticket::Cached(_)));
+        assert!(matches!(submit(&jobs, request(body), Lifetime::WhileWaited).await, Ticket::Cached(_)));
         let (keys, spec) = request(serde_json::json!({"function": "x-y"}));
-        assert_eq!(jobs.submit(keys, spec, false, &client()).await.err(), Some(SubmitError::ShuttingDown));
+        assert_eq!(
+            jobs.submit(keys, spec, Lifetime::WhileWaited, &client()).await.err(),
+            Some(SubmitError::ShuttingDown)
+        );
     }
 
     #[tokio::test]
     async fn a_smaller_budget_of_a_cached_run_is_replayed_not_run() {
         let jobs = jobs(1, 4);
         let big = serde_json::json!({"function": "exp(x)*sin(3*y)", "max_vertices": 2000});
-        let w = waiter(submit(&jobs, request(big), false).await);
+        let w = waiter(submit(&jobs, request(big), Lifetime::WhileWaited).await);
         w.job().outcome().await;
         let small = serde_json::json!({"function": "exp(x)*sin(3*y)", "max_vertices": 700});
-        let Ticket::Prefix(result) = submit(&jobs, request(small), false).await else {
+        let Ticket::Prefix(result) = submit(&jobs, request(small), Lifetime::WhileWaited).await else {
             panic!("not a prefix")
         };
         assert_eq!((result.vertices.len(), result.stats.stop()), (700, StopReason::MaxVertices));

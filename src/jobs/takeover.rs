@@ -5,11 +5,11 @@
 
 use super::JobError;
 use super::follow::{self, Fetched};
-use super::job::Status;
+use super::job::{Lifetime, Status};
+use super::peers::{Claim, Kept, Peers, Take};
 use super::publish;
 use super::registry::{Inner, Lease, Start};
 use super::share::Client;
-use crate::cluster::{Claim, Cluster};
 use std::sync::{Arc, Weak};
 use std::time::Duration;
 
@@ -19,7 +19,7 @@ pub(super) fn sweep_every(lease: Duration) -> Duration {
     (lease / 2).clamp(Duration::from_millis(20), Duration::from_secs(1))
 }
 
-/// Looks for orphaned jobs until the registry is gone or closed. Also pings Redis first, so
+/// Looks for orphaned jobs until the registry is gone or closed. Also pings the store first, so
 /// that `/readyz` and `/metrics` say whether it answers even when no request needs it.
 pub(super) async fn sweep(inner: Weak<Inner>) {
     loop {
@@ -30,30 +30,30 @@ pub(super) async fn sweep(inner: Weak<Inner>) {
             if inner.closed.load(std::sync::atomic::Ordering::SeqCst) {
                 return;
             }
-            sweep_once(&inner, &shared.cluster).await;
-            sweep_every(shared.cluster.settings().lease)
+            sweep_once(&inner, &*shared.peers).await;
+            sweep_every(shared.peers.lease())
         };
         tokio::time::sleep(every).await;
     }
 }
 
 /// One look at the pending jobs, after a ping.
-async fn sweep_once(inner: &Arc<Inner>, cluster: &Cluster) {
-    if cluster.ping().await.is_err() {
+async fn sweep_once(inner: &Arc<Inner>, peers: &dyn Peers) {
+    if peers.ping().await.is_err() {
         return;
     }
-    let Ok(ids) = cluster.pending().await else { return };
+    let Ok(ids) = peers.pending().await else { return };
     for id in ids {
         if !inner.has_room() {
             // A takeover would be refused: leave the jobs to replicas with room.
             break;
         }
-        if inner.runs_here(&id) || !matches!(cluster.holder(&id).await, Ok(None)) {
+        if inner.runs_here(&id) || !matches!(peers.holder(&id).await, Ok(None)) {
             continue;
         }
-        let token = cluster.token();
-        if let Ok(Claim::Won) = cluster.acquire(&id, &token, false).await
-            && take_over(inner, cluster, &id, token).await == Taken::Refused
+        let token = peers.token();
+        if let Ok(Claim::Won) = peers.acquire(&id, &token, Take::Over).await
+            && take_over(inner, peers, &id, token).await == Taken::Refused
         {
             // Full here: the other jobs would be fetched, parsed and refused too. Another
             // replica, or this one at a later sweep, takes them.
@@ -74,44 +74,44 @@ enum Taken {
 /// Ends or runs again job `id`, whose lease run `token` has just taken: ends it if it finished
 /// after all (its replica died between storing the result and the final record) or cannot be
 /// run here, else starts it from its kept request.
-async fn take_over(inner: &Arc<Inner>, cluster: &Cluster, id: &str, token: String) -> Taken {
+async fn take_over(inner: &Arc<Inner>, peers: &dyn Peers, id: &str, token: String) -> Taken {
     let Some(shared) = &inner.shared else { return Taken::Done };
-    let Ok(record) = cluster.record(id).await else {
-        let _ = cluster.release(id, &token).await;
+    let Ok(record) = peers.posting(id).await else {
+        let _ = peers.release(id, &token).await;
         return Taken::Done;
     };
     let seq = record.as_ref().map_or(0, |r| r.seq);
     if record.as_ref().is_some_and(|r| r.is_final()) {
-        let _ = cluster.forget(id).await;
-        let _ = cluster.release(id, &token).await;
+        let _ = peers.forget(id).await;
+        let _ = peers.release(id, &token).await;
         return Taken::Done;
     }
     let here = inner.cache.get_memory(id).is_some();
-    match follow::fetch(inner, id, false).await {
+    match follow::fetch(inner, id, Kept::Whole).await {
         Fetched::Found(result) => {
             // In this replica's memory it may be nowhere else: this replica ran the job and
-            // has not yet told Redis (an outage outlasted the lease). Stored first, so that
-            // the final record never sends followers to a result Redis does not have.
-            if here && !publish::store_result(cluster, id, &result).await {
-                let _ = cluster.release(id, &token).await;
+            // has not yet told the store (an outage outlasted the lease). Stored first, so that
+            // the final record never sends followers to a result the store does not have.
+            if here && !publish::store_result(peers, id, &result).await {
+                let _ = peers.release(id, &token).await;
                 return Taken::Done;
             }
             let record = publish::ended(Status::Succeeded, Some(result.stats.clone()), None, seq, &token);
-            publish::close(cluster, id, &token, &record).await;
+            publish::close(peers, id, &token, &record).await;
             return Taken::Done;
         }
         Fetched::Missing => {}
-        // Redis went away meanwhile: the next sweep, here or elsewhere, tries again.
+        // The store went away meanwhile: the next sweep, here or elsewhere, tries again.
         Fetched::Unreachable => {
-            let _ = cluster.release(id, &token).await;
+            let _ = peers.release(id, &token).await;
             return Taken::Done;
         }
     }
-    let parsed = match cluster.request(id).await {
+    let parsed = match peers.request(id).await {
         Ok(Some(request)) => shared.wire.parse(request).await,
         Ok(None) => Err("its request is no longer kept".to_owned()),
         Err(_) => {
-            let _ = cluster.release(id, &token).await;
+            let _ = peers.release(id, &token).await;
             return Taken::Done;
         }
     };
@@ -123,7 +123,7 @@ async fn take_over(inner: &Arc<Inner>, cluster: &Cluster, id: &str, token: Strin
             tracing::warn!(job = id, %why, "cannot take the job over");
             let problem = shared.wire.problem(&JobError::Internal(format!("could not be taken over: {why}")));
             publish::close(
-                cluster,
+                peers,
                 id,
                 &token,
                 &publish::ended(Status::Failed, None, Some(problem), seq, &token),
@@ -134,7 +134,7 @@ async fn take_over(inner: &Arc<Inner>, cluster: &Cluster, id: &str, token: Strin
     };
     let lease = Lease { token: token.clone(), announced: None };
     let start = Start { id: keys.id, family: keys.family, seq, lease: Some(lease), request: None };
-    match inner.start(start, spec, true, &Client::from("replica:takeover".to_owned())) {
+    match inner.start(start, spec, Lifetime::Detached, &Client::from("replica:takeover".to_owned())) {
         Ok((_, true)) => {
             inner.metrics.takeovers.inc();
             tracing::info!(job = id, "took over a job whose replica stopped renewing its lease");
@@ -142,12 +142,12 @@ async fn take_over(inner: &Arc<Inner>, cluster: &Cluster, id: &str, token: Strin
         }
         // Already run here.
         Ok((_, false)) => {
-            let _ = cluster.release(id, &token).await;
+            let _ = peers.release(id, &token).await;
             Taken::Done
         }
         // Busy here: another replica, or this one at a later sweep, takes it.
         Err(_) => {
-            let _ = cluster.release(id, &token).await;
+            let _ = peers.release(id, &token).await;
             Taken::Refused
         }
     }
