@@ -7,44 +7,10 @@
 //! passes the in-circle test). Meshes of functions and grids have no constraints and pay one
 //! emptiness test per flip candidate.
 
+use super::constraints::Constraints;
 use super::mesh::{HalfEdge, Mesh, NONE};
 use super::{InvariantError, Point, Rect, Vertex};
 use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
-use std::collections::HashSet;
-
-/// The constrained edges, each as its two vertex ids.
-#[derive(Debug, Clone, Default)]
-pub(super) struct Constraints(HashSet<u64>);
-
-fn key(a: u32, b: u32) -> u64 {
-    let (lo, hi) = if a < b { (a, b) } else { (b, a) };
-    (u64::from(lo) << 32) | u64::from(hi)
-}
-
-impl Constraints {
-    /// Whether the edge between `a` and `b` is constrained.
-    #[inline]
-    pub(super) fn holds(&self, a: u32, b: u32) -> bool {
-        !self.0.is_empty() && self.0.contains(&key(a, b))
-    }
-
-    /// The edge `a`–`b`, if constrained, is now `a`–`m` and `m`–`b`.
-    #[inline]
-    pub(super) fn split(&mut self, a: u32, b: u32, m: u32) {
-        if !self.0.is_empty() && self.0.remove(&key(a, b)) {
-            self.0.insert(key(a, m));
-            self.0.insert(key(m, b));
-        }
-    }
-
-    pub(super) fn len(&self) -> usize {
-        self.0.len()
-    }
-
-    pub(super) fn iter(&self) -> impl Iterator<Item = (u32, u32)> + '_ {
-        self.0.iter().map(|&k| ((k >> 32) as u32, k as u32))
-    }
-}
 
 /// Why a constrained triangulation could not be built.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -163,7 +129,7 @@ impl Mesh {
             let e = directed.get(&(a, b)).or_else(|| directed.get(&(b, a)));
             let interior = e.is_some_and(|&e| mesh.twin(e) != NONE);
             if interior {
-                mesh.constraints.0.insert(key(a, b));
+                mesh.constraints.insert(a, b);
             } else if e.is_none() {
                 return Err(InvariantError(format!("constraint {a}–{b} is not an edge")));
             }

@@ -7,7 +7,7 @@
 //! index arithmetic) with origin and twin side by side: a triangle's 24 bytes are read
 //! together, so a walk or a flip touches one cache line per triangle instead of two.
 
-use super::constrained::Constraints;
+use super::constraints::Constraints;
 use super::{Point, Rect, Vertex};
 
 /// The missing twin of a boundary half-edge.

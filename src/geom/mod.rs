@@ -4,6 +4,7 @@
 
 mod check;
 mod constrained;
+mod constraints;
 mod flip;
 mod mesh;
 pub mod predicates;

@@ -9,8 +9,7 @@
 
 use super::job::{Job, JobError, Lifetime, Outcome, Record, Status};
 use super::peers::{Control, Kept, Message, Peers, Posting};
-use super::registry::{Entry, Inner, Waiter};
-use super::takeover::sweep_every;
+use super::state::{Entry, Inner, Waiter};
 use crate::refine::StopReason;
 use crate::result::{MeshResult, compact};
 use std::sync::atomic::Ordering;
@@ -26,16 +25,18 @@ const LOST_AFTER: u32 = 3;
 /// Attaches a client to this replica's mirror of job `id`, which another replica runs (run
 /// `run`, if known), making the mirror (and the task that keeps it current) if there is none.
 pub(super) fn follow(inner: &Arc<Inner>, id: String, family: String, run: Option<String>) -> Waiter {
-    let mut table = inner.table.lock().expect("job table poisoned");
+    let mut table = inner.lock();
     let live = match table.jobs.get(&id) {
-        Some(Entry::Live(job)) if job.is_joinable() => return inner.attach(job, Lifetime::WhileWaited),
+        Some(Entry::Live(job)) if job.is_joinable() => {
+            return inner.attach(&table, job, Lifetime::WhileWaited);
+        }
         Some(Entry::Live(_)) => true,
         _ => false,
     };
     // Detached: a client leaving here never cancels the job; `DELETE` does, through the store.
     // Its family is unknown here; a mirror notes no runs for replays.
     let job = Arc::new(Job::new(id.clone(), family, Lifetime::Detached, true, 0));
-    let waiter = inner.attach(&job, Lifetime::WhileWaited);
+    let waiter = inner.attach(&table, &job, Lifetime::WhileWaited);
     // A run of this replica still ending keeps its place in the table, where shutdown and
     // the sweep look for it; the mirror lives on for its clients alone.
     if !live {
@@ -214,7 +215,7 @@ async fn look(inner: &Arc<Inner>, peers: &dyn Peers, job: &Job, run: &mut Option
 async fn keep_current(inner: Arc<Inner>, job: Arc<Job>, mut run: Option<String>) {
     let Some(shared) = &inner.shared else { return };
     let peers = &*shared.peers;
-    let every = sweep_every(peers.lease());
+    let every = peers.sweep_every();
     let (mut told, mut idle, mut lost) = (None, 0, 0);
     loop {
         // A client waits here: the run must not be cancelled when its own clients leave.
@@ -247,7 +248,7 @@ async fn keep_current(inner: Arc<Inner>, job: Arc<Job>, mut run: Option<String>)
         idle = if job.waiters.load(Ordering::SeqCst) == 0 { idle + 1 } else { 0 };
         if idle >= 2 {
             // Clients attach under the table lock: checked again under it, none can be lost.
-            let mut table = inner.table.lock().expect("job table poisoned");
+            let mut table = inner.lock();
             if job.waiters.load(Ordering::SeqCst) == 0 {
                 if matches!(table.jobs.get(&job.id), Some(Entry::Live(j)) if Arc::ptr_eq(j, &job)) {
                     table.jobs.remove(&job.id);
@@ -275,7 +276,7 @@ pub(super) async fn dispatch(inner: Weak<Inner>, mut messages: broadcast::Receiv
         };
         let Some(inner) = inner.upgrade() else { return };
         let (Message::Posted(id, _) | Message::Control(id, _)) = &message;
-        let table = inner.table.lock().expect("job table poisoned");
+        let table = inner.lock();
         let Some(Entry::Live(job)) = table.jobs.get(id) else { continue };
         match message {
             Message::Posted(..) if job.follows => job.cancel_notify.notify_one(),
@@ -283,10 +284,7 @@ pub(super) async fn dispatch(inner: Weak<Inner>, mut messages: broadcast::Receiv
                 tracing::info!(job = %id, "cancelled from another replica");
                 job.cancel();
             }
-            // Under the lock, like every change of `detached` (see `Waiter`'s drop).
-            Message::Control(_, Control::Detach) if !job.follows => {
-                job.detached.store(true, Ordering::SeqCst)
-            }
+            Message::Control(_, Control::Detach) if !job.follows => job.detach(&table),
             _ => {}
         }
     }

@@ -4,18 +4,25 @@
 //! a smaller request of a cached run's family is replayed from its trace; an identical job
 //! already queued or running is joined; otherwise a new job waits for one of `workers`
 //! workers (handed out by `dispatch`) and then refines on tokio's blocking pool
-//! ([`crate::cpu`], at a lower OS priority than the async workers). The tokio docs for `spawn_blocking` recommend exactly
-//! this: the blocking pool itself is large, so CPU-bound work needs its own bound.
+//! ([`crate::cpu`], at a lower OS priority than the async workers). The tokio docs for
+//! `spawn_blocking` recommend exactly this: the blocking pool itself is large, so CPU-bound
+//! work needs its own bound.
 //!
+//! The files, in the order data flows through them (none imports one below it that imports
+//! it back):
+//! - `checks`, `spec`, `solution`, `key`: a request checked against the server's [`Limits`]
+//!   ([`SpecError`] names the field at fault), as a canonical [`JobSpec`] of a mesh or of a
+//!   boundary value problem, and its id;
 //! - `job`: a job's state, its outcome, and [`Record`], the one view clients get;
-//! - `registry`: [`Jobs`], the table of jobs, the queue bound, the cache and the families;
-//! - `share`: each [`Client`]'s share of the workers and the queue;
+//! - `state`: the job table behind its lock (functions that need the lock take its guard),
+//!   the waiters, and what every part below shares;
+//! - `admit`: admission (shutdown, the queue's bound, each [`Client`]'s share from `share`,
+//!   the memory [`Budget`] from `budget`, `Retry-After`) and the start of a run;
 //! - `dispatch`: the workers, given to waiting jobs so that none idles while a job waits, a
 //!   client under its share first;
-//! - `budget`: the memory [`Budget`] that bodies and jobs are charged to before they start;
 //! - `worker`: one job's run on the blocking pool;
-//! - `cache`, `key`, `spec`, `solution`: stored results, ids, and validated requests of meshes
-//!   and of boundary value problems.
+//! - `cache`: stored results, in memory and on disk;
+//! - `registry`: [`Jobs`], the one public face: submit, find, watch, cancel, shut down.
 //! - [`peers`]: the store replicas share, as the one trait [`Peers`](peers::Peers) that jobs
 //!   talk to other replicas through, with its wire types (postings, kept requests, controls);
 //!   [`crate::cluster`] implements it over Redis, and the tests in memory;
@@ -23,8 +30,10 @@
 //!   holding a job's lease publishes it, the others follow it, and a job whose replica died is
 //!   run again by the first replica to take its expired lease.
 
+mod admit;
 mod budget;
 mod cache;
+mod checks;
 mod dispatch;
 mod follow;
 mod job;
@@ -35,6 +44,7 @@ mod registry;
 mod share;
 mod solution;
 mod spec;
+mod state;
 mod takeover;
 mod worker;
 
@@ -43,12 +53,14 @@ pub use budget::{
     default_limit as default_memory_bytes,
 };
 pub use cache::{Cache, Hit};
+pub use checks::{DEFAULT_MAX_VERTICES, Limits, SpecError};
 pub use job::{Job, JobError, Lifetime, Outcome, Record, Snapshot, Status};
 pub use key::{ENGINE_VERSION, JobKeys, job_id, job_keys};
-pub use registry::{Found, Jobs, SubmitError, Ticket, Waiter};
+pub use registry::{Found, Jobs};
 pub use share::Client;
 pub use solution::{Coef, SolveSpec};
-pub use spec::{DEFAULT_MAX_VERTICES, JobSpec, Limits, MeshSpec, SpecError, Work};
+pub use spec::{JobSpec, MeshSpec, Work};
+pub use state::{SubmitError, Ticket, Waiter};
 
 /// How kept requests are read and problems written when replicas share: the server's own
 /// parsing of a request body and its problem documents, given to the registry by the caller.

@@ -5,7 +5,7 @@
 
 use super::job::{Job, JobError, Outcome, Snapshot, Status};
 use super::peers::{Claim, Kept, KeptRequest, Peers, Posting, Take};
-use super::registry::{Inner, Lease};
+use super::state::{Inner, Lease};
 use crate::refine::StopReason;
 use crate::result::{MeshResult, Summary, compact};
 use std::sync::Arc;
@@ -43,7 +43,7 @@ pub(super) async fn run(inner: &Arc<Inner>, job: Arc<Job>, lease: Lease, request
         // A job taken over: its request is kept already.
         None => job.kept.store(true, Ordering::SeqCst),
     }
-    let mut renew = tokio::time::interval(renew_every(peers));
+    let mut renew = tokio::time::interval(peers.renew_every());
     renew.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     renew.tick().await;
     loop {
@@ -72,18 +72,13 @@ pub(super) async fn run(inner: &Arc<Inner>, job: Arc<Job>, lease: Lease, request
     }
 }
 
-/// How often a run renews its lease: three times a lease.
-fn renew_every(peers: &dyn Peers) -> Duration {
-    peers.lease() / 3
-}
-
 /// Awaits `work` while renewing run `token`'s lease. Sending a large request,
 /// or encoding and storing a large result, can take longer than a lease: a job whose lease
 /// lapsed before it was listed as pending would look to its followers as if it ran nowhere,
 /// and one whose lease lapsed at its end would be taken over and run again.
 async fn renewing<T>(peers: &dyn Peers, id: &str, token: &str, work: impl Future<Output = T>) -> T {
     let mut work = std::pin::pin!(work);
-    let every = renew_every(peers);
+    let every = peers.renew_every();
     let mut renew = tokio::time::interval_at(Instant::now() + every, every);
     loop {
         tokio::select! {
@@ -110,8 +105,7 @@ async fn keep(inner: &Inner, peers: &dyn Peers, job: &Job, token: &str) {
             job.cancel();
         }
         if detach {
-            let _table = inner.table.lock().expect("job table poisoned");
-            job.detached.store(true, Ordering::SeqCst);
+            job.detach(&inner.lock());
         }
     }
 }
@@ -144,7 +138,7 @@ async fn finish(inner: &Arc<Inner>, peers: &dyn Peers, job: &Job, token: &str, s
             tracing::warn!(job = %job.id, "redis away: other replicas will not know this job finished");
             return;
         }
-        tokio::time::sleep(super::takeover::sweep_every(peers.lease())).await;
+        tokio::time::sleep(peers.sweep_every()).await;
     }
 }
 

@@ -3,89 +3,17 @@
 use super::budget::Budget;
 use super::dispatch::Dispatch;
 use super::follow::Fetched;
-use super::job::{Job, JobError, Lifetime, Record, Status};
+use super::job::{Job, Lifetime, Record, Status};
 use super::peers::{self, Claim, Control, Kept, KeptRequest, Peers, Take};
-use super::share::{Charge, Client, Shares};
-use super::{Cache, JobKeys, JobSpec, Wire, follow, publish, takeover, worker};
+use super::share::{Client, Shares};
+use super::state::{Entry, Inner, Lease, Shared, Start, SubmitError, Table, Ticket, Waiter};
+use super::{Cache, JobKeys, JobSpec, Wire, follow, takeover};
 use crate::metrics::Metrics;
 use crate::refine::trace::replay;
 use crate::result::MeshResult;
-use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
-
-/// A client waiting on a job. When the last one leaves a job that nobody detached, the job is
-/// cancelled: a synchronous request or stream whose client hung up.
-pub struct Waiter {
-    job: Arc<Job>,
-    inner: Arc<Inner>,
-}
-
-impl Waiter {
-    /// The job waited on.
-    pub fn job(&self) -> &Arc<Job> {
-        &self.job
-    }
-}
-
-impl Drop for Waiter {
-    fn drop(&mut self) {
-        let _table = self.inner.table.lock().expect("job table poisoned");
-        let last = self.job.waiters.fetch_sub(1, Ordering::SeqCst) == 1;
-        if last && !self.job.detached.load(Ordering::SeqCst) && !self.job.is_finished() {
-            tracing::info!(job = %self.job.id, "last client left; cancelling");
-            self.job.cancel();
-        }
-    }
-}
-
-/// What a submission found or started.
-pub enum Ticket {
-    /// The result was cached.
-    Cached(Arc<MeshResult>),
-    /// The result was replayed from a larger cached run of the same family, without F.
-    Prefix(Arc<MeshResult>),
-    /// A job, new or already under way, with this client registered as waiting on it (for a
-    /// detached submission, the registration is dropped at once and changes nothing).
-    Job(Waiter),
-    /// An identical job failed on its input before; it would fail the same way again.
-    Failed(JobError),
-}
-
-/// Why a submission was refused.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
-pub enum SubmitError {
-    /// `queue` jobs are already waiting for a worker.
-    #[error("{waiting} jobs are waiting for a worker, the most this server queues")]
-    QueueFull {
-        /// How many wait.
-        waiting: usize,
-        /// Seconds until a place is likely free.
-        retry_after: u64,
-    },
-    /// The job's memory does not fit in the budget now.
-    #[error("the job needs {needed} bytes and {available} of the memory budget are free")]
-    OverBudget {
-        /// Bytes the job needs.
-        needed: u64,
-        /// Bytes free.
-        available: u64,
-        /// Seconds until a worker, and its memory, is likely free.
-        retry_after: u64,
-    },
-    /// The client already holds its share of the workers and the queue.
-    #[error("this client has {held} jobs running or queued, its share of this server")]
-    ShareUsed {
-        /// How many jobs the client holds.
-        held: usize,
-        /// Seconds until one of them is likely done.
-        retry_after: u64,
-    },
-    /// The server is shutting down.
-    #[error("the server is shutting down")]
-    ShuttingDown,
-}
 
 /// A job, a finished job's record, or a cached result, for status queries.
 #[derive(Clone)]
@@ -110,9 +38,6 @@ impl Found {
         }
     }
 }
-
-/// How many finished job records are kept for status queries (results live in the cache).
-pub(super) const FINISHED_KEPT: usize = 10_000;
 
 /// Whether run `token` of job `id` has stored its final record (and is about to let go of
 /// its lease), or was asked to stop: a new request must not be given its end.
@@ -139,62 +64,6 @@ pub struct Jobs {
     inner: Arc<Inner>,
 }
 
-pub(super) struct Inner {
-    pub(super) dispatch: Arc<Dispatch>,
-    pub(super) workers: usize,
-    pub(super) queue: usize,
-    /// Jobs created and not yet holding a worker (some of which will get one at once).
-    pub(super) waiting: AtomicUsize,
-    /// A std Mutex: held only for map operations, never across an `.await`.
-    pub(super) table: Mutex<Table>,
-    pub(super) cache: Cache,
-    /// Per family, the cached run that went furthest, and its number of steps: the one that
-    /// answers the most smaller requests.
-    pub(super) families: moka::sync::Cache<String, (String, usize)>,
-    pub(super) metrics: Arc<Metrics>,
-    pub(super) closed: AtomicBool,
-    pub(super) shares: Shares,
-    pub(super) budget: Arc<Budget>,
-    /// The mean time a job ran, in seconds (f64 bits; a moving average): the basis of every
-    /// `Retry-After`.
-    pub(super) mean_run: AtomicU64,
-    /// The store, when replicas share results and jobs.
-    pub(super) shared: Option<Shared>,
-    /// Jobs whose state is still being told to the store: shutdown waits for them too, so that a
-    /// job handed back gives up its lease before the process ends.
-    pub(super) publishing: AtomicUsize,
-}
-
-/// What a replica needs to share: the store, and the HTTP layer's reading of requests and
-/// writing of problems.
-pub(super) struct Shared {
-    pub(super) peers: Arc<dyn Peers>,
-    pub(super) wire: Arc<dyn Wire>,
-    /// A turn per result being read from the store (see [`follow::fetch`]).
-    pub(super) fetching: moka::sync::Cache<String, Arc<tokio::sync::Mutex<()>>>,
-}
-
-/// A new job's id, family and place in the peers.
-pub(super) struct Start {
-    pub(super) id: String,
-    pub(super) family: String,
-    /// Its events are numbered after this (a job taken over continues the numbering).
-    pub(super) seq: u64,
-    /// The lease this replica holds for the job, if replicas share: the run then publishes
-    /// the job's state.
-    pub(super) lease: Option<Lease>,
-    /// The request, to keep in the store for a takeover.
-    pub(super) request: Option<KeptRequest>,
-}
-
-/// A run's lease on a job.
-pub(super) struct Lease {
-    /// The run's token, as the lease holds it.
-    pub(super) token: String,
-    /// Told once the run's first record is stored.
-    pub(super) announced: Option<tokio::sync::oneshot::Sender<()>>,
-}
-
 /// Gives a lease back unless disarmed: a submission abandoned between taking a lease and
 /// starting its run (its client hung up, or the run was refused) leaves no lease behind.
 struct LeaseGuard {
@@ -215,172 +84,6 @@ impl Drop for LeaseGuard {
             let (peers, id) = (self.peers.clone(), std::mem::take(&mut self.id));
             runtime.spawn(async move { peers.release(&id, &token).await });
         }
-    }
-}
-
-pub(super) enum Entry {
-    Live(Arc<Job>),
-    Done(Arc<Record>),
-}
-
-#[derive(Default)]
-pub(super) struct Table {
-    pub(super) jobs: HashMap<String, Entry>,
-    pub(super) finished: VecDeque<String>,
-}
-
-impl Inner {
-    /// Remembers cached run `id` as its family's furthest if it traced more steps than the
-    /// one known.
-    pub(super) fn note_run(&self, family: &str, id: &str, result: &MeshResult) {
-        let Some(steps) = result.trace.as_ref().map(|t| t.splits.len()) else { return };
-        if self.families.get(family).is_none_or(|(_, known)| steps >= known) {
-            self.families.insert(family.to_owned(), (id.to_owned(), steps));
-        }
-    }
-
-    /// Whether this replica runs job `id` now (rather than following it, or not having it).
-    pub(super) fn runs_here(&self, id: &str) -> bool {
-        let table = self.table.lock().expect("job table poisoned");
-        matches!(table.jobs.get(id), Some(Entry::Live(job)) if !job.follows && !job.is_finished())
-    }
-
-    /// Jobs waiting beyond the free workers: the queue proper.
-    fn queued(&self) -> usize {
-        self.waiting.load(Ordering::SeqCst).saturating_sub(self.dispatch.free())
-    }
-
-    /// Whether one more job would wait at most behind `queue` others: it either finds a free
-    /// worker or a place in the queue.
-    pub(super) fn has_room(&self) -> bool {
-        self.waiting.load(Ordering::SeqCst) < self.queue + self.dispatch.free()
-    }
-
-    /// Seconds until one of `lanes` busy workers is likely free, at the mean time a job has
-    /// taken: the `Retry-After` of a refusal, at least 1 s and at most an hour.
-    fn retry_after(&self, lanes: usize) -> u64 {
-        let mean = f64::from_bits(self.mean_run.load(Ordering::Relaxed));
-        (mean / lanes.max(1) as f64).ceil().clamp(1.0, 3600.0) as u64
-    }
-
-    /// Folds a job's run time into the mean (weight 1/8: a few jobs move it, one does not).
-    pub(super) fn note_run_time(&self, seconds: f64) {
-        let _ = self.mean_run.fetch_update(Ordering::Relaxed, Ordering::Relaxed, |bits| {
-            Some((f64::from_bits(bits) + (seconds - f64::from_bits(bits)) / 8.0).to_bits())
-        });
-    }
-
-    /// Answers from the table under its lock: joins a live job, repeats a failure on the
-    /// input, or finds a result cached since the caller's lookup.
-    fn join(self: &Arc<Self>, id: &str, lifetime: Lifetime) -> Option<Ticket> {
-        let table = self.table.lock().expect("job table poisoned");
-        match table.jobs.get(id)? {
-            Entry::Live(job) if job.is_joinable() => {
-                self.metrics.cache_misses.inc();
-                Some(Ticket::Job(self.attach(job, lifetime)))
-            }
-            Entry::Done(record) => match &record.error {
-                // A failure on the input is deterministic: it is the answer again.
-                Some(e @ JobError::Refine(_)) => {
-                    self.metrics.cache_misses.inc();
-                    Some(Ticket::Failed(e.clone()))
-                }
-                // It may have been cached between the lookup and the lock.
-                _ if record.status == Status::Succeeded => {
-                    let finished = self.cache.get_memory(id)?;
-                    self.metrics.cache_hits.inc();
-                    Some(Ticket::Cached(finished))
-                }
-                // Cancelled, an internal error, or a mesh evicted from the cache: run again.
-                _ => None,
-            },
-            // A job being cancelled: start a new one.
-            Entry::Live(_) => None,
-        }
-    }
-
-    /// Starts a job here, charged to `client`, unless an identical one is live by now; says
-    /// whether it started one (which then owns `start.lease`).
-    pub(super) fn start(
-        self: &Arc<Self>,
-        start: Start,
-        spec: JobSpec,
-        lifetime: Lifetime,
-        client: &Client,
-    ) -> Result<(Ticket, bool), SubmitError> {
-        let Start { id, family, seq, lease, request } = start;
-        let mut table = self.table.lock().expect("job table poisoned");
-        // A job followed from elsewhere gives way to the run of the replica holding the lease.
-        if let Some(Entry::Live(job)) = table.jobs.get(&id)
-            && job.is_joinable()
-            && !(lease.is_some() && job.follows)
-        {
-            self.metrics.cache_misses.inc();
-            return Ok((Ticket::Job(self.attach(job, lifetime)), false));
-        }
-        self.metrics.cache_misses.inc();
-        if self.closed.load(Ordering::SeqCst) {
-            return Err(SubmitError::ShuttingDown);
-        }
-        if !self.has_room() {
-            let waiting = self.queued();
-            return Err(SubmitError::QueueFull { waiting, retry_after: self.retry_after(self.workers) });
-        }
-        let charge: Charge = self.shares.charge(client).map_err(|held| SubmitError::ShareUsed {
-            held,
-            retry_after: self.retry_after(self.shares.workers),
-        })?;
-        let memory = self.budget.charge(spec.memory_bytes()).map_err(|over| {
-            self.metrics.memory_refusals.inc();
-            SubmitError::OverBudget {
-                needed: over.needed,
-                available: over.available,
-                retry_after: self.retry_after(self.workers),
-            }
-        })?;
-        self.waiting.fetch_add(1, Ordering::SeqCst);
-        self.metrics.jobs_queued.inc();
-        let job = Arc::new(Job::new(id.clone(), family, lifetime, false, seq));
-        let waiter = self.attach(&job, lifetime);
-        table.jobs.insert(id, Entry::Live(job.clone()));
-        drop(table);
-        if let Some(lease) = lease {
-            self.publishing.fetch_add(1, Ordering::SeqCst);
-            let inner = self.clone();
-            let job = job.clone();
-            tokio::spawn(async move {
-                publish::run(&inner, job, lease, request).await;
-                inner.publishing.fetch_sub(1, Ordering::SeqCst);
-            });
-        }
-        tokio::spawn(worker::run(self.clone(), job, spec, (charge, memory)));
-        Ok((Ticket::Job(waiter), true))
-    }
-
-    /// Replaces a finished job's table entry with its record (waiting clients hold the job,
-    /// and its mesh, until they have read it), keeping at most [`FINISHED_KEPT`] records.
-    pub(super) fn file(&self, job: &Arc<Job>) {
-        let record = Arc::new(Record::of(&job.snapshot()));
-        let mut table = self.table.lock().expect("job table poisoned");
-        if matches!(table.jobs.get(&job.id), Some(Entry::Live(j)) if Arc::ptr_eq(j, job)) {
-            table.jobs.insert(job.id.clone(), Entry::Done(record));
-            table.finished.push_back(job.id.clone());
-        }
-        while table.finished.len() > FINISHED_KEPT {
-            let oldest = table.finished.pop_front().expect("non-empty");
-            if matches!(table.jobs.get(&oldest), Some(Entry::Done(_))) {
-                table.jobs.remove(&oldest);
-            }
-        }
-    }
-
-    pub(super) fn attach(self: &Arc<Self>, job: &Arc<Job>, lifetime: Lifetime) -> Waiter {
-        // Caller holds the table lock.
-        job.waiters.fetch_add(1, Ordering::SeqCst);
-        if lifetime == Lifetime::Detached {
-            job.detached.store(true, Ordering::SeqCst);
-        }
-        Waiter { job: job.clone(), inner: self.clone() }
     }
 }
 
@@ -579,7 +282,7 @@ impl Jobs {
     /// The job, finished job or cached result with this id: on this replica, or, when
     /// replicas share, on any.
     pub async fn find(&self, id: &str) -> Option<Found> {
-        let found = match self.inner.table.lock().expect("job table poisoned").jobs.get(id) {
+        let found = match self.inner.lock().jobs.get(id) {
             Some(Entry::Live(job)) => Some(Found::Job(job.clone())),
             Some(Entry::Done(record)) => Some(Found::Done(record.clone())),
             None => None,
@@ -618,9 +321,11 @@ impl Jobs {
     /// when replicas share, on another replica.
     pub async fn watch(&self, id: &str) -> Option<Waiter> {
         let shared = {
-            let table = self.inner.table.lock().expect("job table poisoned");
+            let table = self.inner.lock();
             match (table.jobs.get(id), &self.inner.shared) {
-                (Some(Entry::Live(job)), _) => return Some(self.inner.attach(job, Lifetime::WhileWaited)),
+                (Some(Entry::Live(job)), _) => {
+                    return Some(self.inner.attach(&table, job, Lifetime::WhileWaited));
+                }
                 // A job that failed or was cancelled here may run again elsewhere.
                 (Some(Entry::Done(r)), Some(shared)) if r.status != Status::Succeeded => shared,
                 (None, Some(shared)) => shared,
@@ -709,7 +414,7 @@ impl Jobs {
     /// Cancels every job not yet finished; when replicas share, hands them back for another
     /// replica to take over instead (a job followed from another replica runs on there).
     pub fn cancel_all(&self) {
-        for entry in self.inner.table.lock().expect("job table poisoned").jobs.values() {
+        for entry in self.inner.lock().jobs.values() {
             // Decided once per job: the drain loop calls this again and again, and a job
             // already cancelled (by a client, or by an earlier call) keeps what was decided.
             if let Entry::Live(job) = entry
@@ -728,7 +433,7 @@ impl Jobs {
         if self.inner.publishing.load(Ordering::SeqCst) > 0 {
             return true;
         }
-        let table = self.inner.table.lock().expect("job table poisoned");
+        let table = self.inner.lock();
         // A job followed from another replica is that replica's to finish.
         table.jobs.values().any(|e| matches!(e, Entry::Live(job) if !job.follows))
     }
@@ -750,7 +455,7 @@ mod tests {
 
     use super::*;
     use crate::api::JobRequest;
-    use crate::jobs::{Limits, Outcome, job_keys};
+    use crate::jobs::{JobError, Limits, Outcome, job_keys};
     use crate::refine::StopReason;
     use std::time::Duration;
 

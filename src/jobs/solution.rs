@@ -1,6 +1,6 @@
 //! SolveSpec: a boundary value problem request, validated and in canonical form.
 
-use super::spec::{Limits, SpecError, at_most, budget, domain_of};
+use super::checks::{Limits, SpecError, at_most, budget, domain_of};
 use crate::api::{BoundaryInput, Coefficient, RegionInput, SolveRequest};
 use crate::geom::{Point, Rect};
 use crate::refine::Observer;

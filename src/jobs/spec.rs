@@ -1,28 +1,13 @@
 //! JobSpec: a request validated against the server's limits, in canonical form.
 
+use super::checks::{Limits, SpecError, at_most, budget, domain_of, grid_error};
 use super::solution::SolveSpec;
-use crate::api::{DomainInput, JobRequest, SolveRequest};
+use crate::api::{JobRequest, SolveRequest};
 use crate::geom::Rect;
 use crate::refine::{Criterion, Params, ParamsError, Refinement, estimate_error};
-use crate::source::{ExprError, Expression, GridFileError, GridHints, Source, decode_grid, decode_values};
+use crate::source::{Expression, GridHints, Source, decode_grid, decode_values};
 use std::sync::Arc;
 use std::time::Duration;
-
-/// The limits a request is checked against (from the server's config).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Limits {
-    /// Largest `max_vertices`.
-    pub max_vertices: usize,
-    /// Largest nx·ny.
-    pub max_grid_points: usize,
-    /// Longest expression, in characters.
-    pub max_expression_len: usize,
-    /// Longest run; also the default time limit.
-    pub job_time_limit: Duration,
-}
-
-/// The budget a request gets when it names none.
-pub const DEFAULT_MAX_VERTICES: u64 = 10_000;
 
 /// A validated request: what to compute and how. Built only by the `from_*` constructors.
 #[derive(Debug, Clone)]
@@ -66,136 +51,6 @@ impl MeshSpec {
             run.stats.quality = Some(estimate_error(&run.mesh, &*self.source));
         }
     }
-}
-
-/// Why a request is not a valid job. Each variant says where the problem is.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum SpecError {
-    /// Neither or both of `function` and `grid`.
-    #[error("give exactly one of `function` and `grid`{0}")]
-    Source(&'static str),
-    /// The expression does not parse.
-    #[error("function: {0}")]
-    Expression(ExprError),
-    /// The grid is malformed; `index` is its (i, j) when one value is at fault.
-    #[error("grid: {detail}")]
-    Grid {
-        /// What is wrong.
-        detail: String,
-        /// [i, j] of the bad value.
-        index: Option<[usize; 2]>,
-    },
-    /// The domain is empty, reversed or not finite.
-    #[error("domain: {0}")]
-    Domain(String),
-    /// An expression of a boundary value problem does not parse.
-    #[error("{field}: {error}")]
-    Coefficient {
-        /// The request field: `k`, `f`, `g` or `exact`.
-        field: &'static str,
-        /// What is wrong, and where.
-        error: ExprError,
-    },
-    /// A field of a boundary value problem is out of its range or not allowed.
-    #[error("{field}: {detail}")]
-    Problem {
-        /// The request field, e.g. `regions[1].mu_r`.
-        field: String,
-        /// What is wrong.
-        detail: String,
-    },
-    /// A parameter out of its range.
-    #[error("{0}")]
-    Parameter(ParamsError),
-    /// A server limit is exceeded.
-    #[error("{name}{measure} is {value}, above this server's limit of {limit}")]
-    Limit {
-        /// The request field.
-        name: &'static str,
-        /// What of it is measured, as a suffix of the name (" length"); empty for a number.
-        measure: &'static str,
-        /// The configuration variable that sets the limit.
-        setting: &'static str,
-        /// The limit.
-        limit: u64,
-        /// What the request asked for.
-        value: u64,
-    },
-}
-
-/// `Err(SpecError::Limit)` when `value`, the `measure` of field `name`, is above `limit`.
-pub(super) fn at_most(
-    (name, measure): (&'static str, &'static str),
-    setting: &'static str,
-    limit: usize,
-    value: u64,
-) -> Result<(), SpecError> {
-    if value > limit as u64 {
-        return Err(SpecError::Limit { name, measure, setting, limit: limit as u64, value });
-    }
-    Ok(())
-}
-
-impl SpecError {
-    /// The request field at fault as messages spell it (`regions[1].mu_r`); none when no one
-    /// field is (neither `function` nor `grid` given, say).
-    pub fn field(&self) -> Option<&str> {
-        Some(match self {
-            SpecError::Source(_) => return None,
-            SpecError::Expression(_) => "function",
-            SpecError::Grid { .. } => "grid",
-            SpecError::Domain(_) => "domain",
-            SpecError::Coefficient { field, .. } => field,
-            SpecError::Problem { field, .. } => field,
-            SpecError::Parameter(e) => match e {
-                ParamsError::MaxVertices { .. } => "max_vertices",
-                ParamsError::Tolerance(_) => "tolerance",
-                ParamsError::MinAngle(_) | ParamsError::MinAngleCriterion => "min_angle",
-            },
-            SpecError::Limit { name, .. } => name,
-        })
-    }
-}
-
-/// The engine's parameters for a request's vertex budget (the default when it names none),
-/// checked against this server's limit rather than the engine's.
-pub(super) fn budget(max_vertices: Option<u64>, limits: &Limits) -> Result<Params, SpecError> {
-    let max_vertices = max_vertices.unwrap_or(DEFAULT_MAX_VERTICES);
-    at_most(("max_vertices", ""), "MESHFIT_MAX_VERTICES", limits.max_vertices, max_vertices)?;
-    Params::new(max_vertices as usize).map_err(|e| match e {
-        ParamsError::MaxVertices { got, .. } => {
-            SpecError::Parameter(ParamsError::MaxVertices { got, max: limits.max_vertices as u64 })
-        }
-        e => SpecError::Parameter(e),
-    })
-}
-
-/// A grid that does not decode: over the limit, or malformed (naming the value at fault).
-fn grid_error(e: GridFileError) -> SpecError {
-    match e {
-        GridFileError::TooManyPoints { requested, allowed, .. } => SpecError::Limit {
-            name: "grid",
-            measure: " nx*ny",
-            setting: "MESHFIT_MAX_GRID_POINTS",
-            limit: allowed as u64,
-            value: requested,
-        },
-        e => SpecError::Grid { index: e.index(), detail: e.to_string() },
-    }
-}
-
-/// The two bounds of one axis, with -0.0 made 0.0 (one value, one cache key).
-fn pair(axis: &str, bounds: &[f64]) -> Result<[f64; 2], SpecError> {
-    match bounds {
-        &[lo, hi] => Ok([lo + 0.0, hi + 0.0]),
-        _ => Err(SpecError::Domain(format!("{axis} must be [low, high], got {} numbers", bounds.len()))),
-    }
-}
-
-/// The rectangle a request names.
-pub(super) fn domain_of(d: &DomainInput) -> Result<Rect, SpecError> {
-    let ([a, b], [c, e]) = (pair("x", &d.x)?, pair("y", &d.y)?);
-    Rect::new(a, b, c, e).map_err(|e| SpecError::Domain(e.to_string()))
 }
 
 impl JobSpec {

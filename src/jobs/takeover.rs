@@ -8,16 +8,9 @@ use super::follow::{self, Fetched};
 use super::job::{Lifetime, Status};
 use super::peers::{Claim, Kept, Peers, Take};
 use super::publish;
-use super::registry::{Inner, Lease, Start};
 use super::share::Client;
+use super::state::{Inner, Lease, Start};
 use std::sync::{Arc, Weak};
-use std::time::Duration;
-
-/// How often pending jobs are looked at: every half lease, and at least every second, so that
-/// a job handed back at shutdown is taken over at once whatever the lease.
-pub(super) fn sweep_every(lease: Duration) -> Duration {
-    (lease / 2).clamp(Duration::from_millis(20), Duration::from_secs(1))
-}
 
 /// Looks for orphaned jobs until the registry is gone or closed. Also pings the store first, so
 /// that `/readyz` and `/metrics` say whether it answers even when no request needs it.
@@ -31,7 +24,7 @@ pub(super) async fn sweep(inner: Weak<Inner>) {
                 return;
             }
             sweep_once(&inner, &*shared.peers).await;
-            sweep_every(shared.peers.lease())
+            shared.peers.sweep_every()
         };
         tokio::time::sleep(every).await;
     }

@@ -3,8 +3,8 @@
 
 use super::budget;
 use super::job::{Job, JobError, Outcome, Status};
-use super::registry::Inner;
 use super::share::Charge;
+use super::state::Inner;
 use super::{JobSpec, Work};
 use crate::api::ProgressEvent;
 use crate::geom::Mesh;

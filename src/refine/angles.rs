@@ -146,6 +146,30 @@ pub(super) fn smallest_angle_cos_sq(a: Point, b: Point, c: Point) -> f64 {
     cos * cos / (4.0 * u * v)
 }
 
+/// The half-edge of triangle `t`'s longest edge; among equal lengths, the first.
+pub(super) fn longest_edge(mesh: &Mesh, t: u32) -> u32 {
+    (3 * t..3 * t + 3).fold(3 * t, |best, e| if mesh.len_sq(e) > mesh.len_sq(best) { e } else { best })
+}
+
+/// The end of the longest-edge propagation path from `t`: follow longest edges across
+/// neighbours while the neighbour's longest edge is strictly longer. Lengths grow strictly
+/// along the path, so it ends; its last edge is the longest edge of both its triangles (or
+/// on the boundary), so bisecting it keeps the mesh conforming.
+pub(super) fn terminal_edge(mesh: &Mesh, t: u32) -> u32 {
+    let mut e = longest_edge(mesh, t);
+    loop {
+        let f = mesh.twin(e);
+        if f == NONE {
+            return e;
+        }
+        let g = longest_edge(mesh, f / 3);
+        if mesh.len_sq(g) <= mesh.len_sq(e) {
+            return e;
+        }
+        e = g;
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -45,7 +45,7 @@
 
 mod angles;
 mod bands;
-mod error;
+mod error_criterion;
 mod history;
 mod metrics;
 mod nodes;
@@ -231,7 +231,7 @@ where
     O: Observer,
 {
     let start = Instant::now();
-    let mut sampler = Sampler { surface, evaluations: 0, batch: error::Batch::default() };
+    let mut sampler = Sampler { surface, evaluations: 0, batch: error_criterion::Batch::default() };
     let [p1, p2, p3, p4] = rect.corners();
     let z = [sampler.eval(p1)?, sampler.eval(p2)?, sampler.eval(p3)?, sampler.eval(p4)?];
     let mut mesh = Mesh::with_capacity(rect, z, params.max_vertices());
@@ -312,7 +312,7 @@ pub(crate) trait Estimator: Field {
         out: &mut Vec<(f64, [f64; 3])>,
     ) -> Result<(), Self::Error> {
         for (i, &t) in ts.iter().enumerate() {
-            let estimate = self.estimate(mesh, t, error::lend(mesh, ts, i, known[i], out))?;
+            let estimate = self.estimate(mesh, t, error_criterion::lend(mesh, ts, i, known[i], out))?;
             out.push(estimate);
         }
         Ok(())
@@ -402,7 +402,7 @@ pub(crate) fn resume<E: Estimator, O: Observer>(
     let (stop, triangle_errors) = match params.criterion() {
         Criterion::Variation => (variation::refine(mesh, estimator, &mut run)?, None),
         Criterion::Error => {
-            let (stop, errors) = error::refine(mesh, estimator, &mut run)?;
+            let (stop, errors) = error_criterion::refine(mesh, estimator, &mut run)?;
             (stop, Some(errors))
         }
     };
@@ -414,7 +414,7 @@ struct Sampler<'s, S: ?Sized> {
     surface: &'s S,
     evaluations: u64,
     /// The error criterion's samples of a step, kept so that steps do not allocate.
-    batch: error::Batch,
+    batch: error_criterion::Batch,
 }
 
 impl<S: Surface + ?Sized> Sampler<'_, S> {

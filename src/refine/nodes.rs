@@ -14,8 +14,7 @@
 //! below `min_angle` at the midpoint of its longest-edge path's end (see [`super::angles`]).
 //! `recursive` keeps midpoints: Rivara's bisection needs them for its bound on the angles.
 
-use super::angles::{Encroachment, Repair, Repairs};
-use super::error::terminal_edge;
+use super::angles::{Encroachment, Repair, Repairs, terminal_edge};
 use super::worst_triangle::{Entry, WorstTriangleQueue};
 use super::{Observer, Run, StopReason};
 use crate::geom::predicates::signed_area_x2;

@@ -118,7 +118,8 @@ pub type Result<T> = std::result::Result<T, Unavailable>;
 #[async_trait::async_trait]
 pub trait Peers: Send + Sync + 'static {
     /// How long a lease lasts without renewal: how soon another replica takes over a job
-    /// whose replica died.
+    /// whose replica died. The protocol's other clocks follow from it (the lease timing lives
+    /// here, in this and the two methods below).
     fn lease(&self) -> Duration;
 
     /// A token for a new run of a job on this replica.
@@ -129,6 +130,18 @@ pub trait Peers: Send + Sync + 'static {
 
     /// Whether the last operation reached the store.
     fn is_up(&self) -> bool;
+
+    /// How often a run renews its lease: three times a lease.
+    fn renew_every(&self) -> Duration {
+        self.lease() / 3
+    }
+
+    /// How often each replica looks at the pending jobs (and a follower at the job it
+    /// follows): every half lease, and at least every second, so that a job handed back at
+    /// shutdown is taken over at once whatever the lease.
+    fn sweep_every(&self) -> Duration {
+        (self.lease() / 2).clamp(Duration::from_millis(20), Duration::from_secs(1))
+    }
 
     /// Messages from every replica, as they arrive.
     fn messages(&self) -> broadcast::Receiver<Message>;

@@ -9,7 +9,7 @@
 //! zero. (On a grid, `semi-recursive` puts its vertices on the grid's nodes instead: see
 //! [`super::nodes`].)
 
-use super::angles::{Encroachment, Repair, Repairs};
+use super::angles::{Encroachment, Repair, Repairs, longest_edge, terminal_edge};
 use super::metrics::{LATTICE, lattice_point};
 use super::nodes::worst_node;
 use super::worst_triangle::{Entry, WorstTriangleQueue};
@@ -221,30 +221,6 @@ fn split_edge(mesh: &Mesh, t: u32, slot: &Slot) -> u32 {
     let error = |e: u32| slot.edges[(e % 3) as usize];
     (3 * t..3 * t + 3)
         .fold(longest, |best, e| if error(e) > error(best) && mesh.len_sq(e) >= floor { e } else { best })
-}
-
-/// The half-edge of triangle `t`'s longest edge; among equal lengths, the first.
-fn longest_edge(mesh: &Mesh, t: u32) -> u32 {
-    (3 * t..3 * t + 3).fold(3 * t, |best, e| if mesh.len_sq(e) > mesh.len_sq(best) { e } else { best })
-}
-
-/// The end of the longest-edge propagation path from `t`: follow longest edges across
-/// neighbours while the neighbour's longest edge is strictly longer. Lengths grow strictly
-/// along the path, so it ends; its last edge is the longest edge of both its triangles (or
-/// on the boundary), so bisecting it keeps the mesh conforming.
-pub(super) fn terminal_edge(mesh: &Mesh, t: u32) -> u32 {
-    let mut e = longest_edge(mesh, t);
-    loop {
-        let f = mesh.twin(e);
-        if f == NONE {
-            return e;
-        }
-        let g = longest_edge(mesh, f / 3);
-        if mesh.len_sq(g) <= mesh.len_sq(e) {
-            return e;
-        }
-        e = g;
-    }
 }
 
 /// A mesh's estimate: F's sampled error.
