@@ -5,9 +5,11 @@
 //! once, in [`SETTINGS`]: its variable, flag, default, help and parser; `meshfit serve`'s flags
 //! and `--help` are made from it, and tests hold the README's table and the defaults to it.
 
-use crate::http::access::{ApiKeys, MIN_KEY_LEN};
+use crate::jobs::{CacheSettings, Limits, Pool};
 use ipnet::IpNet;
-use std::collections::BTreeMap;
+use sha2::{Digest, Sha256};
+use std::collections::{BTreeMap, HashSet};
+use std::fmt;
 use std::net::{IpAddr, SocketAddr};
 use std::num::NonZeroUsize;
 use std::path::PathBuf;
@@ -26,65 +28,130 @@ pub enum LogFormat {
 pub const DEFAULT_ADDR: SocketAddr = SocketAddr::new(IpAddr::V4(std::net::Ipv4Addr::UNSPECIFIED), 8080);
 
 /// Validated service settings, each read from the variable of its [`Setting`] (named in
-/// brackets); [`SETTINGS`] holds their defaults and help.
+/// brackets); [`SETTINGS`] holds their defaults and help. They arrive grouped by the part of
+/// the service that takes them, so that wiring the server hands over groups and copies no
+/// field.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Config {
     /// Where to listen (`MESHFIT_ADDR`).
     pub addr: SocketAddr,
-    /// Refinements running at once (`MESHFIT_WORKERS`).
-    pub workers: NonZeroUsize,
-    /// Jobs that may wait for a worker (`MESHFIT_QUEUE`).
-    pub queue: usize,
-    /// Largest `max_vertices` a request may ask for (`MESHFIT_MAX_VERTICES`).
-    pub max_vertices: usize,
-    /// Largest nx·ny of a grid (`MESHFIT_MAX_GRID_POINTS`).
-    pub max_grid_points: usize,
-    /// Largest request body (`MESHFIT_MAX_BODY_BYTES`).
-    pub max_body_bytes: usize,
-    /// Longest expression in characters (`MESHFIT_MAX_EXPRESSION_LEN`).
-    pub max_expression_len: usize,
-    /// Longest a job may run; caps `time_limit_ms` (`MESHFIT_JOB_TIME_LIMIT_MS`).
-    pub job_time_limit: Duration,
-    /// The memory budget (`MESHFIT_MEMORY_BYTES`).
-    pub memory_bytes: u64,
-    /// Memory for finished meshes, part of the budget (`MESHFIT_CACHE_BYTES`).
-    pub cache_bytes: u64,
-    /// Where finished meshes are also written, to survive restarts (`MESHFIT_CACHE_DIR`).
-    pub cache_dir: Option<PathBuf>,
-    /// Disk for those files (`MESHFIT_CACHE_DIR_BYTES`).
-    pub cache_dir_bytes: u64,
-    /// How long running jobs may finish after SIGTERM (`MESHFIT_SHUTDOWN_GRACE_MS`).
-    pub shutdown_grace: Duration,
     /// Log lines as text or JSON (`MESHFIT_LOG_FORMAT`).
     pub log_format: LogFormat,
+    /// How long running jobs may finish after SIGTERM (`MESHFIT_SHUTDOWN_GRACE_MS`).
+    pub shutdown_grace: Duration,
+    /// What one request may ask for (`MESHFIT_MAX_VERTICES`, `MESHFIT_MAX_GRID_POINTS`,
+    /// `MESHFIT_MAX_EXPRESSION_LEN`, `MESHFIT_JOB_TIME_LIMIT_MS`).
+    pub limits: Limits,
+    /// The workers, the queue, each client's share and the memory budget.
+    pub pool: Pool,
+    /// Finished meshes kept in memory and on disk.
+    pub cache: CacheSettings,
+    /// Connections: how many, and how long they may take.
+    pub connections: Connections,
+    /// Request bodies: how large, and how slow.
+    pub body: BodyLimits,
+    /// Who may call the API, from which pages, through which proxies.
+    pub callers: Callers,
+    /// The Redis replicas share results and jobs through.
+    pub redis: Redis,
+}
+
+/// Connections: how many are served at once, and how long they may take.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Connections {
     /// Connections served at once (`MESHFIT_MAX_CONNECTIONS`).
-    pub max_connections: usize,
+    pub max: usize,
     /// Time from the end of a response, or a connection's start, to the end of the next
     /// request's headers (`MESHFIT_HEADER_TIMEOUT_MS`).
     pub header_timeout: Duration,
-    /// Longest wait for the next part of a request body (`MESHFIT_BODY_TIMEOUT_MS`).
-    pub body_timeout: Duration,
     /// Longest a response may wait for the client to read (`MESHFIT_WRITE_TIMEOUT_MS`).
     pub write_timeout: Duration,
+}
+
+/// How large and how slow a request body may be.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BodyLimits {
+    /// Most bytes (`MESHFIT_MAX_BODY_BYTES`).
+    pub max_bytes: usize,
+    /// Longest pause (`MESHFIT_BODY_TIMEOUT_MS`); a body may also take no longer than this
+    /// plus its length at 64 KiB/s.
+    pub timeout: Duration,
+}
+
+/// Who may call the API.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Callers {
     /// API keys (`MESHFIT_API_KEYS`, `MESHFIT_API_KEYS_FILE`); none leaves the API open.
     pub api_keys: ApiKeys,
     /// Origins whose web pages may call the API (`MESHFIT_CORS_ORIGINS`).
     pub cors_origins: Vec<String>,
-    /// One client's share of the jobs and workers (`MESHFIT_CLIENT_SHARE`).
-    pub client_share: f64,
     /// Proxies whose forwarding headers name the client (`MESHFIT_TRUSTED_PROXIES`).
     pub trusted_proxies: Vec<IpNet>,
-    /// The Redis that replicas share results and jobs through (`MESHFIT_REDIS_URL`); none
-    /// and this process serves alone.
-    pub redis_url: Option<String>,
-    /// How long Redis keeps results, records and requests (`MESHFIT_REDIS_TTL_MS`).
-    pub redis_ttl: Duration,
-    /// The largest result (compact form) or request body kept in Redis
-    /// (`MESHFIT_REDIS_MAX_BYTES`).
-    pub redis_max_bytes: u64,
+}
+
+/// The Redis replicas share results and jobs through.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Redis {
+    /// `redis://host:port/db` (`MESHFIT_REDIS_URL`); none, and this process serves alone.
+    pub url: Option<String>,
+    /// How long results, postings and requests stay (`MESHFIT_REDIS_TTL_MS`).
+    pub ttl: Duration,
+    /// The largest result (compact form) or request body kept; larger ones stay on the
+    /// replica that made them (`MESHFIT_REDIS_MAX_BYTES`).
+    pub max_bytes: u64,
     /// A job's lease: how long after its replica dies another takes it over
-    /// (`MESHFIT_REDIS_LEASE_MS`).
-    pub redis_lease: Duration,
+    /// (`MESHFIT_REDIS_LEASE_MS`). Renewed every third of it.
+    pub lease: Duration,
+}
+
+/// Shortest API key accepted: a key is a secret, not a name.
+pub const MIN_KEY_LEN: usize = 16;
+
+/// The configured API keys, as digests. Empty: the API is open.
+#[derive(Clone, Default, PartialEq, Eq)]
+pub struct ApiKeys(HashSet<[u8; 32]>);
+
+impl ApiKeys {
+    /// Adds a key.
+    pub fn insert(&mut self, key: &str) {
+        self.0.insert(Sha256::digest(key.as_bytes()).into());
+    }
+
+    /// How many keys there are.
+    pub fn len(&self) -> usize {
+        self.0.len()
+    }
+
+    /// Whether no key is configured (the API is open).
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    /// The name of the client a presented key identifies (`key:` and the start of its
+    /// digest, never the key), if it is one of ours.
+    pub fn client_name(&self, key: &str) -> Option<String> {
+        let digest: [u8; 32] = Sha256::digest(key.as_bytes()).into();
+        self.0.contains(&digest).then(|| {
+            let name: String = digest[..6].iter().map(|b| format!("{b:02x}")).collect();
+            format!("key:{name}")
+        })
+    }
+}
+
+/// Never prints a key or its digest.
+impl fmt::Debug for ApiKeys {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "ApiKeys({} configured)", self.0.len())
+    }
+}
+
+/// The default cap on connections: the process's soft file limit less room for the cache
+/// directory's files, the listener and the connections refused with a 503 beyond the cap
+/// (256 in all), at most 10,000.
+pub fn default_max_connections() -> usize {
+    let soft = rustix::process::getrlimit(rustix::process::Resource::Nofile).current;
+    let files = soft.map_or(usize::MAX, |n| usize::try_from(n).unwrap_or(usize::MAX));
+    files.saturating_sub(256).clamp(16, 10_000)
 }
 
 /// The defaults. Those that are values are written again in [`SETTINGS`], and a test checks
@@ -93,32 +160,35 @@ impl Default for Config {
     fn default() -> Self {
         Self {
             addr: DEFAULT_ADDR,
-            workers: std::thread::available_parallelism().unwrap_or(NonZeroUsize::MIN),
-            queue: 64,
-            max_vertices: 2_000_000,
-            // 4097 × 4097: the largest grid of the README's benchmarks, and of many DEM tiles.
-            max_grid_points: 4097 * 4097,
-            max_body_bytes: 256 << 20,
-            max_expression_len: 4096,
-            job_time_limit: Duration::from_secs(60),
-            memory_bytes: crate::jobs::default_memory_bytes(),
-            cache_bytes: 1 << 30,
-            cache_dir: None,
-            cache_dir_bytes: 10 << 30,
-            shutdown_grace: Duration::from_secs(10),
             log_format: LogFormat::Text,
-            max_connections: crate::http::conn::default_max_connections(),
-            header_timeout: Duration::from_secs(15),
-            body_timeout: Duration::from_secs(15),
-            write_timeout: Duration::from_secs(30),
-            api_keys: ApiKeys::default(),
-            cors_origins: Vec::new(),
-            client_share: 0.5,
-            trusted_proxies: Vec::new(),
-            redis_url: None,
-            redis_ttl: Duration::from_secs(24 * 3600),
-            redis_max_bytes: 256 << 20,
-            redis_lease: Duration::from_secs(10),
+            shutdown_grace: Duration::from_secs(10),
+            limits: Limits {
+                max_vertices: 2_000_000,
+                // 4097 × 4097: the largest grid of the README's benchmarks, and of many DEM tiles.
+                max_grid_points: 4097 * 4097,
+                max_expression_len: 4096,
+                job_time_limit: Duration::from_secs(60),
+            },
+            pool: Pool {
+                workers: std::thread::available_parallelism().unwrap_or(NonZeroUsize::MIN),
+                queue: 64,
+                client_share: 0.5,
+                memory_bytes: crate::jobs::default_memory_bytes(),
+            },
+            cache: CacheSettings { memory_bytes: 1 << 30, dir: None, dir_bytes: 10 << 30 },
+            connections: Connections {
+                max: default_max_connections(),
+                header_timeout: Duration::from_secs(15),
+                write_timeout: Duration::from_secs(30),
+            },
+            body: BodyLimits { max_bytes: 256 << 20, timeout: Duration::from_secs(15) },
+            callers: Callers::default(),
+            redis: Redis {
+                url: None,
+                ttl: Duration::from_secs(24 * 3600),
+                max_bytes: 256 << 20,
+                lease: Duration::from_secs(10),
+            },
         }
     }
 }
@@ -285,7 +355,7 @@ pub const SETTINGS: &[Setting] = &[
         default: Fallback::Described("available cores"),
         help: "refinements running at once",
         parse: |v, c| {
-            c.workers = NonZeroUsize::new(number(v)? as usize).ok_or("must be at least 1")?;
+            c.pool.workers = NonZeroUsize::new(number(v)? as usize).ok_or("must be at least 1")?;
             Ok(())
         },
     },
@@ -295,7 +365,7 @@ pub const SETTINGS: &[Setting] = &[
         value_name: "N",
         default: Fallback::Value("64"),
         help: "jobs that may wait when every worker is busy; beyond that 503",
-        parse: |v, c| number(v).map(|n| c.queue = n as usize),
+        parse: |v, c| number(v).map(|n| c.pool.queue = n as usize),
     },
     Setting {
         name: "MESHFIT_MAX_VERTICES",
@@ -308,7 +378,7 @@ pub const SETTINGS: &[Setting] = &[
             if !(4..=crate::refine::MAX_VERTICES as u64).contains(&n) {
                 return Err(format!("must be between 4 and {}", crate::refine::MAX_VERTICES));
             }
-            c.max_vertices = n as usize;
+            c.limits.max_vertices = n as usize;
             Ok(())
         },
     },
@@ -318,7 +388,7 @@ pub const SETTINGS: &[Setting] = &[
         value_name: "N",
         default: Fallback::Value("16785409"),
         help: "largest nx·ny of a grid (the default is 4097²), checked against a file's header before it is decoded",
-        parse: |v, c| at_least(v, 4).map(|n| c.max_grid_points = n as usize),
+        parse: |v, c| at_least(v, 4).map(|n| c.limits.max_grid_points = n as usize),
     },
     Setting {
         name: "MESHFIT_MAX_BODY_BYTES",
@@ -326,7 +396,7 @@ pub const SETTINGS: &[Setting] = &[
         value_name: "BYTES",
         default: Fallback::Value("268435456"),
         help: "largest request body (a 4097×4097 grid at full precision needs about 350 MB)",
-        parse: |v, c| at_least(v, 1024).map(|n| c.max_body_bytes = n as usize),
+        parse: |v, c| at_least(v, 1024).map(|n| c.body.max_bytes = n as usize),
     },
     Setting {
         name: "MESHFIT_MAX_EXPRESSION_LEN",
@@ -334,7 +404,7 @@ pub const SETTINGS: &[Setting] = &[
         value_name: "N",
         default: Fallback::Value("4096"),
         help: "longest expression, in characters",
-        parse: |v, c| at_least(v, 1).map(|n| c.max_expression_len = n as usize),
+        parse: |v, c| at_least(v, 1).map(|n| c.limits.max_expression_len = n as usize),
     },
     Setting {
         name: "MESHFIT_JOB_TIME_LIMIT_MS",
@@ -342,7 +412,7 @@ pub const SETTINGS: &[Setting] = &[
         value_name: "MS",
         default: Fallback::Value("60000"),
         help: "longest a job runs; caps `time_limit_ms`",
-        parse: |v, c| millis(v, 1).map(|d| c.job_time_limit = d),
+        parse: |v, c| millis(v, 1).map(|d| c.limits.job_time_limit = d),
     },
     Setting {
         name: "MESHFIT_MEMORY_BYTES",
@@ -352,7 +422,7 @@ pub const SETTINGS: &[Setting] = &[
         help: "the memory budget that request bodies, jobs and cached meshes are charged to before they are taken; past it, 503",
         parse: |v, c| {
             let n = at_least(v, 64 << 20).map_err(|_| "must be at least 67108864 (64 MiB)".to_owned())?;
-            c.memory_bytes = n;
+            c.pool.memory_bytes = n;
             Ok(())
         },
     },
@@ -362,7 +432,7 @@ pub const SETTINGS: &[Setting] = &[
         value_name: "BYTES",
         default: Fallback::Value("1073741824"),
         help: "memory for finished meshes, part of the budget and at most half of it (a default larger than half shrinks to it)",
-        parse: |v, c| number(v).map(|n| c.cache_bytes = n),
+        parse: |v, c| number(v).map(|n| c.cache.memory_bytes = n),
     },
     Setting {
         name: "MESHFIT_CACHE_DIR",
@@ -371,7 +441,7 @@ pub const SETTINGS: &[Setting] = &[
         default: Fallback::Described("unset"),
         help: "also keep finished meshes here, across restarts",
         parse: |v, c| {
-            c.cache_dir = (!v.is_empty()).then(|| PathBuf::from(v));
+            c.cache.dir = (!v.is_empty()).then(|| PathBuf::from(v));
             Ok(())
         },
     },
@@ -381,7 +451,7 @@ pub const SETTINGS: &[Setting] = &[
         value_name: "BYTES",
         default: Fallback::Value("10737418240"),
         help: "disk for those meshes; the least recently used file is deleted first",
-        parse: |v, c| at_least(v, 1).map(|n| c.cache_dir_bytes = n),
+        parse: |v, c| at_least(v, 1).map(|n| c.cache.dir_bytes = n),
     },
     Setting {
         name: "MESHFIT_SHUTDOWN_GRACE_MS",
@@ -397,7 +467,7 @@ pub const SETTINGS: &[Setting] = &[
         value_name: "N",
         default: Fallback::Described("the file limit less 256 (at most 10000)"),
         help: "connections served at once; past it, a connection gets a 503 and is closed",
-        parse: |v, c| at_least(v, 1).map(|n| c.max_connections = n as usize),
+        parse: |v, c| at_least(v, 1).map(|n| c.connections.max = n as usize),
     },
     Setting {
         name: "MESHFIT_HEADER_TIMEOUT_MS",
@@ -405,7 +475,7 @@ pub const SETTINGS: &[Setting] = &[
         value_name: "MS",
         default: Fallback::Value("15000"),
         help: "time to send a request's headers, counted from the end of the previous response: it also closes idle keep-alive connections",
-        parse: |v, c| millis(v, 1).map(|d| c.header_timeout = d),
+        parse: |v, c| millis(v, 1).map(|d| c.connections.header_timeout = d),
     },
     Setting {
         name: "MESHFIT_BODY_TIMEOUT_MS",
@@ -413,7 +483,7 @@ pub const SETTINGS: &[Setting] = &[
         value_name: "MS",
         default: Fallback::Value("15000"),
         help: "longest pause in a request body; a body may also take no longer than this plus its length at 64 KiB/s; then 408",
-        parse: |v, c| millis(v, 1).map(|d| c.body_timeout = d),
+        parse: |v, c| millis(v, 1).map(|d| c.body.timeout = d),
     },
     Setting {
         name: "MESHFIT_WRITE_TIMEOUT_MS",
@@ -421,7 +491,7 @@ pub const SETTINGS: &[Setting] = &[
         value_name: "MS",
         default: Fallback::Value("30000"),
         help: "longest a response may wait for its client to read; then the connection is closed and its buffers freed",
-        parse: |v, c| millis(v, 1).map(|d| c.write_timeout = d),
+        parse: |v, c| millis(v, 1).map(|d| c.connections.write_timeout = d),
     },
     Setting {
         name: "MESHFIT_API_KEYS",
@@ -429,7 +499,7 @@ pub const SETTINGS: &[Setting] = &[
         value_name: "KEYS",
         default: Fallback::Described("unset"),
         help: "comma-separated API keys (16 characters or more); with any, every /v1 route needs `Authorization: Bearer <key>`",
-        parse: |v, c| add_keys(v.split(','), &mut c.api_keys),
+        parse: |v, c| add_keys(v.split(','), &mut c.callers.api_keys),
     },
     Setting {
         name: "MESHFIT_API_KEYS_FILE",
@@ -439,7 +509,7 @@ pub const SETTINGS: &[Setting] = &[
         help: "a file of API keys, one per line (`#` comments); keys are never flags, which the process list would show",
         parse: |v, c| {
             let text = std::fs::read_to_string(v).map_err(|e| format!("cannot read the file: {e}"))?;
-            add_keys(text.lines().filter(|l| !l.trim_start().starts_with('#')), &mut c.api_keys)
+            add_keys(text.lines().filter(|l| !l.trim_start().starts_with('#')), &mut c.callers.api_keys)
         },
     },
     Setting {
@@ -450,7 +520,7 @@ pub const SETTINGS: &[Setting] = &[
         help: "comma-separated origins, `https://app.example`, whose pages may call the API; `*` for any",
         parse: |v, c| {
             let origin = |o: &str| is_origin(o).then(|| o.to_owned());
-            c.cors_origins =
+            c.callers.cors_origins =
                 comma_separated(v, origin, "expected `*` or scheme://host[:port], comma-separated")?;
             Ok(())
         },
@@ -463,7 +533,7 @@ pub const SETTINGS: &[Setting] = &[
         help: "one client's share of the jobs a server takes (workers plus queue), and of the workers it runs before others' waiting jobs go first (an idle worker takes any job); 1 for a single-tenant server",
         parse: |v, c| match v.parse::<f64>() {
             Ok(x) if x > 0.0 && x <= 1.0 => {
-                c.client_share = x;
+                c.pool.client_share = x;
                 Ok(())
             }
             _ => Err("expected a number in (0, 1], e.g. 0.5".to_owned()),
@@ -477,7 +547,7 @@ pub const SETTINGS: &[Setting] = &[
         help: "proxies (comma-separated addresses or CIDR ranges) whose `Forwarded` / `X-Forwarded-For` names the client",
         parse: |v, c| {
             let proxy = |p: &str| p.parse::<IpNet>().or_else(|_| p.parse::<IpAddr>().map(IpNet::from)).ok();
-            c.trusted_proxies = comma_separated(
+            c.callers.trusted_proxies = comma_separated(
                 v,
                 proxy,
                 "expected addresses or CIDR ranges, comma-separated: 10.0.0.0/8, ::1",
@@ -494,7 +564,7 @@ pub const SETTINGS: &[Setting] = &[
         // TLS (rediss://) would need one of redis-rs's TLS features, which are not built.
         parse: |v, c| match redis::parse_redis_url(v).filter(|u| u.scheme() == "redis") {
             Some(_) => {
-                c.redis_url = Some(v.to_owned());
+                c.redis.url = Some(v.to_owned());
                 Ok(())
             }
             None => Err("expected redis://[user:password@]host[:port][/db]".to_owned()),
@@ -506,7 +576,7 @@ pub const SETTINGS: &[Setting] = &[
         value_name: "MS",
         default: Fallback::Value("86400000"),
         help: "how long Redis keeps results, job records and requests",
-        parse: |v, c| millis(v, 1).map(|d| c.redis_ttl = d),
+        parse: |v, c| millis(v, 1).map(|d| c.redis.ttl = d),
     },
     Setting {
         name: "MESHFIT_REDIS_MAX_BYTES",
@@ -514,7 +584,7 @@ pub const SETTINGS: &[Setting] = &[
         value_name: "BYTES",
         default: Fallback::Value("268435456"),
         help: "largest result or request kept in Redis; larger ones stay on their replica",
-        parse: |v, c| number(v).map(|n| c.redis_max_bytes = n),
+        parse: |v, c| number(v).map(|n| c.redis.max_bytes = n),
     },
     Setting {
         name: "MESHFIT_REDIS_LEASE_MS",
@@ -522,7 +592,7 @@ pub const SETTINGS: &[Setting] = &[
         value_name: "MS",
         default: Fallback::Value("10000"),
         help: "a job's lease: how soon another replica takes over the job of one that died",
-        parse: |v, c| millis(v, 30).map(|d| c.redis_lease = d),
+        parse: |v, c| millis(v, 30).map(|d| c.redis.lease = d),
     },
     Setting {
         name: "MESHFIT_LOG_FORMAT",
@@ -572,12 +642,13 @@ impl TryFrom<RawConfig> for Config {
         }
         // The cache is part of the budget; a default cache larger than half of it shrinks,
         // a configured one is an error.
-        if config.cache_bytes > config.memory_bytes / 2 {
+        if config.cache.memory_bytes > config.pool.memory_bytes / 2 {
             if let Some(value) = raw.values.get("MESHFIT_CACHE_BYTES") {
-                let why = format!("must be at most half of MESHFIT_MEMORY_BYTES ({})", config.memory_bytes);
+                let why =
+                    format!("must be at most half of MESHFIT_MEMORY_BYTES ({})", config.pool.memory_bytes);
                 problems.push(problem(&raw, "MESHFIT_CACHE_BYTES", format!("{value:?}"), why));
             } else {
-                config.cache_bytes = config.memory_bytes / 2;
+                config.cache.memory_bytes = config.pool.memory_bytes / 2;
             }
         }
         if problems.is_empty() { Ok(config) } else { Err(ConfigError(problems)) }
@@ -640,8 +711,11 @@ mod tests {
     fn no_variables_give_the_documented_defaults() {
         let c = Config::try_from(RawConfig::default()).unwrap();
         assert_eq!(c.addr.to_string(), "0.0.0.0:8080");
-        assert_eq!((c.queue, c.max_vertices, c.max_grid_points), (64, 2_000_000, 4097 * 4097));
-        assert_eq!((c.cache_dir, c.cache_dir_bytes), (None, 10 << 30));
+        assert_eq!(
+            (c.pool.queue, c.limits.max_vertices, c.limits.max_grid_points),
+            (64, 2_000_000, 4097 * 4097)
+        );
+        assert_eq!((c.cache.dir, c.cache.dir_bytes), (None, 10 << 30));
     }
 
     #[test]
@@ -656,8 +730,8 @@ mod tests {
         ]))
         .unwrap();
         assert_eq!(c.addr.port(), 9000);
-        assert_eq!((c.workers.get(), c.max_vertices), (3, 1000));
-        assert_eq!((c.cache_dir, c.cache_dir_bytes), (Some(PathBuf::from("/tmp/x")), 1_000_000));
+        assert_eq!((c.pool.workers.get(), c.limits.max_vertices), (3, 1000));
+        assert_eq!((c.cache.dir, c.cache.dir_bytes), (Some(PathBuf::from("/tmp/x")), 1_000_000));
         assert_eq!(c.log_format, LogFormat::Json);
     }
 
@@ -669,9 +743,9 @@ mod tests {
             ("MESHFIT_REDIS_MAX_BYTES", "1_000"),
         ]))
         .unwrap();
-        assert_eq!(c.redis_url.as_deref(), Some("redis://cache:6380/2"));
-        assert_eq!((c.redis_lease, c.redis_max_bytes), (Duration::from_millis(2500), 1000));
-        assert_eq!(Config::try_from(RawConfig::default()).unwrap().redis_url, None, "alone by default");
+        assert_eq!(c.redis.url.as_deref(), Some("redis://cache:6380/2"));
+        assert_eq!((c.redis.lease, c.redis.max_bytes), (Duration::from_millis(2500), 1000));
+        assert_eq!(Config::try_from(RawConfig::default()).unwrap().redis.url, None, "alone by default");
         let err = Config::try_from(raw(&[
             ("MESHFIT_REDIS_URL", "http://user:s3cret@cache:6379"),
             ("MESHFIT_REDIS_LEASE_MS", "5"),
@@ -808,12 +882,12 @@ mod tests {
             ("MESHFIT_TRUSTED_PROXIES", "10.0.0.0/8, 172.17.0.1"),
         ]))
         .unwrap();
-        let proxies: Vec<String> = c.trusted_proxies.iter().map(ToString::to_string).collect();
+        let proxies: Vec<String> = c.callers.trusted_proxies.iter().map(ToString::to_string).collect();
         assert_eq!(proxies, ["10.0.0.0/8", "172.17.0.1/32"]);
         std::fs::remove_file(&dir).unwrap();
-        assert_eq!(c.api_keys.len(), 3);
-        assert_eq!(c.cors_origins, ["https://app.example", "http://localhost:3000"]);
-        assert_eq!(c.client_share, 0.25);
+        assert_eq!(c.callers.api_keys.len(), 3);
+        assert_eq!(c.callers.cors_origins, ["https://app.example", "http://localhost:3000"]);
+        assert_eq!(c.pool.client_share, 0.25);
         assert!(!format!("{c:?}").contains("env-key"));
         let err = Config::try_from(raw(&[
             ("MESHFIT_API_KEYS", "short"),

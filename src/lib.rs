@@ -84,16 +84,15 @@ pub async fn serve(
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
     let mut metrics = metrics::Metrics::default();
-    if config.redis_url.is_some() {
+    if config.redis.url.is_some() {
         metrics.register_redis();
     }
     let metrics = Arc::new(metrics);
-    let (bytes, dir, dir_bytes) = (config.cache_bytes, config.cache_dir.clone(), config.cache_dir_bytes);
     // Opening a cache directory lists it and may prune it: blocking work.
+    let settings = config.cache.clone();
     let cache = tokio::task::spawn_blocking(move || {
-        let shown = dir.as_ref().map(|d| d.display().to_string());
-        jobs::Cache::new(bytes, dir, dir_bytes).map_err(|e| {
-            let path = shown.unwrap_or_default();
+        jobs::Cache::open(&settings).map_err(|e| {
+            let path = settings.dir.as_ref().map(|d| d.display().to_string()).unwrap_or_default();
             std::io::Error::new(
                 e.kind(),
                 format!("MESHFIT_CACHE_DIR={path}: cannot use it as the cache directory: {e}"),
@@ -102,39 +101,20 @@ pub async fn serve(
     })
     .await
     .map_err(std::io::Error::other)??;
-    let (workers, queue, share) = (config.workers.get(), config.queue, config.client_share);
-    let mut jobs = jobs::Jobs::new(workers, queue, share, config.memory_bytes, cache, metrics.clone());
-    let limits = jobs::Limits {
-        max_vertices: config.max_vertices,
-        max_grid_points: config.max_grid_points,
-        max_expression_len: config.max_expression_len,
-        job_time_limit: config.job_time_limit,
-    };
-    if let Some(url) = &config.redis_url {
-        let settings = cluster::Settings {
-            url: url.clone(),
-            ttl: config.redis_ttl,
-            max_bytes: config.redis_max_bytes,
-            lease: config.redis_lease,
-        };
-        let cluster = cluster::Cluster::connect(settings, metrics.redis_errors.clone())
+    let mut jobs = jobs::Jobs::new(&config.pool, cache, metrics.clone());
+    if let Some(url) = &config.redis.url {
+        let cluster = cluster::Cluster::connect(url, config.redis.clone(), metrics.redis_errors.clone())
             .map_err(|e| std::io::Error::other(format!("MESHFIT_REDIS_URL: {e}")))?;
         tracing::info!(replica = cluster.replica(), "sharing results and jobs through redis");
-        jobs = jobs.shared(Arc::new(cluster), Arc::new(http::Replicas::new(limits)));
+        jobs = jobs.shared(Arc::new(cluster), Arc::new(http::Replicas::new(config.limits)));
     }
     // Indexes are rebuilt in milliseconds; a quarter of the result cache's budget holds plenty.
-    let body = http::BodyLimits { max_bytes: config.max_body_bytes, timeout: config.body_timeout };
-    let state = http::AppState::new(jobs.clone(), limits, body, config.cache_bytes / 4);
+    let state = http::AppState::new(jobs.clone(), config.limits, config.body, config.cache.memory_bytes / 4);
     let app = http::router(state, &config);
     let on_signal = jobs.clone();
     let grace = config.shutdown_grace;
     let (signalled, mut on_signalled) = tokio::sync::watch::channel(false);
-    let settings = http::conn::Settings {
-        max_connections: config.max_connections,
-        header_timeout: config.header_timeout,
-        write_timeout: config.write_timeout,
-    };
-    let server = http::conn::serve(listener, app, settings, jobs.metrics().clone(), async move {
+    let server = http::conn::serve(listener, app, config.connections, jobs.metrics().clone(), async move {
         shutdown.await;
         tracing::info!(grace_ms = grace.as_millis() as u64, "shutting down: no new jobs");
         on_signal.close();

@@ -148,12 +148,12 @@ fn serve(args: &ServeArgs) -> Result<()> {
         tracing::info!(
             open = %url,
             %addr,
-            workers = config.workers,
-            queue = config.queue,
-            api_keys = if config.api_keys.is_empty() { "off: the API is open" } else { "on" },
-            cache_dir = config.cache_dir.as_ref().map_or("none: memory only".into(), |d| d.display().to_string()),
-            memory_budget = %Bytes(config.memory_bytes),
-            cache = %Bytes(config.cache_bytes),
+            workers = config.pool.workers,
+            queue = config.pool.queue,
+            api_keys = if config.callers.api_keys.is_empty() { "off: the API is open" } else { "on" },
+            cache_dir = config.cache.dir.as_ref().map_or("none: memory only".into(), |d| d.display().to_string()),
+            memory_budget = %Bytes(config.pool.memory_bytes),
+            cache = %Bytes(config.cache.memory_bytes),
             "meshfit listening"
         );
         meshfit::serve(listener, config, shutdown_signal()).await.context("serving")

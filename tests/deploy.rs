@@ -7,7 +7,7 @@ use serde_yaml_ng::Value;
 fn config(settings: impl IntoIterator<Item = (String, String)>) -> Config {
     let raw: RawConfig = settings.into_iter().collect();
     let config = Config::try_from(raw.clone()).unwrap_or_else(|e| panic!("{raw:?}: {e}"));
-    assert!(config.redis_url.is_some(), "the replicas share through Redis");
+    assert!(config.redis.url.is_some(), "the replicas share through Redis");
     config
 }
 

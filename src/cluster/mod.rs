@@ -28,6 +28,7 @@
 
 mod listen;
 
+use crate::config::Redis;
 use crate::jobs::peers::{
     Claim, Control, Kept, KeptRequest, Message, Peers, Posting, Result, Take, Unavailable,
 };
@@ -37,21 +38,6 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Duration;
 use tokio::sync::broadcast;
-
-/// How replicas share through Redis.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Settings {
-    /// `redis://host:port/db`.
-    pub url: String,
-    /// How long results, records and requests stay in Redis.
-    pub ttl: Duration,
-    /// The largest result (in its compact form) or request body stored; larger ones stay on
-    /// the replica that made them.
-    pub max_bytes: u64,
-    /// How long a job's lease lasts without renewal: how soon another replica takes over a
-    /// job whose replica died. Renewed every third of it.
-    pub lease: Duration,
-}
 
 /// The connection to Redis, shared by every task of a replica. Cheap to clone.
 #[derive(Clone)]
@@ -66,7 +52,7 @@ struct Inner {
     /// large transfer never holds a lease renewal or the ping back (a ping held past its
     /// timeout would take Redis for gone).
     bulk: ConnectionManager,
-    settings: Settings,
+    settings: Redis,
     /// This replica's name in leases: host, process and start time.
     replica: String,
     /// Numbers this replica's runs, for their tokens.
@@ -137,16 +123,17 @@ return 1",
 });
 
 impl Cluster {
-    /// A client of the Redis at `settings.url`; connects lazily, so a replica starts (and
+    /// A client of the Redis at `url`, as `settings` say; connects lazily, so a replica starts (and
     /// serves alone) while Redis is down. Counts failed commands in `errors`.
     ///
     /// # Errors
     /// When the URL is not a Redis URL.
     pub fn connect(
-        settings: Settings,
+        url: &str,
+        settings: Redis,
         errors: prometheus_client::metrics::counter::Counter,
     ) -> std::result::Result<Self, redis::RedisError> {
-        let client = redis::Client::open(settings.url.as_str())?;
+        let client = redis::Client::open(url)?;
         let config = redis::aio::ConnectionManagerConfig::new()
             .set_connection_timeout(Some(Duration::from_secs(1)))
             // Long enough for a result of MESHFIT_REDIS_MAX_BYTES; a Redis that stops answering
@@ -175,7 +162,7 @@ impl Cluster {
     }
 
     /// The settings in force.
-    pub fn settings(&self) -> &Settings {
+    pub fn settings(&self) -> &Redis {
         &self.inner.settings
     }
 

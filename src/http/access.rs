@@ -14,57 +14,15 @@
 //!   queue.
 
 use super::problem::ApiError;
+use crate::config::ApiKeys;
 use crate::jobs::Client;
 use axum::extract::{ConnectInfo, Request, State};
 use axum::http::{HeaderMap, Method, header};
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
 use ipnet::IpNet;
-use sha2::{Digest, Sha256};
-use std::collections::HashSet;
-use std::fmt;
 use std::net::{IpAddr, SocketAddr};
 use std::sync::Arc;
-
-/// Shortest key accepted: a key is a secret, not a name.
-pub const MIN_KEY_LEN: usize = 16;
-
-/// The configured API keys, as digests. Empty: the API is open.
-#[derive(Clone, Default, PartialEq, Eq)]
-pub struct ApiKeys(HashSet<[u8; 32]>);
-
-impl ApiKeys {
-    /// Adds a key.
-    pub fn insert(&mut self, key: &str) {
-        self.0.insert(Sha256::digest(key.as_bytes()).into());
-    }
-
-    /// How many keys there are.
-    pub fn len(&self) -> usize {
-        self.0.len()
-    }
-
-    /// Whether no key is configured (the API is open).
-    pub fn is_empty(&self) -> bool {
-        self.0.is_empty()
-    }
-
-    /// The client a presented key names, if it is one of ours.
-    fn client(&self, key: &str) -> Option<Client> {
-        let digest: [u8; 32] = Sha256::digest(key.as_bytes()).into();
-        self.0.contains(&digest).then(|| {
-            let name: String = digest[..6].iter().map(|b| format!("{b:02x}")).collect();
-            Client::from(format!("key:{name}"))
-        })
-    }
-}
-
-/// Never prints a key or its digest.
-impl fmt::Debug for ApiKeys {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "ApiKeys({} configured)", self.0.len())
-    }
-}
 
 /// What the access check needs, shared by every request.
 #[derive(Clone, Debug, Default)]
@@ -93,8 +51,8 @@ pub async fn check(State(access): State<Arc<Access>>, mut req: Request, next: Ne
         Client::from(ip.map_or_else(|| "addr:unknown".to_owned(), |ip| format!("addr:{ip}")))
     } else {
         let presented = bearer(req.headers());
-        match presented.and_then(|key| access.keys.client(key)) {
-            Some(client) => client,
+        match presented.and_then(|key| access.keys.client_name(key)) {
+            Some(name) => Client::from(name),
             None => return ApiError::Unauthorized { presented: presented.is_some() }.into_response(),
         }
     };
@@ -220,9 +178,9 @@ mod tests {
     fn keys_name_their_client_without_revealing_it() {
         let mut keys = ApiKeys::default();
         keys.insert("correct horse battery staple");
-        let client = keys.client("correct horse battery staple").unwrap();
-        assert!(client.as_str().starts_with("key:") && !client.as_str().contains("horse"));
-        assert_eq!(keys.client("correct horse battery stapler"), None);
+        let client = keys.client_name("correct horse battery staple").unwrap();
+        assert!(client.starts_with("key:") && !client.contains("horse"));
+        assert_eq!(keys.client_name("correct horse battery stapler"), None);
         assert!(!format!("{keys:?}").contains("horse"));
         let auth = headers(&[(header::AUTHORIZATION, "Bearer  abc ")]);
         assert_eq!(bearer(&auth), Some("abc"));

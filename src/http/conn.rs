@@ -21,6 +21,7 @@
 //! The body timeouts are kept where the body is read, in `super::extract::Body`.
 
 use super::problem::ApiError;
+use crate::config::Connections;
 use crate::metrics::Metrics;
 use axum::Router;
 use axum::body::Body;
@@ -43,7 +44,8 @@ use tokio_io_timeout::TimeoutStream;
 use tower::ServiceExt;
 
 /// Connections served past the cap, one request each, so that `/healthz` answers and others
-/// learn why they are refused.
+/// learn why they are refused. (The default cap, [`crate::config::default_max_connections`],
+/// leaves file descriptors for them.)
 const OVERFLOW: usize = 64;
 
 /// How long an overflow connection may take to send its one request's headers.
@@ -51,18 +53,6 @@ const OVERFLOW_HEADER_TIMEOUT: Duration = Duration::from_secs(2);
 
 /// How long to wait before accepting again when the process is out of file descriptors.
 const ACCEPT_BACKOFF: Duration = Duration::from_millis(100);
-
-/// The limits on connections; see the README's table of settings.
-#[derive(Debug, Clone, Copy)]
-pub struct Settings {
-    /// Connections served at once.
-    pub max_connections: usize,
-    /// From the end of a response (or the connection's start) to the end of the next
-    /// request's headers.
-    pub header_timeout: Duration,
-    /// Longest a response write may wait for the client to read.
-    pub write_timeout: Duration,
-}
 
 /// Serves `app` on `listener` until `shutdown` resolves, then stops accepting and returns
 /// once every open connection has finished its request in flight.
@@ -73,7 +63,7 @@ pub struct Settings {
 pub async fn serve(
     listener: TcpListener,
     app: Router,
-    settings: Settings,
+    settings: Connections,
     metrics: Arc<Metrics>,
     shutdown: impl Future<Output = ()>,
 ) -> std::io::Result<()> {
@@ -97,17 +87,16 @@ pub async fn serve(
             () = &mut shutdown => break,
         };
         let _ = stream.set_nodelay(true);
-        let (counter, full) =
-            if open.load(Ordering::SeqCst) < settings.max_connections || below_cap.close_oldest_idle() {
-                (&open, false)
-            } else if overflow.load(Ordering::SeqCst) < OVERFLOW {
-                metrics.connections_refused.inc();
-                (&overflow, true)
-            } else {
-                // Dropping the stream closes it; the client sees the connection end at once.
-                metrics.connections_refused.inc();
-                continue;
-            };
+        let (counter, full) = if open.load(Ordering::SeqCst) < settings.max || below_cap.close_oldest_idle() {
+            (&open, false)
+        } else if overflow.load(Ordering::SeqCst) < OVERFLOW {
+            metrics.connections_refused.inc();
+            (&overflow, true)
+        } else {
+            // Dropping the stream closes it; the client sees the connection end at once.
+            metrics.connections_refused.inc();
+            continue;
+        };
         let slot = Slot::take(counter, &metrics);
         next_id += 1;
         let registered = (!full).then(|| Registered::new(&below_cap, next_id));
@@ -316,12 +305,4 @@ impl Drop for Slot {
         self.counter.fetch_sub(1, Ordering::SeqCst);
         self.metrics.connections_open.dec();
     }
-}
-
-/// The default cap: the process's soft file limit less room for the cache directory's
-/// files, the listener and the overflow connections, at most 10,000.
-pub fn default_max_connections() -> usize {
-    let soft = rustix::process::getrlimit(rustix::process::Resource::Nofile).current;
-    let files = soft.map_or(usize::MAX, |n| usize::try_from(n).unwrap_or(usize::MAX));
-    files.saturating_sub(OVERFLOW + 192).clamp(16, 10_000)
 }

@@ -3,6 +3,7 @@
 
 use super::AppState;
 use super::problem::ApiError;
+use crate::config::BodyLimits;
 use crate::jobs::{Charge, OverBudget};
 use crate::source::signed_kind;
 use axum::body::Bytes;
@@ -22,16 +23,6 @@ pub struct Body {
     pub bytes: Bytes,
     /// Their share of the memory budget, returned when the body is dropped.
     _charge: Charge,
-}
-
-/// The limits on a body: its size, and its pace.
-#[derive(Clone, Copy, Debug)]
-pub struct BodyLimits {
-    /// Most bytes (`MESHFIT_MAX_BODY_BYTES`).
-    pub max_bytes: usize,
-    /// Longest pause (`MESHFIT_BODY_TIMEOUT_MS`); a body may also take no longer than this
-    /// plus its length at `MIN_BODY_RATE` (64 KiB/s).
-    pub timeout: Duration,
 }
 
 /// The slowest a body may arrive on average, in bytes per second, beyond the body timeout:

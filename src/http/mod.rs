@@ -12,7 +12,7 @@ mod page;
 pub mod problem;
 mod sse;
 
-use crate::config::Config;
+use crate::config::{BodyLimits, Config};
 use crate::jobs::{Jobs, Limits};
 use crate::metrics::RequestLabels;
 use axum::Router;
@@ -22,7 +22,7 @@ use axum::middleware::{self, Next};
 use axum::response::IntoResponse;
 use axum::response::Response;
 use axum::routing::{get, post};
-pub use extract::{BodyLimits, parse_json};
+pub use extract::parse_json;
 pub use jobs::Replicas;
 use problem::ApiError;
 use std::sync::Arc;
@@ -81,9 +81,9 @@ pub const ROUTES: &[(&str, &str)] = &[
 /// The router with all layers; tests drive it through a real listener.
 pub fn router(state: AppState, config: &Config) -> Router {
     let access = Arc::new(access::Access {
-        keys: config.api_keys.clone(),
-        origins: config.cors_origins.clone().into(),
-        trusted_proxies: config.trusted_proxies.clone().into(),
+        keys: config.callers.api_keys.clone(),
+        origins: config.callers.cors_origins.clone().into(),
+        trusted_proxies: config.callers.trusted_proxies.clone().into(),
     });
     // Layers run outside-in: an unsafe request id is dropped first, then every request gets
     // one, so the trace span, every log line and every response carry it.
@@ -104,7 +104,7 @@ pub fn router(state: AppState, config: &Config) -> Router {
                 .on_failure(()),
         )
         .layer(PropagateRequestIdLayer::x_request_id())
-        .option_layer(cors(&config.cors_origins))
+        .option_layer(cors(&config.callers.cors_origins))
         // A panicking handler answers a generic 500 problem (logged in the request's span)
         // instead of dropping the connection.
         .layer(CatchPanicLayer::custom(|panic: Box<dyn std::any::Any + Send>| {

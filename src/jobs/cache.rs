@@ -26,6 +26,17 @@ pub enum Hit {
     Disk,
 }
 
+/// Where finished meshes are kept, and how much of them.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct CacheSettings {
+    /// Memory for finished meshes, part of the memory budget (`MESHFIT_CACHE_BYTES`).
+    pub memory_bytes: u64,
+    /// Where they are also written, to survive restarts (`MESHFIT_CACHE_DIR`).
+    pub dir: Option<PathBuf>,
+    /// Disk for those files (`MESHFIT_CACHE_DIR_BYTES`).
+    pub dir_bytes: u64,
+}
+
 /// The cache of finished meshes by job id.
 #[derive(Clone)]
 pub struct Cache {
@@ -50,6 +61,14 @@ struct Disk {
 }
 
 impl Cache {
+    /// The cache `settings` describe.
+    ///
+    /// # Errors
+    /// When its directory cannot be created or listed.
+    pub fn open(settings: &CacheSettings) -> std::io::Result<Self> {
+        Self::new(settings.memory_bytes, settings.dir.clone(), settings.dir_bytes)
+    }
+
     /// A cache of at most `bytes` bytes of bodies in memory, mirrored in `dir` if given, where
     /// files take at most `dir_bytes` bytes.
     ///

@@ -52,11 +52,11 @@ pub use budget::{
     Budget, Charge, OverBudget, SOLUTION_BYTES_PER_VERTEX, available_memory, cli_mesh_bytes_per_vertex,
     default_limit as default_memory_bytes,
 };
-pub use cache::{Cache, Hit};
+pub use cache::{Cache, CacheSettings, Hit};
 pub use checks::{DEFAULT_MAX_VERTICES, Limits, SpecError};
 pub use job::{Job, JobError, Lifetime, Outcome, Record, Snapshot, Status};
 pub use key::{ENGINE_VERSION, JobKeys, job_id, job_keys};
-pub use registry::{Found, Jobs};
+pub use registry::{Found, Jobs, Pool};
 pub use share::Client;
 pub use solution::{Coef, SolveSpec};
 pub use spec::{JobSpec, MeshSpec, Work};

@@ -11,6 +11,7 @@ use super::{Cache, JobKeys, JobSpec, Wire, follow, takeover};
 use crate::metrics::Metrics;
 use crate::refine::trace::replay;
 use crate::result::MeshResult;
+use std::num::NonZeroUsize;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -58,6 +59,20 @@ const FETCHES_KEPT: u64 = 10_000;
 /// How many families remember their furthest run.
 const FAMILIES_KEPT: u64 = 100_000;
 
+/// What a server runs jobs with.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pool {
+    /// Refinements running at once (`MESHFIT_WORKERS`).
+    pub workers: NonZeroUsize,
+    /// Jobs that may wait for a worker beyond them (`MESHFIT_QUEUE`).
+    pub queue: usize,
+    /// One client's share of the workers and the queue, in (0, 1] (`MESHFIT_CLIENT_SHARE`).
+    pub client_share: f64,
+    /// The memory budget that jobs, bodies and cached meshes are charged to
+    /// (`MESHFIT_MEMORY_BYTES`).
+    pub memory_bytes: u64,
+}
+
 /// The job registry, its workers and its cache. Cheap to clone.
 #[derive(Clone)]
 pub struct Jobs {
@@ -88,20 +103,14 @@ impl Drop for LeaseGuard {
 }
 
 impl Jobs {
-    /// A registry running at most `workers` refinements at once, with at most `queue` jobs
-    /// waiting beyond them, of which one client may hold `share` (in (0, 1]), and whose jobs,
-    /// bodies and cached meshes share `memory_bytes`.
-    pub fn new(
-        workers: usize,
-        queue: usize,
-        share: f64,
-        memory_bytes: u64,
-        cache: Cache,
-        metrics: Arc<Metrics>,
-    ) -> Self {
+    /// A registry of the workers, queue, shares and memory budget of `pool`, in front of
+    /// `cache`.
+    pub fn new(pool: &Pool, cache: Cache, metrics: Arc<Metrics>) -> Self {
+        let Pool { workers, queue, client_share, memory_bytes } = *pool;
+        let workers = workers.get();
         let cached = cache.clone();
         let budget = Budget::new(memory_bytes, move || cached.memory_bytes_estimate());
-        let shares = Shares::new(share, workers, queue);
+        let shares = Shares::new(client_share, workers, queue);
         Self {
             inner: Arc::new(Inner {
                 dispatch: Dispatch::new(workers, shares.workers),
@@ -461,7 +470,9 @@ mod tests {
 
     fn jobs(workers: usize, queue: usize) -> Jobs {
         let cache = Cache::new(64 << 20, None, 0).unwrap();
-        Jobs::new(workers, queue, 1.0, 8 << 30, cache, Arc::new(Metrics::default()))
+        let workers = NonZeroUsize::new(workers).unwrap();
+        let pool = Pool { workers, queue, client_share: 1.0, memory_bytes: 8 << 30 };
+        Jobs::new(&pool, cache, Arc::new(Metrics::default()))
     }
 
     fn request(body: serde_json::Value) -> (JobKeys, JobSpec) {

@@ -1,18 +1,19 @@
 //! API keys, origins and each client's share of the workers and the queue.
 
-use crate::helpers::{TestApp, spawn_with, test_config};
+use crate::helpers::{TestApp, configured, spawn_with, test_config};
+use meshfit::config::ApiKeys;
 use meshfit::config::Config;
-use meshfit::http::access::ApiKeys;
 use serde_json::{Value, json};
 
 const KEY_A: &str = "key-a-0123456789abcdef";
 const KEY_B: &str = "key-b-0123456789abcdef";
 
-fn with_keys(config: Config) -> Config {
+fn with_keys(mut config: Config) -> Config {
     let mut keys = ApiKeys::default();
     keys.insert(KEY_A);
     keys.insert(KEY_B);
-    Config { api_keys: keys, ..config }
+    config.callers.api_keys = keys;
+    config
 }
 
 async fn post_as(app: &TestApp, key: &str, path: &str, body: &Value) -> reqwest::Response {
@@ -47,7 +48,7 @@ async fn with_keys_every_v1_route_needs_one_and_health_stays_open() {
 
 #[tokio::test]
 async fn a_page_of_another_origin_cannot_submit_jobs_unless_listed() {
-    let config = Config { cors_origins: vec!["https://app.example".into()], ..test_config() };
+    let config = configured(|c| c.callers.cors_origins = vec!["https://app.example".into()]);
     let app = spawn_with(config).await;
     let body = r#"{"function": "x+y", "max_vertices": 50}"#;
     let from = |origin: &str, content_type: &str| {
@@ -89,7 +90,7 @@ async fn a_page_of_another_origin_cannot_submit_jobs_unless_listed() {
 #[tokio::test]
 async fn one_client_uses_idle_workers_but_not_the_whole_queue_and_others_run_first() {
     // Two workers and a queue of 8: each key may hold 5 jobs, and runs 1 before others' go first.
-    let app = spawn_with(with_keys(Config { client_share: 0.5, ..test_config() })).await;
+    let app = spawn_with(with_keys(configured(|c| c.pool.client_share = 0.5))).await;
     let long = |i: usize| json!({"function": format!("sin(40*x)*cos(40*y)+{i}"), "max_vertices": 2_000_000});
     let mut ids = Vec::new();
     for i in 0..5 {
@@ -130,8 +131,10 @@ async fn one_client_uses_idle_workers_but_not_the_whole_queue_and_others_run_fir
 
 #[tokio::test]
 async fn behind_a_trusted_proxy_each_forwarded_address_is_its_own_client() {
-    let config =
-        Config { client_share: 0.5, trusted_proxies: vec!["127.0.0.1/32".parse().unwrap()], ..test_config() };
+    let config = configured(|c| {
+        c.pool.client_share = 0.5;
+        c.callers.trusted_proxies = vec!["127.0.0.1/32".parse().unwrap()];
+    });
     let app = spawn_with(config).await;
     let long = |i: usize| json!({"function": format!("sin(41*x)*cos(41*y)+{i}"), "max_vertices": 2_000_000});
     let post = |from: &'static str, body: Value| {

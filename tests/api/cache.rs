@@ -5,7 +5,7 @@ use serde_json::{Value, json};
 
 fn with_dir(dir: &std::path::Path) -> meshfit::config::Config {
     let mut config = test_config();
-    config.cache_dir = Some(dir.to_owned());
+    config.cache.dir = Some(dir.to_owned());
     config
 }
 
@@ -66,7 +66,7 @@ async fn the_cache_directory_stays_within_its_byte_limit_keeping_what_is_in_use(
     let dir = temp_dir("limit");
     let mut config = with_dir(&dir);
     // Room for about three of these meshes with their traces (some 75 kB each).
-    config.cache_dir_bytes = 250_000;
+    config.cache.dir_bytes = 250_000;
     let app = spawn_with(config).await;
     let mesh = |n: u32| json!({"function": "x*y", "max_vertices": n});
     let first: Value = app.post("/v1/meshes", &mesh(500)).await.json().await.unwrap();

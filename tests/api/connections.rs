@@ -3,7 +3,7 @@
 //! Each test would hang without its limit; the outer `timeout` turns a hang into a failure
 //! (it bounds the test, it measures nothing).
 
-use crate::helpers::{spawn_with, test_config};
+use crate::helpers::{configured, spawn_with};
 use reqwest::Client;
 use serde_json::{Value, json};
 use std::time::Duration;
@@ -42,9 +42,7 @@ fn unpooled() -> Client {
 
 #[tokio::test]
 async fn idle_half_sent_and_kept_alive_connections_close_after_the_header_timeout() {
-    let app =
-        spawn_with(meshfit::config::Config { header_timeout: Duration::from_millis(300), ..test_config() })
-            .await;
+    let app = spawn_with(configured(|c| c.connections.header_timeout = Duration::from_millis(300))).await;
     let mut idle = TcpStream::connect(app.addr).await.unwrap();
     let mut half = TcpStream::connect(app.addr).await.unwrap();
     half.write_all(b"GET /healthz HTTP/1.1\r\nHost: x\r\nX-Slow: ").await.unwrap();
@@ -61,9 +59,7 @@ async fn idle_half_sent_and_kept_alive_connections_close_after_the_header_timeou
 
 #[tokio::test]
 async fn a_body_that_stops_arriving_gets_a_408_problem() {
-    let app =
-        spawn_with(meshfit::config::Config { body_timeout: Duration::from_millis(300), ..test_config() })
-            .await;
+    let app = spawn_with(configured(|c| c.body.timeout = Duration::from_millis(300))).await;
     let mut stream = TcpStream::connect(app.addr).await.unwrap();
     let head = "POST /v1/meshes HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\nContent-Length: 1000\r\n\r\n";
     stream.write_all(head.as_bytes()).await.unwrap();
@@ -77,9 +73,7 @@ async fn a_body_that_stops_arriving_gets_a_408_problem() {
 
 #[tokio::test]
 async fn a_body_that_trickles_in_gets_a_408_once_past_the_timeout() {
-    let app =
-        spawn_with(meshfit::config::Config { body_timeout: Duration::from_millis(300), ..test_config() })
-            .await;
+    let app = spawn_with(configured(|c| c.body.timeout = Duration::from_millis(300))).await;
     let mut stream = TcpStream::connect(app.addr).await.unwrap();
     let head = "POST /v1/meshes HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\nContent-Length: 1000\r\n\r\n";
     stream.write_all(head.as_bytes()).await.unwrap();
@@ -107,7 +101,7 @@ async fn a_body_that_trickles_in_gets_a_408_once_past_the_timeout() {
 
 #[tokio::test]
 async fn a_client_that_stops_reading_is_dropped_with_its_response() {
-    let config = meshfit::config::Config { write_timeout: Duration::from_millis(300), ..test_config() };
+    let config = configured(|c| c.connections.write_timeout = Duration::from_millis(300));
     let app = spawn_with(config).await;
     // A mesh far larger than the socket buffers on both sides.
     let request = json!({"function": "sin(9*x)*cos(7*y)", "max_vertices": 300_000, "criterion": "variation"});
@@ -141,12 +135,11 @@ async fn a_client_that_stops_reading_is_dropped_with_its_response() {
 
 #[tokio::test]
 async fn bodies_and_jobs_are_charged_to_the_memory_budget_before_they_are_taken() {
-    let config = meshfit::config::Config {
-        memory_bytes: 64 << 20,
-        cache_bytes: 8 << 20,
-        max_body_bytes: 100 << 20,
-        ..test_config()
-    };
+    let config = configured(|c| {
+        c.pool.memory_bytes = 64 << 20;
+        c.cache.memory_bytes = 8 << 20;
+        c.body.max_bytes = 100 << 20;
+    });
     let app = spawn_with(config).await;
     // A job whose vertex budget cannot fit is refused before it runs.
     let big = app.post("/v1/jobs", &json!({"function": "x*y", "max_vertices": 1_000_000})).await;
@@ -204,7 +197,7 @@ async fn busy(addr: std::net::SocketAddr) -> TcpStream {
 
 #[tokio::test]
 async fn past_the_connection_cap_of_busy_connections_healthz_answers_and_other_routes_get_503() {
-    let app = spawn_with(meshfit::config::Config { max_connections: 4, ..test_config() }).await;
+    let app = spawn_with(configured(|c| c.connections.max = 4)).await;
     let mut held = Vec::new();
     for _ in 0..4 {
         held.push(busy(app.addr).await);
@@ -229,7 +222,7 @@ async fn past_the_connection_cap_of_busy_connections_healthz_answers_and_other_r
 
 #[tokio::test]
 async fn at_the_cap_an_idle_flood_gives_way_oldest_first_to_healthz_and_real_requests() {
-    let app = spawn_with(meshfit::config::Config { max_connections: 4, ..test_config() }).await;
+    let app = spawn_with(configured(|c| c.connections.max = 4)).await;
     let mut idle = Vec::new();
     for _ in 0..12 {
         idle.push(TcpStream::connect(app.addr).await.unwrap());
@@ -252,7 +245,7 @@ async fn at_the_cap_an_idle_flood_gives_way_oldest_first_to_healthz_and_real_req
 
 #[tokio::test]
 async fn at_the_cap_a_slow_reader_keeps_its_whole_response_while_idle_connections_give_way() {
-    let app = spawn_with(meshfit::config::Config { max_connections: 2, ..test_config() }).await;
+    let app = spawn_with(configured(|c| c.connections.max = 2)).await;
     let client = unpooled();
     let request = json!({"function": "sin(9*x)*cos(7*y)", "max_vertices": 20_000, "criterion": "variation"});
     let document =

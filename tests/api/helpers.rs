@@ -1,6 +1,7 @@
 //! `spawn_app()`: a real server on 127.0.0.1:0 with small limits, and request helpers.
 
-use meshfit::config::Config;
+use meshfit::config::{BodyLimits, Callers, Config, Connections, Redis};
+use meshfit::jobs::{CacheSettings, Limits, Pool};
 use reqwest::{Client, Response};
 use serde_json::Value;
 use std::net::SocketAddr;
@@ -21,33 +22,43 @@ pub struct TestApp {
 pub fn test_config() -> Config {
     Config {
         addr: SocketAddr::from(([127, 0, 0, 1], 0)),
-        workers: NonZeroUsize::new(2).unwrap(),
-        queue: 8,
-        max_vertices: 2_000_000,
-        max_grid_points: 10_000,
-        max_body_bytes: 1 << 20,
-        max_expression_len: 200,
-        job_time_limit: Duration::from_secs(30),
-        memory_bytes: 4 << 30,
-        cache_bytes: 256 << 20,
-        cache_dir: None,
-        cache_dir_bytes: 64 << 20,
-        shutdown_grace: Duration::from_secs(2),
         log_format: meshfit::config::LogFormat::Text,
-        max_connections: 256,
-        header_timeout: Duration::from_secs(30),
-        body_timeout: Duration::from_secs(30),
-        write_timeout: Duration::from_secs(30),
-        api_keys: Default::default(),
-        cors_origins: Vec::new(),
+        shutdown_grace: Duration::from_secs(2),
+        limits: Limits {
+            max_vertices: 2_000_000,
+            max_grid_points: 10_000,
+            max_expression_len: 200,
+            job_time_limit: Duration::from_secs(30),
+        },
         // Every test client is 127.0.0.1: a whole share keeps the tests of the queue simple.
-        client_share: 1.0,
-        trusted_proxies: Vec::new(),
-        redis_url: None,
-        redis_ttl: Duration::from_secs(3600),
-        redis_max_bytes: 64 << 20,
-        redis_lease: Duration::from_secs(10),
+        pool: Pool {
+            workers: NonZeroUsize::new(2).unwrap(),
+            queue: 8,
+            client_share: 1.0,
+            memory_bytes: 4 << 30,
+        },
+        cache: CacheSettings { memory_bytes: 256 << 20, dir: None, dir_bytes: 64 << 20 },
+        connections: Connections {
+            max: 256,
+            header_timeout: Duration::from_secs(30),
+            write_timeout: Duration::from_secs(30),
+        },
+        body: BodyLimits { max_bytes: 1 << 20, timeout: Duration::from_secs(30) },
+        callers: Callers::default(),
+        redis: Redis {
+            url: None,
+            ttl: Duration::from_secs(3600),
+            max_bytes: 64 << 20,
+            lease: Duration::from_secs(10),
+        },
     }
+}
+
+/// [`test_config`] as `change` leaves it.
+pub fn configured(change: impl FnOnce(&mut Config)) -> Config {
+    let mut config = test_config();
+    change(&mut config);
+    config
 }
 
 pub async fn spawn_app() -> TestApp {

@@ -205,8 +205,8 @@ async fn a_client_that_hangs_up_cancels_its_synchronous_job() {
 #[tokio::test]
 async fn a_full_queue_answers_503_with_retry_after_while_healthz_stays_fast() {
     let mut config = crate::helpers::test_config();
-    config.workers = std::num::NonZeroUsize::new(1).unwrap();
-    config.queue = 1;
+    config.pool.workers = std::num::NonZeroUsize::new(1).unwrap();
+    config.pool.queue = 1;
     let app = crate::helpers::spawn_with(config).await;
     let job = |k: u32| json!({"function": format!("sin({k}*x)*cos(y)"), "max_vertices": 2_000_000});
     let running: Value = app.post("/v1/jobs", &job(11)).await.json().await.unwrap();
@@ -266,7 +266,7 @@ async fn a_cancelled_job_runs_again_when_it_is_requested_again() {
 #[tokio::test]
 async fn finished_jobs_keep_their_status_but_not_their_mesh_outside_the_cache() {
     let mut config = crate::helpers::test_config();
-    config.cache_bytes = 0;
+    config.cache.memory_bytes = 0;
     let app = crate::helpers::spawn_with(config).await;
     let status: Value =
         app.post("/v1/jobs", &json!({"function": "x*y", "max_vertices": 1000})).await.json().await.unwrap();
@@ -284,7 +284,7 @@ async fn finished_jobs_keep_their_status_but_not_their_mesh_outside_the_cache() 
 #[tokio::test]
 async fn a_queue_of_zero_still_runs_jobs_on_idle_workers() {
     let mut config = crate::helpers::test_config();
-    config.queue = 0;
+    config.pool.queue = 0;
     let app = crate::helpers::spawn_with(config).await;
     assert_eq!(app.get("/readyz").await.status(), 200);
     let response = app.post("/v1/meshes", &json!({"function": "x", "max_vertices": 10})).await;

@@ -5,7 +5,7 @@
 //! makes a missing browser a failure. `UPDATE_SCREENSHOT=1` also writes the screenshot
 //! to docs/page.png, the one in the README.
 
-use crate::helpers::{TestApp, spawn_app, spawn_with, test_config};
+use crate::helpers::{TestApp, spawn_app, spawn_with};
 use fantoccini::{Client, ClientBuilder, Locator};
 use futures_util::FutureExt;
 use serde_json::{Value, json};
@@ -140,9 +140,9 @@ async fn screenshot(client: &Client, name: &str) -> Vec<u8> {
 async fn the_page_runs_a_shared_address_draws_the_mesh_and_shows_the_apis_stats() {
     let Some((_driver, client)) = browser().await else { return };
     let app = spawn_app().await;
-    let mut keys = meshfit::http::access::ApiKeys::default();
+    let mut keys = meshfit::config::ApiKeys::default();
     keys.insert(KEY);
-    let keyed = spawn_with(meshfit::config::Config { api_keys: keys, ..test_config() }).await;
+    let keyed = spawn_with(crate::helpers::configured(|c| c.callers.api_keys = keys)).await;
     // A failed assertion must still end the browser session, so it is caught and re-raised.
     let outcome = AssertUnwindSafe(async {
         shared_address(&app, &client).await;

@@ -26,7 +26,7 @@ async fn the_readme_quick_start_runs_as_written_and_says_what_the_readme_says() 
     let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
     // The server's own defaults for what the quick start sends: a 256 × 256 grid file.
     let mut config = test_config();
-    (config.max_grid_points, config.max_body_bytes) = (4097 * 4097, 16 << 20);
+    (config.limits.max_grid_points, config.body.max_bytes) = (4097 * 4097, 16 << 20);
     let app = spawn_with(config).await;
     let dir = temp_dir("quickstart");
     std::os::unix::fs::symlink(root.join("examples"), dir.join("examples")).unwrap();

@@ -8,12 +8,13 @@ use super::{KeptRequest, Peers};
 use crate::api::JobRequest;
 use crate::jobs::dispatch::Worker;
 use crate::jobs::{
-    Cache, Client, JobError, JobKeys, JobSpec, Jobs, Lifetime, Limits, Outcome, Ticket, Waiter, Wire,
+    Cache, Client, JobError, JobKeys, JobSpec, Jobs, Lifetime, Limits, Outcome, Pool, Ticket, Waiter, Wire,
     job_keys,
 };
 use crate::metrics::Metrics;
 use crate::result::{MeshResult, compact};
 use futures_util::future::BoxFuture;
+use std::num::NonZeroUsize;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::Duration;
@@ -69,8 +70,8 @@ struct Node {
 fn node(bus: &Bus, name: &str) -> Node {
     let peers = bus.replica(name);
     let cache = Cache::new(64 << 20, None, 0).unwrap();
-    let jobs = Jobs::new(1, 4, 1.0, 8 << 30, cache, Arc::new(Metrics::default()))
-        .shared(peers.clone(), Arc::new(Json));
+    let pool = Pool { workers: NonZeroUsize::MIN, queue: 4, client_share: 1.0, memory_bytes: 8 << 30 };
+    let jobs = Jobs::new(&pool, cache, Arc::new(Metrics::default())).shared(peers.clone(), Arc::new(Json));
     Node { jobs, peers }
 }
 
