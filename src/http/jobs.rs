@@ -197,9 +197,9 @@ fn status_body(id: &str, found: &Found) -> JobStatus {
 
 /// Where `result` is served from: `otherwise`, unless a time limit stopped its run, which
 /// makes it a partial answer whatever found it.
-fn served(result: &MeshResult, otherwise: negotiate::Source) -> negotiate::Source {
+fn served(result: &MeshResult, otherwise: negotiate::Provenance) -> negotiate::Provenance {
     match result.stats.stop() {
-        StopReason::TimeLimit => negotiate::Source::Partial,
+        StopReason::TimeLimit => negotiate::Provenance::Partial,
         _ => otherwise,
     }
 }
@@ -253,10 +253,10 @@ async fn create(
     };
     match ticket {
         Ticket::Cached(r) => {
-            negotiate::result_response(&headers, &wanted, &id, r, negotiate::Source::Hit, None).await
+            negotiate::result_response(&headers, &wanted, &id, r, negotiate::Provenance::Hit, None).await
         }
         Ticket::Prefix(r) => {
-            negotiate::result_response(&headers, &wanted, &id, r, negotiate::Source::Prefix, None).await
+            negotiate::result_response(&headers, &wanted, &id, r, negotiate::Provenance::Prefix, None).await
         }
         Ticket::Failed(e) => Err(e.into()),
         // The waiter is dropped with this future if the client hangs up, which cancels a job
@@ -264,8 +264,8 @@ async fn create(
         Ticket::Job(waiter) => match waiter.job().outcome().await {
             Outcome::Succeeded(r) => {
                 let elapsed = waiter.job().snapshot().elapsed;
-                let source = served(&r, negotiate::Source::Miss);
-                negotiate::result_response(&headers, &wanted, &id, r, source, elapsed).await
+                let provenance = served(&r, negotiate::Provenance::Miss);
+                negotiate::result_response(&headers, &wanted, &id, r, provenance, elapsed).await
             }
             Outcome::Failed(e) => Err(e.into()),
             Outcome::Cancelled => Err(ApiError::Cancelled),
@@ -372,8 +372,8 @@ pub async fn jobs_mesh(
 ) -> Result<Response, ApiError> {
     let wanted = Wanted::from_request(&uri, &headers)?;
     let (result, elapsed) = finished_result(&state, &id).await?;
-    let source = served(&result, negotiate::Source::Hit);
-    negotiate::result_response(&headers, &wanted, &id, result, source, elapsed).await
+    let provenance = served(&result, negotiate::Provenance::Hit);
+    negotiate::result_response(&headers, &wanted, &id, result, provenance, elapsed).await
 }
 
 /// The id of a finished job's final event for a client that has seen `last_seen`, or `None`

@@ -110,7 +110,7 @@ fn from_accept(headers: &HeaderMap) -> Result<Format, ApiError> {
 
 /// Where a response's result came from, for `x-cache`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Source {
+pub enum Provenance {
     /// Computed for this request.
     Miss,
     /// From the cache.
@@ -131,10 +131,10 @@ pub async fn result_response(
     wanted: &Wanted,
     id: &str,
     result: Arc<MeshResult>,
-    source: Source,
+    provenance: Provenance,
     elapsed: Option<Duration>,
 ) -> Result<Response, ApiError> {
-    let etag = (source != Source::Partial).then(|| wanted.etag(id));
+    let etag = (provenance != Provenance::Partial).then(|| wanted.etag(id));
     let mut response = match &etag {
         Some(tag) if not_modified(headers, tag) => StatusCode::NOT_MODIFIED.into_response(),
         _ => {
@@ -164,11 +164,11 @@ pub async fn result_response(
         h.insert(header::ETAG, tag);
     }
     h.insert(header::VARY, HeaderValue::from_static("accept"));
-    let cache = match source {
-        Source::Miss => "miss",
-        Source::Hit => "hit",
-        Source::Prefix => "prefix",
-        Source::Partial => "partial",
+    let cache = match provenance {
+        Provenance::Miss => "miss",
+        Provenance::Hit => "hit",
+        Provenance::Prefix => "prefix",
+        Provenance::Partial => "partial",
     };
     h.insert("x-cache", HeaderValue::from_static(cache));
     if let Some(elapsed) = elapsed {

@@ -4,8 +4,8 @@
 
 use super::JobSpec;
 use super::job::{Job, Lifetime};
-use super::share::{Charge, Client};
-use super::state::{Entry, Inner, Start, SubmitError, Ticket};
+use super::share::{Client, Seat};
+use super::state::{Inner, Listing, Start, SubmitError, Ticket};
 use super::{publish, worker};
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
@@ -23,7 +23,7 @@ impl Inner {
         let Start { id, family, seq, lease, request } = start;
         let mut table = self.lock();
         // A job followed from elsewhere gives way to the run of the replica holding the lease.
-        if let Some(Entry::Live(job)) = table.jobs.get(&id)
+        if let Some(Listing::Live(job)) = table.jobs.get(&id)
             && job.is_joinable()
             && !(lease.is_some() && job.follows)
         {
@@ -38,7 +38,7 @@ impl Inner {
             let waiting = self.queued();
             return Err(SubmitError::QueueFull { waiting, retry_after: self.retry_after(self.workers) });
         }
-        let charge: Charge = self.shares.charge(client).map_err(|held| SubmitError::ShareUsed {
+        let seat: Seat = self.shares.charge(client).map_err(|held| SubmitError::ShareUsed {
             held,
             retry_after: self.retry_after(self.shares.workers),
         })?;
@@ -54,7 +54,7 @@ impl Inner {
         self.metrics.jobs_queued.inc();
         let job = Arc::new(Job::new(id.clone(), family, lifetime, false, seq));
         let waiter = self.attach(&table, &job, lifetime);
-        table.jobs.insert(id, Entry::Live(job.clone()));
+        table.jobs.insert(id, Listing::Live(job.clone()));
         drop(table);
         if let Some(lease) = lease {
             self.publishing.fetch_add(1, Ordering::SeqCst);
@@ -65,7 +65,7 @@ impl Inner {
                 inner.publishing.fetch_sub(1, Ordering::SeqCst);
             });
         }
-        tokio::spawn(worker::run(self.clone(), job, spec, (charge, memory)));
+        tokio::spawn(worker::run(self.clone(), job, spec, (seat, memory)));
         Ok((Ticket::Job(waiter), true))
     }
 }

@@ -9,7 +9,7 @@
 
 use super::job::{Job, JobError, Lifetime, Outcome, Record, Status};
 use super::peers::{Control, Kept, Message, Peers, Posting};
-use super::state::{Entry, Inner, Waiter};
+use super::state::{Inner, Listing, Waiter};
 use crate::refine::StopReason;
 use crate::result::{MeshResult, compact};
 use std::sync::atomic::Ordering;
@@ -27,10 +27,10 @@ const LOST_AFTER: u32 = 3;
 pub(super) fn follow(inner: &Arc<Inner>, id: String, family: String, run: Option<String>) -> Waiter {
     let mut table = inner.lock();
     let live = match table.jobs.get(&id) {
-        Some(Entry::Live(job)) if job.is_joinable() => {
+        Some(Listing::Live(job)) if job.is_joinable() => {
             return inner.attach(&table, job, Lifetime::WhileWaited);
         }
-        Some(Entry::Live(_)) => true,
+        Some(Listing::Live(_)) => true,
         _ => false,
     };
     // Detached: a client leaving here never cancels the job; `DELETE` does, through the store.
@@ -40,7 +40,7 @@ pub(super) fn follow(inner: &Arc<Inner>, id: String, family: String, run: Option
     // A run of this replica still ending keeps its place in the table, where shutdown and
     // the sweep look for it; the mirror lives on for its clients alone.
     if !live {
-        table.jobs.insert(id, Entry::Live(job.clone()));
+        table.jobs.insert(id, Listing::Live(job.clone()));
     }
     drop(table);
     inner.metrics.jobs_followed.inc();
@@ -250,7 +250,7 @@ async fn keep_current(inner: Arc<Inner>, job: Arc<Job>, mut run: Option<String>)
             // Clients attach under the table lock: checked again under it, none can be lost.
             let mut table = inner.lock();
             if job.waiters.load(Ordering::SeqCst) == 0 {
-                if matches!(table.jobs.get(&job.id), Some(Entry::Live(j)) if Arc::ptr_eq(j, &job)) {
+                if matches!(table.jobs.get(&job.id), Some(Listing::Live(j)) if Arc::ptr_eq(j, &job)) {
                     table.jobs.remove(&job.id);
                 }
                 return;
@@ -277,7 +277,7 @@ pub(super) async fn dispatch(inner: Weak<Inner>, mut messages: broadcast::Receiv
         let Some(inner) = inner.upgrade() else { return };
         let (Message::Posted(id, _) | Message::Control(id, _)) = &message;
         let table = inner.lock();
-        let Some(Entry::Live(job)) = table.jobs.get(id) else { continue };
+        let Some(Listing::Live(job)) = table.jobs.get(id) else { continue };
         match message {
             Message::Posted(..) if job.follows => job.cancel_notify.notify_one(),
             Message::Control(_, Control::Cancel) if !job.follows => {

@@ -6,7 +6,7 @@ use super::follow::Fetched;
 use super::job::{Job, Lifetime, Record, Status};
 use super::peers::{self, Claim, Control, Kept, KeptRequest, Peers, Take};
 use super::share::{Client, Shares};
-use super::state::{Entry, Inner, Lease, Shared, Start, SubmitError, Table, Ticket, Waiter};
+use super::state::{Inner, Lease, Listing, Shared, Start, SubmitError, Table, Ticket, Waiter};
 use super::{Cache, JobKeys, JobSpec, Wire, follow, takeover};
 use crate::metrics::Metrics;
 use crate::refine::trace::replay;
@@ -292,8 +292,8 @@ impl Jobs {
     /// replicas share, on any.
     pub async fn find(&self, id: &str) -> Option<Found> {
         let found = match self.inner.lock().jobs.get(id) {
-            Some(Entry::Live(job)) => Some(Found::Job(job.clone())),
-            Some(Entry::Done(record)) => Some(Found::Done(record.clone())),
+            Some(Listing::Live(job)) => Some(Found::Job(job.clone())),
+            Some(Listing::Done(record)) => Some(Found::Done(record.clone())),
             None => None,
         };
         match &found {
@@ -332,11 +332,11 @@ impl Jobs {
         let shared = {
             let table = self.inner.lock();
             match (table.jobs.get(id), &self.inner.shared) {
-                (Some(Entry::Live(job)), _) => {
+                (Some(Listing::Live(job)), _) => {
                     return Some(self.inner.attach(&table, job, Lifetime::WhileWaited));
                 }
                 // A job that failed or was cancelled here may run again elsewhere.
-                (Some(Entry::Done(r)), Some(shared)) if r.status != Status::Succeeded => shared,
+                (Some(Listing::Done(r)), Some(shared)) if r.status != Status::Succeeded => shared,
                 (None, Some(shared)) => shared,
                 _ => return None,
             }
@@ -426,7 +426,7 @@ impl Jobs {
         for entry in self.inner.lock().jobs.values() {
             // Decided once per job: the drain loop calls this again and again, and a job
             // already cancelled (by a client, or by an earlier call) keeps what was decided.
-            if let Entry::Live(job) = entry
+            if let Listing::Live(job) = entry
                 && !job.follows
                 && !job.cancel.load(Ordering::Relaxed)
             {
@@ -444,7 +444,7 @@ impl Jobs {
         }
         let table = self.inner.lock();
         // A job followed from another replica is that replica's to finish.
-        table.jobs.values().any(|e| matches!(e, Entry::Live(job) if !job.follows))
+        table.jobs.values().any(|e| matches!(e, Listing::Live(job) if !job.follows))
     }
 }
 

@@ -40,8 +40,8 @@ pub(super) struct Shares {
     held: Arc<Mutex<HashMap<Client, usize>>>,
 }
 
-/// One job charged to its client until dropped.
-pub(super) struct Charge {
+/// A client's seat in its share: one job charged to it until dropped.
+pub(super) struct Seat {
     client: Client,
     held: Arc<Mutex<HashMap<Client, usize>>>,
 }
@@ -55,14 +55,14 @@ impl Shares {
     }
 
     /// Charges a job to `client`, or says how many it holds when that is its share.
-    pub(super) fn charge(&self, client: &Client) -> Result<Charge, usize> {
+    pub(super) fn charge(&self, client: &Client) -> Result<Seat, usize> {
         let mut held = self.held.lock().expect("shares poisoned");
         let jobs = held.entry(client.clone()).or_default();
         if *jobs >= self.jobs {
             return Err(*jobs);
         }
         *jobs += 1;
-        Ok(Charge { client: client.clone(), held: self.held.clone() })
+        Ok(Seat { client: client.clone(), held: self.held.clone() })
     }
 
     /// Jobs `client` holds now.
@@ -72,14 +72,14 @@ impl Shares {
     }
 }
 
-impl Charge {
+impl Seat {
     /// The client the job is charged to.
     pub(super) fn client(&self) -> &Client {
         &self.client
     }
 }
 
-impl Drop for Charge {
+impl Drop for Seat {
     fn drop(&mut self) {
         uncount(&mut self.held.lock().expect("shares poisoned"), &self.client);
     }
@@ -105,7 +105,7 @@ mod tests {
         let shares = Shares::new(0.5, 2, 8);
         assert_eq!((shares.workers, shares.jobs), (1, 5));
         let (a, b) = (Client::from("addr:a".to_owned()), Client::from("addr:b".to_owned()));
-        let mut charges: Vec<Charge> = (0..5).map(|_| shares.charge(&a).unwrap()).collect();
+        let mut charges: Vec<Seat> = (0..5).map(|_| shares.charge(&a).unwrap()).collect();
         assert_eq!(shares.charge(&a).err(), Some(5));
         assert!(shares.charge(&b).is_ok(), "another client is not refused");
         charges.pop();

@@ -145,7 +145,7 @@ pub(super) struct Lease {
     pub(super) announced: Option<tokio::sync::oneshot::Sender<()>>,
 }
 
-pub(super) enum Entry {
+pub(super) enum Listing {
     Live(Arc<Job>),
     Done(Arc<Record>),
 }
@@ -163,7 +163,7 @@ pub(super) type Locked<'a> = std::sync::MutexGuard<'a, Table>;
 
 #[derive(Default)]
 pub(super) struct Table {
-    pub(super) jobs: HashMap<String, Entry>,
+    pub(super) jobs: HashMap<String, Listing>,
     pub(super) finished: VecDeque<String>,
 }
 
@@ -180,7 +180,7 @@ impl Inner {
     /// Whether this replica runs job `id` now (rather than following it, or not having it).
     pub(super) fn runs_here(&self, id: &str) -> bool {
         let table = self.lock();
-        matches!(table.jobs.get(id), Some(Entry::Live(job)) if !job.follows && !job.is_finished())
+        matches!(table.jobs.get(id), Some(Listing::Live(job)) if !job.follows && !job.is_finished())
     }
 
     /// Jobs waiting beyond the free workers: the queue proper.
@@ -213,11 +213,11 @@ impl Inner {
     pub(super) fn join(self: &Arc<Self>, id: &str, lifetime: Lifetime) -> Option<Ticket> {
         let table = self.lock();
         match table.jobs.get(id)? {
-            Entry::Live(job) if job.is_joinable() => {
+            Listing::Live(job) if job.is_joinable() => {
                 self.metrics.cache_misses.inc();
                 Some(Ticket::Job(self.attach(&table, job, lifetime)))
             }
-            Entry::Done(record) => match &record.error {
+            Listing::Done(record) => match &record.error {
                 // A failure on the input is deterministic: it is the answer again.
                 Some(e @ JobError::Refine(_)) => {
                     self.metrics.cache_misses.inc();
@@ -233,7 +233,7 @@ impl Inner {
                 _ => None,
             },
             // A job being cancelled: start a new one.
-            Entry::Live(_) => None,
+            Listing::Live(_) => None,
         }
     }
 
@@ -242,13 +242,13 @@ impl Inner {
     pub(super) fn file(&self, job: &Arc<Job>) {
         let record = Arc::new(Record::of(&job.snapshot()));
         let mut table = self.lock();
-        if matches!(table.jobs.get(&job.id), Some(Entry::Live(j)) if Arc::ptr_eq(j, job)) {
-            table.jobs.insert(job.id.clone(), Entry::Done(record));
+        if matches!(table.jobs.get(&job.id), Some(Listing::Live(j)) if Arc::ptr_eq(j, job)) {
+            table.jobs.insert(job.id.clone(), Listing::Done(record));
             table.finished.push_back(job.id.clone());
         }
         while table.finished.len() > FINISHED_KEPT {
             let oldest = table.finished.pop_front().expect("non-empty");
-            if matches!(table.jobs.get(&oldest), Some(Entry::Done(_))) {
+            if matches!(table.jobs.get(&oldest), Some(Listing::Done(_))) {
                 table.jobs.remove(&oldest);
             }
         }

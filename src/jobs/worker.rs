@@ -3,7 +3,7 @@
 
 use super::budget;
 use super::job::{Job, JobError, Outcome, Status};
-use super::share::Charge;
+use super::share::Seat;
 use super::state::Inner;
 use super::{JobSpec, Work};
 use crate::api::ProgressEvent;
@@ -17,10 +17,10 @@ use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 /// Waits for a worker, refines on the blocking pool, stores the result and finishes the job.
-pub(super) async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec, charges: (Charge, budget::Charge)) {
-    let (charge, memory) = charges;
+pub(super) async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec, charges: (Seat, budget::Charge)) {
+    let (seat, memory) = charges;
     let permit = tokio::select! {
-        worker = inner.dispatch.acquire(charge.client()) => worker,
+        worker = inner.dispatch.acquire(seat.client()) => worker,
         () = job.cancel_notify.notified() => None,
     };
     inner.waiting.fetch_sub(1, Ordering::SeqCst);
@@ -60,7 +60,7 @@ pub(super) async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec, charges
     inner.metrics.jobs_finished.get_or_create(&StateLabel { state }).inc();
     tracing::info!(job = %job.id, state, "job finished");
     job.finish(outcome, elapsed);
-    drop((charge, memory));
+    drop((seat, memory));
     inner.file(&job);
 }
 

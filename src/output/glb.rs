@@ -6,7 +6,7 @@
 //! so the header is written first and the arrays stream behind it. Triangles stay
 //! counter-clockwise seen from +z, which glTF takes as the front face.
 
-use super::{Encoding, Options, Part, colour};
+use super::{Encoded, Options, Part, colour};
 use crate::geom::Vertex;
 use crate::result::MeshResult;
 use serde_json::json;
@@ -25,7 +25,7 @@ const TRIANGLES: u32 = 4;
 /// # Panics
 /// If the file would pass 4 GiB, which a GLB cannot (its lengths are u32): about 190 million
 /// vertices.
-pub(super) fn encode(result: &Arc<MeshResult>, options: &Options) -> Encoding {
+pub(super) fn encode(result: &Arc<MeshResult>, options: &Options) -> Encoded {
     let (n, m) = (result.vertices.len(), result.triangles.len());
     let z_scale = options.z_scale;
     let position = move |v: &Vertex| [v.x as f32, v.y as f32, (v.z * z_scale) as f32];
@@ -82,7 +82,7 @@ pub(super) fn encode(result: &Arc<MeshResult>, options: &Options) -> Encoding {
     let (lo, hi) = result.z_range();
     let linear = srgb_to_linear_table();
     let (r, s, t) = (result.clone(), result.clone(), result.clone());
-    Encoding::new(vec![
+    Encoded::new(vec![
         Part::Bytes(head),
         Part::rows(n, move |i, out| {
             for c in position(&r.vertices[i]) {

@@ -6,7 +6,7 @@
 //! the exact f64 values. Vertices are in insertion order, triangles counter-clockwise. The
 //! document has no line breaks, so it also fits in one server-sent event's `data` line.
 
-use super::{Encoding, Options, Part};
+use super::{Encoded, Options, Part};
 use crate::refine::{ErrorEstimate, Stats};
 use crate::result::MeshResult;
 use serde::Serialize;
@@ -14,7 +14,7 @@ use std::io::{self, Write};
 use std::sync::Arc;
 
 /// The document, with `"id"` first when the options carry one (the API's).
-pub fn encode(result: &Arc<MeshResult>, options: &Options) -> Encoding {
+pub fn encode(result: &Arc<MeshResult>, options: &Options) -> Encoded {
     let mut head = b"{".to_vec();
     if let Some(id) = &options.id {
         head.extend_from_slice(b"\"id\":");
@@ -55,7 +55,7 @@ pub fn encode(result: &Arc<MeshResult>, options: &Options) -> Encoding {
         parts.push(Part::Bytes(b"]".to_vec()));
     }
     parts.push(Part::Bytes(tail));
-    Encoding::new(parts)
+    Encoded::new(parts)
 }
 
 /// The stats-only document: `{"stats": {...}, "error": {...}, "elapsed_ms": ...}`.

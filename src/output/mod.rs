@@ -1,8 +1,8 @@
 //! Results as bytes: each format a client can ask for, encoded from a [`MeshResult`].
 //!
-//! An encoder does not write the whole file at once. It returns an [`Encoding`]: a list of
+//! An encoder does not write the whole file at once. It returns an [`Encoded`]: a list of
 //! parts, each either fixed bytes (a header) or rows made on demand (one vertex, one triangle).
-//! [`Encoding::write_to`] writes it to a file or stdout; [`Encoding::into_chunks`] makes it
+//! [`Encoded::write_to`] writes it to a file or stdout; [`Encoded::into_chunks`] makes it
 //! piece by piece for an HTTP body, so a client reading a 10^6-vertex mesh costs one chunk of
 //! memory beyond the shared result, however slowly it reads.
 
@@ -154,14 +154,14 @@ impl Part {
 }
 
 /// A result in one format, as parts to write in order.
-pub struct Encoding {
+pub struct Encoded {
     parts: Vec<Part>,
 }
 
-/// How many bytes a chunk of [`Encoding::into_chunks`] gathers before it is handed on.
+/// How many bytes a chunk of [`Encoded::into_chunks`] gathers before it is handed on.
 const CHUNK_BYTES: usize = 64 * 1024;
 
-impl Encoding {
+impl Encoded {
     /// The parts, in order.
     pub fn new(parts: Vec<Part>) -> Self {
         Self { parts }
@@ -191,7 +191,7 @@ impl Encoding {
     }
 }
 
-/// The chunks of an [`Encoding`].
+/// The chunks of an [`Encoded`].
 pub struct Chunks {
     parts: std::vec::IntoIter<Part>,
     /// The rows part being written and its next row.
@@ -230,7 +230,7 @@ impl Iterator for Chunks {
 }
 
 /// `result` in `format`.
-pub fn encode(result: &Arc<MeshResult>, format: Format, options: &Options) -> Encoding {
+pub fn encode(result: &Arc<MeshResult>, format: Format, options: &Options) -> Encoded {
     match format {
         Format::Json => json::encode(result, options),
         Format::Obj => obj::encode(result, options),
@@ -257,7 +257,7 @@ mod tests {
     #[test]
     fn chunks_hold_every_byte_in_order_and_stay_near_the_chunk_size() {
         let rows = 100_000;
-        let encoding = Encoding::new(vec![
+        let encoding = Encoded::new(vec![
             Part::Bytes(b"head".to_vec()),
             Part::rows(rows, |i, out| out.extend_from_slice(format!("{i},").as_bytes())),
             Part::Bytes(vec![b'x'; 3 * CHUNK_BYTES]),
@@ -278,7 +278,7 @@ mod tests {
 
     /// The bytes of `encoding` made without [`Chunks`]: every row on its own, last to first,
     /// then joined in order. A row that leaned on state left by the row before would differ.
-    fn rows_one_by_one_backwards(encoding: Encoding) -> Vec<u8> {
+    fn rows_one_by_one_backwards(encoding: Encoded) -> Vec<u8> {
         encoding.parts.into_iter().flat_map(part_backwards).collect()
     }
 

@@ -8,13 +8,13 @@
 //! element; node and element tags are the result's ids plus one (Gmsh counts from 1).
 //! Numbers are the shortest text that reads back as the same f64.
 
-use super::{Encoding, Options, Part, push_f64};
+use super::{Encoded, Options, Part, push_f64};
 use crate::result::MeshResult;
 use std::io::Write;
 use std::sync::Arc;
 
 /// The MSH file of `result`.
-pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoding {
+pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoded {
     let (n, m) = (result.vertices.len(), result.triangles.len());
     // One surface entity, bounded by the rectangle; it has no physical groups and no curves.
     let [x0, x1, y0, y1] = result.bounds();
@@ -102,7 +102,7 @@ pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoding {
         tail.extend_from_slice(b"$EndElementData\n");
     }
     parts.push(Part::Bytes(tail));
-    Encoding::new(parts)
+    Encoded::new(parts)
 }
 
 #[cfg(test)]

@@ -4,17 +4,17 @@
 //! Numbers are the shortest text that reads back as the same f64. OBJ has no place for the
 //! triangle errors, so they are left out.
 
-use super::{Encoding, Options, Part, push_f64};
+use super::{Encoded, Options, Part, push_f64};
 use crate::result::MeshResult;
 use std::io::Write;
 use std::sync::Arc;
 
 /// The OBJ file of `result`.
-pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoding {
+pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoded {
     let head =
         format!("# meshfit: {} vertices, {} triangles\n", result.vertices.len(), result.triangles.len());
     let (r, s) = (result.clone(), result.clone());
-    Encoding::new(vec![
+    Encoded::new(vec![
         Part::Bytes(head.into_bytes()),
         Part::rows(result.vertices.len(), move |i, out| {
             let v = r.vertices[i];

@@ -3,12 +3,12 @@
 //!
 //! Binary keeps every f64 exact at 24 bytes a vertex. Faces are counter-clockwise, 0-based.
 
-use super::{Encoding, Options, Part};
+use super::{Encoded, Options, Part};
 use crate::result::MeshResult;
 use std::sync::Arc;
 
 /// The PLY file of `result`.
-pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoding {
+pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoded {
     let errors = result.triangle_errors.is_some();
     let mut head = format!(
         "ply\nformat binary_little_endian 1.0\ncomment meshfit\n\
@@ -22,7 +22,7 @@ pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoding {
     }
     head.push_str("end_header\n");
     let (r, s) = (result.clone(), result.clone());
-    Encoding::new(vec![
+    Encoded::new(vec![
         Part::Bytes(head.into_bytes()),
         Part::rows(result.vertices.len(), move |i, out| {
             let v = r.vertices[i];

@@ -8,7 +8,7 @@
 //! per colour, not one per triangle.
 
 use super::picture::{self, BACKGROUND, INK, Layout, TextMetrics};
-use super::{Encoding, Options, Part};
+use super::{Encoded, Options, Part};
 use crate::result::MeshResult;
 use embedded_graphics::mono_font::iso_8859_1 as fonts;
 use embedded_graphics::mono_font::{MonoFont, MonoTextStyle};
@@ -19,8 +19,8 @@ use std::sync::Arc;
 use tiny_skia::{FillRule, Paint, PathBuilder, Pixmap, PremultipliedColorU8, Rect, Stroke, Transform};
 
 /// The picture of `result`, `options.size` pixels wide.
-pub fn encode(result: &Arc<MeshResult>, options: &Options) -> Encoding {
-    Encoding::new(vec![Part::Bytes(render(result, options.size))])
+pub fn encode(result: &Arc<MeshResult>, options: &Options) -> Encoded {
+    Encoded::new(vec![Part::Bytes(render(result, options.size))])
 }
 
 /// The PNG file of `result`, `width` pixels wide.

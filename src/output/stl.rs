@@ -4,7 +4,7 @@
 //! STL has no shared vertices and no data: each facet repeats its corners, in the result's
 //! counter-clockwise order, so the normal points up (+z) wherever the surface is a graph.
 
-use super::{Encoding, Options, Part};
+use super::{Encoded, Options, Part};
 use crate::geom::Vertex;
 use crate::result::MeshResult;
 use std::sync::Arc;
@@ -13,14 +13,14 @@ use std::sync::Arc;
 const HEADER: &[u8] = b"meshfit binary STL";
 
 /// The STL file of `result`.
-pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoding {
+pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoded {
     let mut head = HEADER.to_vec();
     head.resize(80, b' ');
     // Triangle ids are u32, so their count fits the u32 field.
     let count = u32::try_from(result.triangles.len()).expect("triangle ids are u32");
     head.extend_from_slice(&count.to_le_bytes());
     let r = result.clone();
-    Encoding::new(vec![
+    Encoded::new(vec![
         Part::Bytes(head),
         Part::rows(result.triangles.len(), move |i, out| {
             let corners = r.triangles[i].map(|v| r.vertices[v as usize]);

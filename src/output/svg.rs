@@ -6,7 +6,7 @@
 //! document. Coordinates are on a view box 1024 units wide, rounded to 0.01.
 
 use super::picture::{self, BACKGROUND, INK, Layout, TextMetrics};
-use super::{Encoding, Options, Part};
+use super::{Encoded, Options, Part};
 use crate::result::MeshResult;
 use std::fmt::Write as _;
 use std::io::Write as _;
@@ -27,7 +27,7 @@ const ASCENT: f64 = 0.8;
 const BAR_STOPS: usize = 16;
 
 /// The picture of `result`; the options change nothing (its size is the view box's).
-pub fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoding {
+pub fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoded {
     let layout = Arc::new(Layout::new(result, VIEW_WIDTH, TEXT));
     let range = layout.shading.range;
     let mut head = String::new();
@@ -113,7 +113,7 @@ pub fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoding {
         ]);
     }
     parts.push(Part::Bytes(trailer(&layout, range).into_bytes()));
-    Encoding::new(parts)
+    Encoded::new(parts)
 }
 
 /// The axes' ticks, the colour bar, their labels and the stats line.

@@ -8,7 +8,7 @@
 //! smaller, but vtkio, the reader the tests use, takes appended data only as base64 (0.7), or
 //! reads the raw bytes as XML text and fails at the first byte 0x3C, `<` (0.6).
 
-use super::{Encoding, Options, Part};
+use super::{Encoded, Options, Part};
 use crate::result::MeshResult;
 use base64::Engine;
 use base64::engine::general_purpose::STANDARD;
@@ -18,7 +18,7 @@ use std::sync::Arc;
 const VTK_TRIANGLE: u8 = 5;
 
 /// The VTU file of `result`.
-pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoding {
+pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoded {
     let (n, m) = (result.vertices.len(), result.triangles.len());
     let array = |attributes: &str| format!("<DataArray {attributes} format=\"binary\">").into_bytes();
     let mut parts = vec![
@@ -107,7 +107,7 @@ pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoding {
         binary_array(m, 1, |_, out| out.push(VTK_TRIANGLE)),
         Part::Bytes(b"</DataArray>\n</Cells>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n".to_vec()),
     ]);
-    Encoding::new(parts)
+    Encoded::new(parts)
 }
 
 /// Items per row of a [`binary_array`]: a row's scratch buffer and the two bytes it reads

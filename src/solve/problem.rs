@@ -6,7 +6,7 @@ use crate::geom::{Point, Rect};
 use std::sync::Arc;
 
 /// A scalar field on the plane, evaluated at (x, y).
-pub(crate) type Field<'a> = Box<dyn Fn(f64, f64) -> f64 + 'a>;
+pub(crate) type ScalarField<'a> = Box<dyn Fn(f64, f64) -> f64 + 'a>;
 
 /// Where a region applies: a closed rectangle or a simple polygon, boundary included.
 #[derive(Debug, Clone, PartialEq)]
@@ -260,9 +260,9 @@ impl Boundary {
 /// ```
 pub struct Problem<'a> {
     domain: Rect,
-    k: Field<'a>,
-    f: Field<'a>,
-    g: Field<'a>,
+    k: ScalarField<'a>,
+    f: ScalarField<'a>,
+    g: ScalarField<'a>,
     regions: Vec<Region>,
     boundary: Boundary,
 }
