@@ -122,7 +122,7 @@ async fn the_page_and_its_assets_are_served_with_a_strict_content_policy() {
     let app = spawn_app().await;
     for (path, media) in [
         ("/", "text/html; charset=utf-8"),
-        ("/assets/app.js", "text/javascript; charset=utf-8"),
+        ("/assets/main.js", "text/javascript; charset=utf-8"),
         ("/assets/app.css", "text/css; charset=utf-8"),
     ] {
         let response = app.get(path).await;
@@ -134,10 +134,25 @@ async fn the_page_and_its_assets_are_served_with_a_strict_content_policy() {
     }
     // The page loads only what the server serves.
     let html = app.get("/").await.text().await.unwrap();
-    for asset in ["/assets/app.js", "/assets/app.css"] {
+    for asset in ["/assets/main.js", "/assets/app.css"] {
         assert!(html.contains(&format!("\"{asset}\"")), "the page refers to {asset}");
     }
     assert!(!html.contains("http://") && !html.contains("https://"), "no asset from elsewhere");
+    // Every module the page imports, however deep, is served as JavaScript.
+    let (mut queue, mut served) = (vec!["main.js".to_owned()], std::collections::BTreeSet::new());
+    while let Some(module) = queue.pop() {
+        if !served.insert(module.clone()) {
+            continue;
+        }
+        let response = app.get(&format!("/assets/{module}")).await;
+        assert_eq!(response.status(), 200, "{module}");
+        assert_eq!(response.headers()["content-type"], "text/javascript; charset=utf-8", "{module}");
+        let text = response.text().await.unwrap();
+        for import in text.split("from \"./").skip(1) {
+            queue.push(import[..import.find('"').unwrap()].to_owned());
+        }
+    }
+    assert!(served.len() >= 8, "the page is its modules: {served:?}");
     let missing = app.get("/assets/nope.js").await;
     assert_eq!(missing.status(), 404);
     assert_eq!(missing.headers()["content-type"], "application/problem+json");
