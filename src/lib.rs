@@ -24,16 +24,21 @@
 //!   against an exact solution, and the adaptive loop. Depends on `geom` and `refine`.
 //! - [`output`]: the formats (json, obj, ply, stl, vtu, msh, glb, svg, png), each streamed
 //!   from a result; shared by the command line and the API.
-//! - [`jobs`]: validated, hashed job specs, the job record, the registry with its bounded
-//!   worker pool, each client's share of it, the memory budget, the worker, and the cache of
-//!   results. The only bridge between async code and the engine.
+//! - [`jobs`]: validated, hashed job specs, the job record, the table, admission (the
+//!   bounded worker pool, each client's share of it, the memory budget), the worker, the cache
+//!   of results, and [`jobs::peers`], the one trait through which jobs talk to other
+//!   replicas. The only bridge between async code and the engine.
 //! - [`cluster`]: Redis, for replicas that share results and jobs: implements
 //!   [`jobs::peers::Peers`] in keys, scripts and channels. `jobs` decides what to do with
 //!   them, and knows nothing of Redis.
 //! - [`http`]: connections (their cap and timeouts), access (keys, origins), routes,
 //!   handlers, problem documents, server-sent events, and the page at `/`.
 //! - [`cpu`]: where CPU-bound work runs: the blocking pool, below the async workers' priority.
-//! - [`api`]: the wire types; [`config`], [`metrics`] and [`telemetry`] support the service.
+//! - [`config`]: every setting, declared once in [`config::SETTINGS`] (variable, flag,
+//!   default, help, parser), arriving grouped by the part of the service that takes it.
+//! - [`api`]: the wire types; [`metrics`] and [`telemetry`] support the service.
+//!
+//! No two files import each other in a circle (`tests/layout.rs` checks it):
 //!
 //! ```text
 //! http ──▶ jobs ──▶ refine ──▶ geom
@@ -42,6 +47,7 @@
 //!   └──▶ api, output ──▶ result
 //! cluster ──▶ jobs::peers (Redis behind the trait jobs talks to replicas through)
 //! solve ──▶ geom
+//! config ──▶ jobs (its groups: Limits, Pool, CacheSettings); http, cluster ──▶ config
 //! ```
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
