@@ -46,7 +46,7 @@ pub struct Cluster {
 }
 
 struct Inner {
-    /// Leases, records, messages and the ping: small commands that must not wait.
+    /// Leases, postings, messages and the ping: small commands that must not wait.
     conn: ConnectionManager,
     /// Results and requests, up to `max_bytes` each: on a connection of their own, so that a
     /// large transfer never holds a lease renewal or the ping back (a ping held past its
@@ -83,7 +83,7 @@ fn result_key(kept: Kept, id: &str) -> String {
 type Lua = std::sync::LazyLock<redis::Script>;
 
 /// Takes a lease nobody holds for token ARGV[1] and, for a fresh submission (ARGV[3] = 1),
-/// drops the record of an earlier run and what was asked of it; else answers the holder's
+/// drops the posting of an earlier run and what was asked of it; else answers the holder's
 /// token.
 static ACQUIRE: Lua = Lua::new(|| {
     redis::Script::new(
@@ -111,9 +111,9 @@ static RELEASE: Lua = Lua::new(|| {
     )
 });
 
-/// Stores and publishes a record if run ARGV[1] holds the lease, or, with ARGV[1] empty, if
+/// Stores and publishes a posting if run ARGV[1] holds the lease, or, with ARGV[1] empty, if
 /// no run does.
-static PUT_RECORD: Lua = Lua::new(|| {
+static POST: Lua = Lua::new(|| {
     redis::Script::new(
         r"if (redis.call('get', KEYS[2]) or '') ~= ARGV[1] then return 0 end
 redis.call('set', KEYS[1], ARGV[2], 'PX', ARGV[3])
@@ -280,7 +280,7 @@ impl Peers for Cluster {
 
     async fn post(&self, id: &str, token: Option<&str>, posting: &Posting) -> Result<bool> {
         let json = serde_json::to_string(posting).expect("a posting serializes");
-        let written = PUT_RECORD
+        let written = POST
             .key(key("job", id))
             .key(key("lease", id))
             .arg(token.unwrap_or_default())

@@ -85,6 +85,14 @@ mod tests {
     }
 
     #[test]
+    fn openapi_names_every_asset_the_server_serves() {
+        let doc: serde_yaml_ng::Value = serde_yaml_ng::from_str(include_str!("../../openapi.yaml")).unwrap();
+        let listed = &doc["paths"]["/assets/{name}"]["parameters"][0]["schema"]["enum"];
+        let listed: Vec<&str> = listed.as_sequence().unwrap().iter().map(|v| v.as_str().unwrap()).collect();
+        assert_eq!(listed, ASSETS.iter().map(|(name, _, _)| *name).collect::<Vec<_>>());
+    }
+
+    #[test]
     fn the_page_offers_every_format_the_server_encodes_in_its_order() {
         let list = between(module("downloads.js"), "const FORMATS = ", "[", "]");
         let page: Vec<&str> = list.split(',').map(|f| f.trim().trim_matches('"')).collect();
@@ -111,6 +119,8 @@ mod tests {
     fn the_ply_layout_the_page_reads_is_the_one_the_server_writes() {
         let page = module("downloads.js");
         let (vertex, face) = (string_const(page, "PLY_VERTEX"), string_const(page, "PLY_FACE"));
+        let reader = between(page, "function plyErrors(", "{", "\n}\n");
+        assert!(reader.contains("head.includes(PLY_VERTEX)") && reader.contains("head.includes(PLY_FACE)"));
         // The page steps 24 bytes a vertex: three doubles.
         assert_eq!(vertex.matches("property double ").count(), 3);
         let result = Arc::new(sample(200, Criterion::Error));

@@ -1,10 +1,10 @@
 //! Following a job another replica runs: a local mirror [`Job`] whose state comes from the store,
 //! so that clients here wait on it, stream it and fetch its result as if it ran here.
 //!
-//! One task per mirror ([`keep_current`]) reads the job's stored record and lease holder at
-//! each sweep, and at once when a record of the job arrives on `meshfit:events`
-//! ([`dispatch`] only wakes it): one place decides what a record means. It follows the run
-//! holding the lease, so that a final record of an earlier run (cancelled, say) is not taken
+//! One task per mirror ([`keep_current`]) reads the job's stored posting and lease holder at
+//! each sweep, and at once when a posting of the job arrives on `meshfit:events`
+//! ([`dispatch`] only wakes it): one place decides what a posting means. It follows the run
+//! holding the lease, so that a final posting of an earlier run (cancelled, say) is not taken
 //! for this one's.
 
 use super::job::{Job, JobError, Lifetime, Outcome, Record, Status};
@@ -48,12 +48,13 @@ pub(super) fn follow(inner: &Arc<Inner>, id: String, family: String, run: Option
     waiter
 }
 
-/// The record of a job that has finished, as clients see it; `None` while it runs.
+/// The record of a job whose posting says it has finished, as clients see it; `None` while
+/// it runs.
 pub(super) fn record(r: &Posting) -> Option<Record> {
     r.is_final().then(|| view(r))
 }
 
-/// A stored record as clients see it.
+/// A stored posting as clients see it.
 pub(super) fn view(r: &Posting) -> Record {
     Record {
         status: Status::parse(&r.status).unwrap_or(Status::Queued),
@@ -128,7 +129,7 @@ pub(super) async fn fetch(inner: &Arc<Inner>, id: &str, kept: Kept) -> Fetched {
     }
 }
 
-/// Applies a running job's record to its mirror, if newer than what the mirror shows.
+/// Applies a running job's posting to its mirror, if newer than what the mirror shows.
 fn apply(job: &Job, r: &Posting) {
     let Some(status) = Status::parse(&r.status) else { return };
     job.state.send_if_modified(|s| {
@@ -140,7 +141,7 @@ fn apply(job: &Job, r: &Posting) {
     });
 }
 
-/// The outcome of a finished job's record: its result, or its problem; `None` while the
+/// The outcome of a finished job's posting: its result, or its problem; `None` while the
 /// result cannot be looked for (the store away), to look again later.
 async fn outcome(inner: &Arc<Inner>, id: &str, r: &Posting) -> Option<Outcome> {
     Some(match Status::parse(&r.status) {
@@ -179,11 +180,11 @@ async fn look(inner: &Arc<Inner>, peers: &dyn Peers, job: &Job, run: &mut Option
     if let Some(holder) = &holder {
         *run = Some(holder.clone());
     }
-    let Ok(record) = peers.posting(&job.id).await else { return Look::Unknown };
-    // A run leaves its final record before its lease, so a final record of the run followed
+    let Ok(posting) = peers.posting(&job.id).await else { return Look::Unknown };
+    // A run leaves its final posting before its lease, so a final posting of the run followed
     // is its end; one of an earlier run is not.
     let ours = |r: &Posting| run.as_ref().is_none_or(|run| *run == r.run);
-    match record {
+    match posting {
         Some(r) if ours(&r) && r.is_final() => match outcome(inner, &job.id, &r).await {
             Some(outcome) => {
                 Look::Finished(outcome, r.elapsed_ms.map(|ms| Duration::from_secs_f64(ms / 1e3)))
@@ -191,7 +192,7 @@ async fn look(inner: &Arc<Inner>, peers: &dyn Peers, job: &Job, run: &mut Option
             None => Look::Unknown,
         },
         _ if holder.is_some() => {
-            if let Some(r) = record.filter(ours) {
+            if let Some(r) = posting.filter(ours) {
                 apply(job, &r);
             }
             Look::Alive
@@ -236,8 +237,9 @@ async fn keep_current(inner: Arc<Inner>, job: Arc<Job>, mut run: Option<String>)
                     let error = JobError::Internal(why);
                     // Ended for every replica, unless a run has taken the job meanwhile.
                     let problem = Some(shared.wire.problem(&error));
-                    let record = super::publish::ended(Status::Failed, None, problem, job.snapshot().seq, "");
-                    let _ = peers.post(&job.id, None, &record).await;
+                    let posting =
+                        super::publish::ended(Status::Failed, None, problem, job.snapshot().seq, "");
+                    let _ = peers.post(&job.id, None, &posting).await;
                     job.finish(Outcome::Failed(error), None);
                     break;
                 }
@@ -264,13 +266,13 @@ async fn keep_current(inner: Arc<Inner>, job: Arc<Job>, mut run: Option<String>)
     inner.file(&job);
 }
 
-/// Hands every message to the job it concerns on this replica: a record wakes the mirror's
+/// Hands every message to the job it concerns on this replica: a posting wakes the mirror's
 /// task, a request to cancel or detach goes to the job run here. Ends with the registry.
 pub(super) async fn dispatch(inner: Weak<Inner>, mut messages: broadcast::Receiver<Message>) {
     loop {
         let message = match messages.recv().await {
             Ok(m) => m,
-            // Missed records are read back at the next sweep; missed requests from the keys.
+            // Missed postings are read back at the next sweep; missed requests from the keys.
             Err(broadcast::error::RecvError::Lagged(_)) => continue,
             Err(broadcast::error::RecvError::Closed) => return,
         };

@@ -1,7 +1,7 @@
 //! The run holding a shared job's lease tells the other replicas about it: keeps its request
-//! for a takeover, stores its record as it changes (at most every [`PUBLISH_EVERY`]), renews
+//! for a takeover, stores its posting as it changes (at most every [`PUBLISH_EVERY`]), renews
 //! its lease and reads what followers ask of it, and at the end stores the result before the
-//! final record, so that a replica that reads the record can fetch the result.
+//! final posting, so that a replica that reads the posting can fetch the result.
 
 use super::job::{Job, JobError, Outcome, Snapshot, Status};
 use super::peers::{Claim, Kept, KeptRequest, Peers, Posting, Take};
@@ -13,7 +13,7 @@ use std::sync::atomic::Ordering;
 use std::time::Duration;
 use tokio::time::Instant;
 
-/// Records go out at most this often while a job runs; the final one at once.
+/// Postings go out at most this often while a job runs; the final one at once.
 const PUBLISH_EVERY: Duration = Duration::from_millis(100);
 
 /// Publishes job `job` for run `lease` until it finishes.
@@ -21,9 +21,9 @@ pub(super) async fn run(inner: &Arc<Inner>, job: Arc<Job>, lease: Lease, request
     let Some(shared) = &inner.shared else { return };
     let (peers, token) = (&*shared.peers, lease.token.as_str());
     let mut rx = job.subscribe();
-    // The first record first: the submission's client waits for it, and a large request
+    // The first posting first: the submission's client waits for it, and a large request
     // would keep it waiting.
-    // (A job that has ended already gets its final record from `finish` alone.)
+    // (A job that has ended already gets its final posting from `finish` alone.)
     let first = rx.borrow_and_update().clone();
     if first.outcome.is_none() {
         let _ = peers.post(&job.id, Some(token), &wire(&first, None, token)).await;
@@ -97,7 +97,7 @@ async fn keep(inner: &Inner, peers: &dyn Peers, job: &Job, token: &str) {
         && let Ok(Claim::Held(_)) = peers.acquire(&job.id, token, Take::Over).await
     {
         // Another replica took the job over meanwhile: both runs make the same bytes, and
-        // only the holder's records are written, so this one goes on quietly.
+        // only the holder's postings are written, so this one goes on quietly.
         tracing::warn!(job = %job.id, "lease lost to another replica");
     }
     if let Ok((cancel, detach)) = peers.asked(&job.id).await {
@@ -113,7 +113,7 @@ async fn keep(inner: &Inner, peers: &dyn Peers, job: &Job, token: &str) {
 /// How long a finished run keeps trying to tell the store of its end while the store is away.
 const DELIVER_FOR: Duration = Duration::from_secs(600);
 
-/// Stores the result and the final record, takes the job off the pending list and gives up
+/// Stores the result and the final posting, takes the job off the pending list and gives up
 /// the lease; a job handed back at shutdown only gives up its lease, for a takeover. While
 /// the store is away this is tried again at each sweep, so that a job that finished during an
 /// outage is known to every replica once the store is back.
@@ -131,9 +131,9 @@ async fn finish(inner: &Arc<Inner>, peers: &dyn Peers, job: &Job, token: &str, s
         Outcome::Failed(e) => (Some(shared.wire.problem(e)), None),
         Outcome::Cancelled => (None, None),
     };
-    let record = wire(snapshot, problem, token);
+    let posting = wire(snapshot, problem, token);
     let give_up = Instant::now() + DELIVER_FOR;
-    while !renewing(peers, &job.id, token, deliver(peers, &job.id, token, result.as_ref(), &record)).await {
+    while !renewing(peers, &job.id, token, deliver(peers, &job.id, token, result.as_ref(), &posting)).await {
         if inner.closed.load(Ordering::SeqCst) || Instant::now() >= give_up {
             tracing::warn!(job = %job.id, "redis away: other replicas will not know this job finished");
             return;
@@ -158,7 +158,7 @@ async fn encode(id: &str, result: &Arc<MeshResult>) -> Option<(Vec<u8>, Kept)> {
     Some((bytes.ok()?.ok()?, kept))
 }
 
-/// Tells the store that run `token` of job `id` ended: its result, then its final record. Says
+/// Tells the store that run `token` of job `id` ended: its result, then its final posting. Says
 /// whether that is done (or can never be: another run holds the job now), false while the store
 /// is away.
 async fn deliver(
@@ -166,7 +166,7 @@ async fn deliver(
     id: &str,
     token: &str,
     result: Option<&(Vec<u8>, Kept)>,
-    record: &Posting,
+    posting: &Posting,
 ) -> bool {
     // A whole result first, lease or not: every run of an id makes the same bytes, so a run
     // that took the job over while this one could not reach the store finds it stored instead
@@ -192,7 +192,7 @@ async fn deliver(
     {
         return false;
     }
-    match peers.post(id, Some(token), record).await {
+    match peers.post(id, Some(token), posting).await {
         Ok(true) => {}
         // Another run holds the job now: what it keeps is its own.
         Ok(false) => return true,
@@ -224,17 +224,17 @@ async fn store(peers: &dyn Peers, id: &str, kept: Kept, bytes: &[u8]) -> bool {
     }
 }
 
-/// Ends run `token` of job `id` with its final `record`: stored and sent, the job off the
+/// Ends run `token` of job `id` with its final `posting`: stored and sent, the job off the
 /// pending list, the lease given up.
-pub(super) async fn close(peers: &dyn Peers, id: &str, token: &str, record: &Posting) {
+pub(super) async fn close(peers: &dyn Peers, id: &str, token: &str, posting: &Posting) {
     // Only while this run holds the lease: another run's pending entry and keys are its own.
-    if let Ok(true) = peers.post(id, Some(token), record).await {
+    if let Ok(true) = peers.post(id, Some(token), posting).await {
         let _ = peers.forget(id).await;
     }
     let _ = peers.release(id, token).await;
 }
 
-/// The final record of a run that ended `status`, numbered after `seq`, written by another
+/// The final posting of a run that ended `status`, numbered after `seq`, written by another
 /// than the run itself (a takeover that found it ended, a follower that found it lost).
 pub(super) fn ended(
     status: Status,

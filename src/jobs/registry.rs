@@ -25,7 +25,7 @@ pub enum Found {
     Done(Arc<Record>),
     /// A result from the cache with no job record (e.g. after a restart).
     Cached(Arc<MeshResult>),
-    /// A job queued or running on another replica, as its last stored record says.
+    /// A job queued or running on another replica, as its last posting says.
     Remote(Arc<Record>),
 }
 
@@ -40,7 +40,7 @@ impl Found {
     }
 }
 
-/// Whether run `token` of job `id` has stored its final record (and is about to let go of
+/// Whether run `token` of job `id` has posted its end (and is about to let go of
 /// its lease), or was asked to stop: a new request must not be given its end.
 async fn has_ended(peers: &dyn Peers, id: &str, token: &str) -> bool {
     let ended = matches!(peers.posting(id).await, Ok(Some(r)) if r.run == token && r.is_final());
@@ -148,7 +148,7 @@ impl Jobs {
         self
     }
 
-    /// Whether replicas share through the store, and if so whether The store answered last.
+    /// Whether replicas share through the store, and if so whether the store answered last.
     pub fn redis(&self) -> Option<bool> {
         self.inner.shared.as_ref().map(|s| s.peers.is_up())
     }
@@ -276,14 +276,14 @@ impl Jobs {
             inner.metrics.cache_hits.inc();
             return Ok(Ticket::Cached(result));
         }
-        let (announced, first_record) = tokio::sync::oneshot::channel();
+        let (announced, first_posting) = tokio::sync::oneshot::channel();
         let lease = Lease { token, announced: Some(announced) };
         let start = Start { id, family, seq: 0, lease: Some(lease), request };
         let (ticket, started) = inner.start(start, spec, lifetime, client)?;
         if started {
             guard.disarm();
             // Stored before the client hears of the job, so that any replica finds it at once.
-            let _ = first_record.await;
+            let _ = first_posting.await;
         }
         Ok(ticket)
     }
@@ -308,21 +308,21 @@ impl Jobs {
         }
         let Some(shared) = &self.inner.shared else { return found };
         let peers = &*shared.peers;
-        let record = match peers.posting(id).await.ok().flatten() {
-            Some(record) => record,
-            // A job whose run has taken its lease and not yet stored its record.
+        let posting = match peers.posting(id).await.ok().flatten() {
+            Some(posting) => posting,
+            // A job whose run has taken its lease and not yet posted.
             None if matches!(peers.holder(id).await, Ok(Some(_))) => {
                 return Some(Found::Remote(Arc::new(Record::queued())));
             }
             None => return found,
         };
-        Some(match follow::record(&record) {
+        Some(match follow::record(&posting) {
             // The end of an earlier run, while a new one holds the lease.
-            Some(_) if matches!(peers.holder(id).await, Ok(Some(h)) if h != record.run) => {
+            Some(_) if matches!(peers.holder(id).await, Ok(Some(h)) if h != posting.run) => {
                 Found::Remote(Arc::new(Record::queued()))
             }
             Some(done) => Found::Done(Arc::new(done)),
-            None => Found::Remote(Arc::new(follow::view(&record))),
+            None => Found::Remote(Arc::new(follow::view(&posting))),
         })
     }
 
@@ -561,7 +561,12 @@ mod tests {
         assert_eq!(job.outcome().await, Outcome::Cancelled);
         assert_eq!(job.snapshot().status, Status::Cancelled);
         drop(busy);
-        assert_eq!(jobs.metrics().engine_runs.get(), 0, "it never ran");
+        // The freed worker runs the next job, and only it.
+        let next = waiter(
+            submit(&jobs, request(serde_json::json!({"function": "y*y"})), Lifetime::WhileWaited).await,
+        );
+        assert!(matches!(next.job().outcome().await, Outcome::Succeeded(_)));
+        assert_eq!(jobs.metrics().engine_runs.get(), 1, "the cancelled job never ran");
     }
 
     #[tokio::test]

@@ -120,11 +120,11 @@ pub(super) struct Inner {
 pub(super) struct Shared {
     pub(super) peers: Arc<dyn Peers>,
     pub(super) wire: Arc<dyn Wire>,
-    /// A turn per result being read from the store (see [`follow::fetch`]).
+    /// A turn per result being read from the store (see `follow::fetch`).
     pub(super) fetching: moka::sync::Cache<String, Arc<tokio::sync::Mutex<()>>>,
 }
 
-/// A new job's id, family and place in the peers.
+/// A new job's id, family and place among the replicas.
 pub(super) struct Start {
     pub(super) id: String,
     pub(super) family: String,
@@ -141,7 +141,7 @@ pub(super) struct Start {
 pub(super) struct Lease {
     /// The run's token, as the lease holds it.
     pub(super) token: String,
-    /// Told once the run's first record is stored.
+    /// Told once the run's first posting is stored.
     pub(super) announced: Option<tokio::sync::oneshot::Sender<()>>,
 }
 

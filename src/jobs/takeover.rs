@@ -65,16 +65,16 @@ enum Taken {
 }
 
 /// Ends or runs again job `id`, whose lease run `token` has just taken: ends it if it finished
-/// after all (its replica died between storing the result and the final record) or cannot be
+/// after all (its replica died between storing the result and the final posting) or cannot be
 /// run here, else starts it from its kept request.
 async fn take_over(inner: &Arc<Inner>, peers: &dyn Peers, id: &str, token: String) -> Taken {
     let Some(shared) = &inner.shared else { return Taken::Done };
-    let Ok(record) = peers.posting(id).await else {
+    let Ok(posting) = peers.posting(id).await else {
         let _ = peers.release(id, &token).await;
         return Taken::Done;
     };
-    let seq = record.as_ref().map_or(0, |r| r.seq);
-    if record.as_ref().is_some_and(|r| r.is_final()) {
+    let seq = posting.as_ref().map_or(0, |r| r.seq);
+    if posting.as_ref().is_some_and(|r| r.is_final()) {
         let _ = peers.forget(id).await;
         let _ = peers.release(id, &token).await;
         return Taken::Done;
@@ -84,13 +84,13 @@ async fn take_over(inner: &Arc<Inner>, peers: &dyn Peers, id: &str, token: Strin
         Fetched::Found(result) => {
             // In this replica's memory it may be nowhere else: this replica ran the job and
             // has not yet told the store (an outage outlasted the lease). Stored first, so that
-            // the final record never sends followers to a result the store does not have.
+            // the final posting never sends followers to a result the store does not have.
             if here && !publish::store_result(peers, id, &result).await {
                 let _ = peers.release(id, &token).await;
                 return Taken::Done;
             }
-            let record = publish::ended(Status::Succeeded, Some(result.stats.clone()), None, seq, &token);
-            publish::close(peers, id, &token, &record).await;
+            let posting = publish::ended(Status::Succeeded, Some(result.stats.clone()), None, seq, &token);
+            publish::close(peers, id, &token, &posting).await;
             return Taken::Done;
         }
         Fetched::Missing => {}

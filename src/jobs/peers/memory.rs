@@ -1,7 +1,10 @@
 //! [`Peers`] in memory: several replicas of one process over a shared [`Bus`], with the
 //! semantics the Redis store has (leases that lapse on tokio's clock, postings only from the
-//! lease's holder, messages to every replica), and switches a test turns to take the store
-//! away from one replica ([`Replica::cut`]) or from all ([`Bus::set_up`]).
+//! lease's holder, messages to every replica, operations that fail at once while the store
+//! is known to be away, until a ping finds it), and switches a test turns to take the store
+//! away from one replica ([`Replica::cut`]) or from all ([`Bus::set_up`]), or to lose the
+//! messages that ask a run to act ([`Bus::lose_controls`]). Every operation yields first, as
+//! a round trip would, so that concurrent submissions interleave.
 
 use super::{Claim, Control, Kept, KeptRequest, Message, Peers, Posting, Result, Take, Unavailable};
 use std::collections::{BTreeSet, HashMap};
@@ -19,6 +22,8 @@ pub(crate) struct Bus {
     lease: Duration,
     /// The largest request or result kept, as `MESHFIT_REDIS_MAX_BYTES`.
     max_bytes: usize,
+    /// Whether control messages are lost on the way (their marks are kept).
+    lose_controls: Arc<AtomicBool>,
 }
 
 #[derive(Default)]
@@ -45,7 +50,7 @@ impl Bus {
     /// `max_bytes`.
     pub(crate) fn new(lease: Duration, max_bytes: usize) -> Self {
         let (messages, _) = broadcast::channel(1024);
-        Self { state: Arc::default(), messages, lease, max_bytes }
+        Self { state: Arc::default(), messages, lease, max_bytes, lose_controls: Arc::default() }
     }
 
     /// A replica named `name` on this bus.
@@ -62,6 +67,11 @@ impl Bus {
     /// Takes the store away from every replica, or brings it back.
     pub(crate) fn set_up(&self, up: bool) {
         self.state().down = !up;
+    }
+
+    /// Loses every control message from now on (`true`), or delivers them again.
+    pub(crate) fn lose_controls(&self, lose: bool) {
+        self.lose_controls.store(lose, Ordering::SeqCst);
     }
 
     /// Whether job `id` is listed as pending.
@@ -102,18 +112,25 @@ impl Replica {
         self.cut.store(cut, Ordering::SeqCst);
     }
 
-    /// The store's state, when this replica reaches it.
-    fn reach(&self) -> Result<std::sync::MutexGuard<'_, State>> {
+    /// The store's state, when this replica reaches it: after a yield, as a round trip; at
+    /// once refused while the last operation failed, unless `probe` (a ping), as `Cluster`
+    /// refuses commands until a ping finds Redis again.
+    async fn reach(&self, probe: bool) -> Result<std::sync::MutexGuard<'_, State>> {
+        tokio::task::yield_now().await;
+        let refused = Unavailable(format!("{} cannot reach the bus", self.name));
+        if !probe && !self.up.load(Ordering::SeqCst) {
+            return Err(refused);
+        }
         let state = self.bus.state();
         let reached = !state.down && !self.cut.load(Ordering::SeqCst);
         self.up.store(reached, Ordering::SeqCst);
-        match reached {
-            true => Ok(state),
-            false => Err(Unavailable(format!("{} cannot reach the bus", self.name))),
-        }
+        if reached { Ok(state) } else { Err(refused) }
     }
 
     fn send(&self, message: Message) {
+        if matches!(message, Message::Control(..)) && self.bus.lose_controls.load(Ordering::SeqCst) {
+            return;
+        }
         // No receiver is fine: no replica listens yet.
         let _ = self.bus.messages.send(message);
     }
@@ -142,11 +159,11 @@ impl Peers for Replica {
     }
 
     async fn ping(&self) -> Result<()> {
-        self.reach().map(drop)
+        self.reach(true).await.map(drop)
     }
 
     async fn acquire(&self, id: &str, token: &str, take: Take) -> Result<Claim> {
-        let mut state = self.reach()?;
+        let mut state = self.reach(false).await?;
         if let Some(holder) = state.holder(id) {
             return Ok(Claim::Held(holder.to_owned()));
         }
@@ -159,7 +176,7 @@ impl Peers for Replica {
     }
 
     async fn renew(&self, id: &str, token: &str) -> Result<bool> {
-        let mut state = self.reach()?;
+        let mut state = self.reach(false).await?;
         if state.holder(id) != Some(token) {
             return Ok(false);
         }
@@ -168,7 +185,7 @@ impl Peers for Replica {
     }
 
     async fn release(&self, id: &str, token: &str) -> Result<()> {
-        let mut state = self.reach()?;
+        let mut state = self.reach(false).await?;
         if state.holder(id) == Some(token) {
             state.leases.remove(id);
         }
@@ -176,11 +193,11 @@ impl Peers for Replica {
     }
 
     async fn holder(&self, id: &str) -> Result<Option<String>> {
-        Ok(self.reach()?.holder(id).map(str::to_owned))
+        Ok(self.reach(false).await?.holder(id).map(str::to_owned))
     }
 
     async fn post(&self, id: &str, token: Option<&str>, posting: &Posting) -> Result<bool> {
-        let mut state = self.reach()?;
+        let mut state = self.reach(false).await?;
         if state.holder(id).unwrap_or_default() != token.unwrap_or_default() {
             return Ok(false);
         }
@@ -191,33 +208,33 @@ impl Peers for Replica {
     }
 
     async fn posting(&self, id: &str) -> Result<Option<Posting>> {
-        Ok(self.reach()?.postings.get(id).cloned())
+        Ok(self.reach(false).await?.postings.get(id).cloned())
     }
 
     async fn keep_request(&self, id: &str, request: &KeptRequest) -> Result<bool> {
-        let mut state = self.reach()?;
         if request.body.len() > self.bus.max_bytes {
             return Ok(false);
         }
+        let mut state = self.reach(false).await?;
         state.requests.insert(id.to_owned(), request.clone());
         state.pending.insert(id.to_owned());
         Ok(true)
     }
 
     async fn request(&self, id: &str) -> Result<Option<KeptRequest>> {
-        Ok(self.reach()?.requests.get(id).cloned())
+        Ok(self.reach(false).await?.requests.get(id).cloned())
     }
 
     async fn pending(&self) -> Result<Vec<String>> {
-        Ok(self.reach()?.pending.iter().cloned().collect())
+        Ok(self.reach(false).await?.pending.iter().cloned().collect())
     }
 
     async fn is_pending(&self, id: &str) -> Result<bool> {
-        Ok(self.reach()?.pending.contains(id))
+        Ok(self.reach(false).await?.pending.contains(id))
     }
 
     async fn forget(&self, id: &str) -> Result<()> {
-        let mut state = self.reach()?;
+        let mut state = self.reach(false).await?;
         state.pending.remove(id);
         state.requests.remove(id);
         state.marks.retain(|(job, _), _| job != id);
@@ -225,7 +242,7 @@ impl Peers for Replica {
     }
 
     async fn control(&self, id: &str, what: Control) -> Result<()> {
-        let mut state = self.reach()?;
+        let mut state = self.reach(false).await?;
         state.marks.insert((id.to_owned(), what), Instant::now() + 3 * self.bus.lease);
         drop(state);
         self.send(Message::Control(id.to_owned(), what));
@@ -233,21 +250,21 @@ impl Peers for Replica {
     }
 
     async fn asked(&self, id: &str) -> Result<(bool, bool)> {
-        let state = self.reach()?;
+        let state = self.reach(false).await?;
         let now = Instant::now();
         let marked = |what| state.marks.get(&(id.to_owned(), what)).is_some_and(|until| *until > now);
         Ok((marked(Control::Cancel), marked(Control::Detach)))
     }
 
     async fn result(&self, id: &str, kept: Kept) -> Result<Option<Vec<u8>>> {
-        Ok(self.reach()?.results.get(&(id.to_owned(), kept)).cloned())
+        Ok(self.reach(false).await?.results.get(&(id.to_owned(), kept)).cloned())
     }
 
     async fn keep_result(&self, id: &str, kept: Kept, bytes: &[u8]) -> Result<bool> {
-        let mut state = self.reach()?;
         if bytes.len() > self.bus.max_bytes {
             return Ok(false);
         }
+        let mut state = self.reach(false).await?;
         state.results.insert((id.to_owned(), kept), bytes.to_vec());
         Ok(true)
     }

@@ -119,7 +119,7 @@ pub type Result<T> = std::result::Result<T, Unavailable>;
 pub trait Peers: Send + Sync + 'static {
     /// How long a lease lasts without renewal: how soon another replica takes over a job
     /// whose replica died. The protocol's other clocks follow from it (the lease timing lives
-    /// here, in this and the two methods below).
+    /// here, in this method and in `renew_every` and `sweep_every`).
     fn lease(&self) -> Duration;
 
     /// A token for a new run of a job on this replica.
