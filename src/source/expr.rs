@@ -386,9 +386,9 @@ impl Expression {
                     let n = n as usize;
                     let args = &stack[sp - n..sp];
                     let v = if matches!(*op, Op::Max(_)) {
-                        args.iter().fold(f64::NEG_INFINITY, |m, &a| m.max(a))
+                        args.iter().fold(f64::NEG_INFINITY, |m, &a| max_of(m, a))
                     } else {
-                        args.iter().fold(f64::INFINITY, |m, &a| m.min(a))
+                        args.iter().fold(f64::INFINITY, |m, &a| min_of(m, a))
                     };
                     sp -= n;
                     stack[sp] = v;
@@ -406,6 +406,22 @@ pub const BATCH: usize = 16;
 
 /// Batches smaller than this run one point at a time through the closures.
 const SCALAR_BELOW: usize = 6;
+
+/// `max(a, b)` with one answer for every pair, on every path. `f64::max` leaves the sign of
+/// a zero to the instruction the compiler picks, and the scalar and batched evaluations got
+/// different ones (the fuzzer found `max(y, x, y, 0-x) % 0.5` at (0, −0) giving 0 one way and
+/// −0 the other). Of equal values (+0 and −0) the first is kept; a NaN gives way to the other
+/// operand, as in `f64::max`.
+#[inline]
+fn max_of(a: f64, b: f64) -> f64 {
+    if b > a || a.is_nan() { b } else { a }
+}
+
+/// `min(a, b)` as [`max_of`] is `max`.
+#[inline]
+fn min_of(a: f64, b: f64) -> f64 {
+    if b < a || a.is_nan() { b } else { a }
+}
 
 thread_local! {
     /// The lanes of the batch evaluator's stack, kept per thread so a batch neither allocates
@@ -485,9 +501,9 @@ impl Expression {
                     for lane in 0..n {
                         let args = stack[sp - k..sp].iter().map(|row| row[lane]);
                         stack[sp - k][lane] = if is_max {
-                            args.fold(f64::NEG_INFINITY, f64::max)
+                            args.fold(f64::NEG_INFINITY, max_of)
                         } else {
-                            args.fold(f64::INFINITY, f64::min)
+                            args.fold(f64::INFINITY, min_of)
                         };
                     }
                     sp -= k - 1;
@@ -673,6 +689,39 @@ mod tests {
 
     fn column(text: &str) -> usize {
         Expression::parse(text).unwrap_err().column
+    }
+
+    /// The fuzzer's crash of 2026-12-05 (`fuzz/run.sh`, target `expression`): the closures
+    /// and the batched program disagreed on the sign of a zero from `max`.
+    #[test]
+    fn max_and_min_give_the_same_signed_zero_on_every_path() {
+        let cases = [
+            "max( y,x, y,0-x) % 0.5",
+            "min(x, y) % 0.5",
+            "max(0-x, x) % 0.5",
+            "min(0-y, y, x) % 0.5",
+            "max(x) + min(y)",
+        ];
+        let points =
+            [Point::new(0.0, -0.0), Point::new(-0.0, 0.0), Point::new(-0.0, -0.0), Point::new(0.0, 0.0)];
+        for text in cases {
+            let f = Expression::parse(text).unwrap();
+            // More points than a batch takes one by one, so the batched program runs too.
+            let many: Vec<Point> = points.iter().copied().cycle().take(4 * points.len()).collect();
+            let mut out = vec![0.0; many.len()];
+            f.eval_many(&many, &mut out);
+            for (p, got) in many.iter().zip(&out) {
+                let (closures, program) = (f.eval_xy(p.x, p.y), f.run_program(p.x, p.y));
+                assert_eq!(closures.to_bits(), program.to_bits(), "{text} at {p:?}");
+                assert_eq!(closures.to_bits(), got.to_bits(), "{text} at {p:?}: batched");
+            }
+        }
+        // And the rule itself: of equal values the first, and a NaN gives way. (Which zero
+        // `f64::max` gives depends on the build: in this one the paths above may agree even
+        // with it, so this is what fails if it comes back.)
+        assert_eq!(max_of(-0.0, 0.0).to_bits(), (-0.0f64).to_bits());
+        assert_eq!(min_of(0.0, -0.0).to_bits(), 0.0f64.to_bits());
+        assert_eq!((max_of(f64::NAN, 1.0), max_of(1.0, f64::NAN), min_of(f64::NAN, 2.0)), (1.0, 1.0, 2.0));
     }
 
     #[test]

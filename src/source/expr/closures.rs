@@ -7,7 +7,7 @@
 //! folded into its operator's closure. The operations, and their order on each value, are the program's, so
 //! the results are the same bits.
 
-use super::Op;
+use super::{Op, max_of, min_of};
 
 /// F(x, y) for one point.
 pub(super) type Scalar = Box<dyn Fn(f64, f64) -> f64 + Send + Sync>;
@@ -82,9 +82,9 @@ pub(super) fn build(program: &[Op]) -> Option<Scalar> {
                 let height = args.iter().map(|&(_, h)| h).max().unwrap_or(0) + 1;
                 let args: Vec<Scalar> = args.into_iter().map(|(v, _)| v.into_tree()).collect();
                 let f: Scalar = if matches!(*op, Op::Max(_)) {
-                    Box::new(move |x, y| args.iter().fold(f64::NEG_INFINITY, |m, a| m.max(a(x, y))))
+                    Box::new(move |x, y| args.iter().fold(f64::NEG_INFINITY, |m, a| max_of(m, a(x, y))))
                 } else {
-                    Box::new(move |x, y| args.iter().fold(f64::INFINITY, |m, a| m.min(a(x, y))))
+                    Box::new(move |x, y| args.iter().fold(f64::INFINITY, |m, a| min_of(m, a(x, y))))
                 };
                 (Value::Tree(f), height)
             }
