@@ -1,6 +1,7 @@
 // Colours: the map the server's pictures use, and how numbers are shown beside them.
 
-// Viridis at 9 stops, interpolated: the same map as the server's SVG and PNG pictures.
+// Viridis at 9 stops, interpolated: the same map as the server's SVG and PNG pictures (a test
+// of the server checks the stops).
 const VIRIDIS = [
   [68, 1, 84], [71, 44, 122], [58, 81, 139], [44, 113, 142], [32, 144, 140],
   [39, 173, 128], [92, 200, 98], [170, 219, 49], [253, 231, 37],

@@ -4,6 +4,7 @@ import { $, view } from "./state.js";
 import { fmt } from "./colours.js";
 import { authHeaders, showProblem } from "./form.js";
 
+// The formats the server encodes, in its order (a test of the server checks this list).
 const FORMATS = ["json", "obj", "ply", "stl", "vtu", "msh", "glb", "svg", "png"];
 
 export function showStats(s) {
