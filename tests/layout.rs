@@ -6,9 +6,7 @@
 //! an item it re-exports counts as the file that defines it.
 //!
 //! An import is a path from `crate::`, `super::`, `self::` or a child module, outside
-//! comments and test modules. A path that
-//! names a module points at that module's file; one that names an item a `mod.rs` re-exports
-//! (`pub use child::Item`) points at the child that defines it.
+//! comments and test modules. A path that names a module points at that module's file.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -27,51 +25,47 @@ fn files(dir: &Path, out: &mut Vec<PathBuf>) {
     }
 }
 
-/// The module a file holds, and whether it is a directory's `mod.rs` (or `lib.rs`).
-fn module_of(src: &Path, file: &Path) -> (Module, bool) {
+/// The module a file holds (`mod.rs` and `lib.rs` hold their directory's).
+fn module_of(src: &Path, file: &Path) -> Module {
     let rel = file.strip_prefix(src).unwrap().with_extension("");
     let mut segments: Module = rel.iter().map(|s| s.to_string_lossy().into_owned()).collect();
-    let is_dir = matches!(segments.last().map(String::as_str), Some("mod" | "lib"));
-    if is_dir {
+    if matches!(segments.last().map(String::as_str), Some("mod" | "lib")) {
         segments.pop();
     }
-    (segments, is_dir)
+    segments
 }
 
-/// The code of a file without comments and without its inline `mod tests { … }` block (a
-/// `mod tests;` line stays: that file is skipped as a whole, see [`is_test_file`]).
-fn code(text: &str) -> String {
-    let text: String = text.lines().map(|l| l.split("//").next().unwrap()).collect::<Vec<_>>().join("\n");
-    let Some(start) = text.find("#[cfg(test)]\nmod tests {") else { return text };
-    let (mut depth, mut end) = (0usize, text.len());
-    for (i, c) in text[start..].char_indices() {
+/// The items of a `{…}` group at its top level, and where the group closes; `inner` starts
+/// after the `{`. None when it never closes.
+fn top_level(inner: &str) -> Option<(Vec<&str>, usize)> {
+    let (mut depth, mut start, mut items) = (0usize, 0, Vec::new());
+    for (i, c) in inner.char_indices() {
         match c {
             '{' => depth += 1,
-            '}' if depth == 1 => {
-                end = start + i + 1;
-                break;
+            '}' if depth == 0 => {
+                items.push(inner[start..i].trim());
+                return Some((items, i));
             }
             '}' => depth -= 1,
+            ',' if depth == 0 => {
+                items.push(inner[start..i].trim());
+                start = i + 1;
+            }
             _ => {}
         }
     }
-    format!("{}{}", &text[..start], &text[end..])
+    None
 }
 
-/// Files that only tests compile (`#[cfg(test)] mod x;` in their parent).
-fn is_test_file(src: &Path, file: &Path) -> bool {
-    let (module, _) = module_of(src, file);
-    let Some(name) = module.last() else { return false };
-    let parent = file.parent().unwrap();
-    let declared_in =
-        if file.file_stem().is_some_and(|s| s == "mod") { parent.parent().unwrap() } else { parent };
-    [declared_in.join("mod.rs"), declared_in.with_extension("rs"), src.join("lib.rs")]
-        .iter()
-        .filter_map(|f| std::fs::read_to_string(f).ok())
-        .any(|t| {
-            t.contains(&format!("#[cfg(test)]\nmod {name};"))
-                || t.contains(&format!("#[cfg(test)]\npub(super) mod {name};"))
-        })
+/// The code of a file without comments and without its inline `mod tests { … }` block (a
+/// `mod tests;` line stays: it marks a test-only file).
+fn code(text: &str) -> String {
+    let text: String = text.lines().map(|l| l.split("//").next().unwrap()).collect::<Vec<_>>().join("\n");
+    const TESTS: &str = "#[cfg(test)]\nmod tests {";
+    let Some(start) = text.find(TESTS) else { return text };
+    let end = top_level(&text[start + TESTS.len()..])
+        .map_or(text.len(), |(_, close)| start + TESTS.len() + close + 1);
+    format!("{}{}", &text[..start], &text[end..])
 }
 
 fn ident(s: &str) -> &str {
@@ -114,21 +108,8 @@ fn paths(code: &str, module: &Module, children: &BTreeSet<String>) -> Vec<Module
 fn group(mut rest: &str, mut base: Module, found: &mut Vec<Module>) {
     loop {
         if let Some(inner) = rest.strip_prefix('{') {
-            let (mut depth, mut item_start) = (0usize, 0);
-            for (i, c) in inner.char_indices() {
-                match c {
-                    '{' => depth += 1,
-                    '}' if depth == 0 => {
-                        group(inner[item_start..i].trim(), base.clone(), found);
-                        return;
-                    }
-                    '}' => depth -= 1,
-                    ',' if depth == 0 => {
-                        group(inner[item_start..i].trim(), base.clone(), found);
-                        item_start = i + 1;
-                    }
-                    _ => {}
-                }
+            for item in top_level(inner).map(|(items, _)| items).unwrap_or_default() {
+                group(item, base.clone(), found);
             }
             return;
         }
@@ -154,19 +135,36 @@ fn no_two_files_of_src_import_each_other_in_a_circle() {
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
     let mut all = Vec::new();
     files(&src, &mut all);
-    // main.rs is the binary, another crate; test-only files are not the crate's layout.
-    all.retain(|f| f != &src.join("main.rs") && !is_test_file(&src, f));
-    let modules: BTreeMap<Module, (PathBuf, bool)> = all
-        .iter()
-        .map(|f| {
-            let (module, is_dir) = module_of(&src, f);
-            (module, (f.clone(), is_dir))
+    // main.rs is the binary, another crate.
+    all.retain(|f| f != &src.join("main.rs"));
+    // Each module's code, read once.
+    let mut modules: BTreeMap<Module, String> =
+        all.iter().map(|f| (module_of(&src, f), code(&std::fs::read_to_string(f).unwrap()))).collect();
+    // Test-only modules (`#[cfg(test)] mod x;` in their parent) are not the crate's layout.
+    let test_only: Vec<Module> = modules
+        .keys()
+        .filter(|m| {
+            m.split_last().is_some_and(|(name, parent)| {
+                modules.get(parent).is_some_and(|text| {
+                    text.contains(&format!("#[cfg(test)]\nmod {name};"))
+                        || text.contains(&format!("#[cfg(test)]\npub(super) mod {name};"))
+                })
+            })
         })
+        .cloned()
         .collect();
-    // (directory module, item) → the child module that defines it, from `pub use child::…`.
+    for module in &test_only {
+        modules.remove(module);
+    }
+    let mut children: BTreeMap<Module, BTreeSet<String>> = BTreeMap::new();
+    for module in modules.keys() {
+        if let Some((name, parent)) = module.split_last() {
+            children.entry(parent.to_vec()).or_default().insert(name.clone());
+        }
+    }
+    // (facade, item) → the child module that defines it, from `pub use child::…`.
     let mut reexports: BTreeMap<(Module, String), Module> = BTreeMap::new();
-    for (module, (file, _)) in &modules {
-        let text = code(&std::fs::read_to_string(file).unwrap());
+    for (module, text) in &modules {
         for decl in text.split("pub use ").skip(1) {
             let decl = &decl[..decl.find(';').unwrap_or(decl.len())];
             let (child, items) = decl.split_once("::").unwrap_or((decl, ""));
@@ -190,22 +188,16 @@ fn no_two_files_of_src_import_each_other_in_a_circle() {
             Some(reexports.get(&(prefix.clone(), next)).cloned().unwrap_or(prefix))
         })
     };
+    let none = BTreeSet::new();
     let mut imports: BTreeMap<Module, BTreeSet<Module>> = BTreeMap::new();
-    let facade = |m: &Module| modules.keys().any(|o| o.len() > m.len() && o.starts_with(m));
-    for (module, (file, _)) in &modules {
-        if facade(module) {
+    for (module, text) in &modules {
+        if children.contains_key(module) {
             continue;
         }
-        let text = code(&std::fs::read_to_string(file).unwrap());
-        let children: BTreeSet<String> = modules
-            .keys()
-            .filter(|m| m.len() == module.len() + 1 && m.starts_with(module))
-            .map(|m| m.last().unwrap().clone())
-            .collect();
-        let targets = paths(&text, module, &children)
+        let targets = paths(text, module, children.get(module).unwrap_or(&none))
             .into_iter()
             .filter_map(|p| resolve(&p))
-            .filter(|t| t != module && !facade(t));
+            .filter(|t| t != module && !children.contains_key(t));
         imports.entry(module.clone()).or_default().extend(targets);
     }
     // A file that reaches itself through its imports is in a circle.

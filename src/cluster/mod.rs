@@ -161,11 +161,6 @@ impl Cluster {
         Ok(Self { inner })
     }
 
-    /// The settings in force.
-    pub fn settings(&self) -> &Redis {
-        &self.inner.settings
-    }
-
     /// This replica's name, as its leases hold it.
     pub fn replica(&self) -> &str {
         &self.inner.replica
