@@ -86,7 +86,7 @@ mod tests {
             seq: 7,
             progress: None,
             stats: None,
-            problem: None,
+            failure: None,
             elapsed_ms: None,
             run: "a#0".into(),
         };

@@ -8,8 +8,8 @@ use super::sse;
 use crate::api::{JobRequest, JobStatus, JsonError, Links, SolveRequest};
 use crate::jobs::peers::KeptRequest;
 use crate::jobs::{
-    Client, Found, JobError, JobKeys, JobSpec, Lifetime, Limits, Outcome, Record, Snapshot, Status, Ticket,
-    Waiter, Wire, Work, job_keys,
+    Client, Found, JobError, JobKeys, JobSpec, Lifetime, Limits, Outcome, Record, RequestParser, Snapshot,
+    Status, Ticket, Waiter, Work, job_keys,
 };
 use crate::refine::StopReason;
 use crate::result::MeshResult;
@@ -127,19 +127,19 @@ async fn prepare(
     Ok((keys, spec, request))
 }
 
-/// Requests and problems between replicas: a kept request is read exactly as a client's.
-pub struct Replicas {
+/// Reads the requests other replicas kept exactly as a client's.
+pub struct KeptRequestParser {
     limits: Limits,
 }
 
-impl Replicas {
+impl KeptRequestParser {
     /// Reads requests against `limits`, this replica's.
     pub fn new(limits: Limits) -> Self {
         Self { limits }
     }
 }
 
-impl Wire for Replicas {
+impl RequestParser for KeptRequestParser {
     fn parse(&self, request: KeptRequest) -> BoxFuture<'static, Result<(JobKeys, JobSpec), String>> {
         let limits = self.limits;
         Box::pin(async move {
@@ -156,10 +156,6 @@ impl Wire for Replicas {
                 .map_err(|e| e.to_string())?
                 .map_err(|e| e.to_json().to_string())
         })
-    }
-
-    fn problem(&self, error: &JobError) -> serde_json::Value {
-        ApiError::from(error.clone()).to_json()
     }
 }
 

@@ -23,7 +23,7 @@ use axum::response::IntoResponse;
 use axum::response::Response;
 use axum::routing::{get, post};
 pub use extract::parse_json;
-pub use jobs::Replicas;
+pub use jobs::KeptRequestParser;
 use problem::ApiError;
 use std::sync::Arc;
 use std::time::{Duration, Instant};

@@ -1,11 +1,8 @@
 //! ApiError: every failure the API reports, written as RFC 9457 `application/problem+json`.
 
 use crate::api::{JsonError, pointer};
-use crate::geom::ConstrainedError;
-use crate::jobs::{JobError, SpecError, SubmitError};
+use crate::jobs::{Cause, Failure, JobError, SpecError, SubmitError};
 use crate::output::Format;
-use crate::refine::RefineError;
-use crate::solve::SolveError;
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use serde_json::{Map, Value, json};
@@ -46,10 +43,10 @@ pub enum ApiError {
     /// 408 `body-timeout`: the body stopped arriving for `MESHFIT_BODY_TIMEOUT_MS`, or came
     /// slower than the minimum rate.
     BodyTimeout,
-    /// 422 `non-finite-value`: F is NaN or infinite at a point the refinement needs.
-    NonFinite(RefineError),
-    /// 422 `invalid-problem`: k, f or g is invalid where the solver sampled it.
-    Unsolvable(SolveError),
+    /// A job's failure, on this replica or another: 422 `non-finite-value` (F is NaN or
+    /// infinite at a point the refinement needs), 422 `invalid-problem` (k, f or g is invalid
+    /// where the solver sampled it), or 500 `internal`.
+    Failed(Failure),
     /// 404 `not-found`.
     NotFound(String),
     /// 405 `method-not-allowed`.
@@ -81,8 +78,6 @@ pub enum ApiError {
     TooManyConnections,
     /// 500 `internal`: the detail is logged, never sent.
     Internal(String),
-    /// A job's failure on another replica: the problem document that replica wrote.
-    Relayed(Value),
     /// 503 `redis-unavailable`, with `Retry-After`: the job runs on another replica, or may,
     /// and Redis, through which replicas reach each other, does not answer.
     Unreachable,
@@ -110,22 +105,12 @@ impl From<SubmitError> for ApiError {
 impl From<JobError> for ApiError {
     fn from(e: JobError) -> Self {
         match e {
-            JobError::Refine(e) => ApiError::NonFinite(e),
-            JobError::Solve(e) => match e {
-                SolveError::InvalidK { .. }
-                | SolveError::NonFiniteF { .. }
-                | SolveError::NonFiniteG { .. }
-                | SolveError::Overflow { .. }
-                | SolveError::Regions(_)
-                | SolveError::Unmatched { .. } => ApiError::Unsolvable(e),
-                other => ApiError::Internal(other.to_string()),
-            },
-            JobError::Internal(detail) => ApiError::Internal(detail),
             JobError::Evicted => ApiError::NotFound(
                 "the job succeeded, but its mesh is no longer cached; submit the request again".into(),
             ),
-            JobError::Relayed(doc) => ApiError::Relayed(doc),
             JobError::HandedBack => ApiError::ShuttingDown,
+            // The same failure whichever replica ran the job.
+            e => ApiError::Failed(e.failure()),
         }
     }
 }
@@ -212,27 +197,20 @@ impl ApiError {
                 };
                 (unprocessable, slug, title, e.to_string())
             }
-            ApiError::NonFinite(e) => {
-                let RefineError::NonFinite { point, .. } = e;
-                ext.insert("point".into(), json!([point.x, point.y]));
-                (unprocessable, "non-finite-value", "F is not finite where the mesh needs it", e.to_string())
-            }
-            ApiError::Unsolvable(e) => {
-                let (field, x, y) = match *e {
-                    SolveError::InvalidK { x, y, .. } => ("k", x, y),
-                    SolveError::NonFiniteF { x, y, .. } => ("f", x, y),
-                    SolveError::NonFiniteG { x, y, .. } => ("g", x, y),
-                    SolveError::Overflow { x, y, .. } => ("f", x, y),
-                    SolveError::Regions(ConstrainedError::BadPoint { x, y }) => ("regions", x, y),
-                    SolveError::Regions(_) => ("regions", f64::NAN, f64::NAN),
-                    SolveError::Unmatched { x, y } => ("boundary", x, y),
-                    _ => ("", f64::NAN, f64::NAN),
-                };
-                ext.insert("field".into(), json!(pointer(field)));
-                if x.is_finite() && y.is_finite() {
-                    ext.insert("point".into(), json!([x, y]));
+            ApiError::Failed(f) if f.cause != Cause::Internal => {
+                if let Some(field) = &f.field {
+                    ext.insert("field".into(), json!(pointer(field)));
                 }
-                (unprocessable, "invalid-problem", "Boundary value problem is invalid", e.to_string())
+                if let Some(point) = f.point {
+                    ext.insert("point".into(), json!(point));
+                }
+                // (An internal failure is answered as one, below.)
+                let (slug, title) = if f.cause == Cause::NonFiniteValue {
+                    ("non-finite-value", "F is not finite where the mesh needs it")
+                } else {
+                    ("invalid-problem", "Boundary value problem is invalid")
+                };
+                (unprocessable, slug, title, f.message.clone())
             }
             ApiError::NotFound(d) => (StatusCode::NOT_FOUND, "not-found", "Not found", d.clone()),
             ApiError::MethodNotAllowed => (
@@ -308,8 +286,7 @@ impl ApiError {
                 "The job's replica cannot be reached",
                 "the job is not known here and may run on another replica, or runs on another replica, and Redis, through which replicas reach each other, does not answer now; retry shortly".into(),
             ),
-            // A relayed document is answered as it came (see `document`).
-            ApiError::Internal(_) | ApiError::Relayed(_) => (
+            ApiError::Internal(_) | ApiError::Failed(_) => (
                 StatusCode::INTERNAL_SERVER_ERROR,
                 "internal",
                 "Internal server error",
@@ -326,11 +303,6 @@ impl ApiError {
 
     /// The HTTP status and the problem document, from one pass over the variant.
     fn document(&self) -> (StatusCode, Value) {
-        if let ApiError::Relayed(doc) = self {
-            let status = doc.get("status").and_then(Value::as_u64).and_then(|s| u16::try_from(s).ok());
-            let status = status.and_then(|s| StatusCode::from_u16(s).ok());
-            return (status.unwrap_or(StatusCode::INTERNAL_SERVER_ERROR), doc.clone());
-        }
         let (status, slug, title, detail, ext) = self.parts();
         let mut doc = Map::new();
         doc.insert("type".into(), json!(format!("/problems/{slug}")));
@@ -344,7 +316,9 @@ impl ApiError {
 
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
-        if let ApiError::Internal(detail) = &self {
+        if let ApiError::Internal(detail)
+        | ApiError::Failed(Failure { cause: Cause::Internal, message: detail, .. }) = &self
+        {
             // Inside the request's span, so the log line carries its id.
             tracing::error!(%detail, "internal error");
         }
@@ -367,5 +341,55 @@ impl IntoResponse for ApiError {
             _ => {}
         }
         response
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::Point;
+    use crate::refine::RefineError;
+    use crate::solve::SolveError;
+
+    fn rendered(e: JobError) -> (StatusCode, Value) {
+        ApiError::from(e).document()
+    }
+
+    /// A job's failure reads the same to clients of the replica that ran it and of any other,
+    /// which gets it from the store.
+    #[test]
+    fn a_relayed_failure_is_answered_as_the_failure_itself() {
+        let errors = [
+            JobError::Refine(RefineError::NonFinite { point: Point::new(0.5, 0.25), value: f64::INFINITY }),
+            JobError::Solve(SolveError::InvalidK { x: 0.5, y: 1.0, value: -1.0, triangle: 7 }),
+            JobError::Solve(SolveError::NotPositiveDefinite { pivot: 3, unknowns: 10 }),
+            JobError::Internal("the refinement panicked".into()),
+        ];
+        for error in errors {
+            let stored = serde_json::to_vec(&error.failure()).unwrap();
+            let relayed = JobError::Relayed(serde_json::from_slice(&stored).unwrap());
+            assert_eq!(rendered(relayed), rendered(error));
+        }
+    }
+
+    #[test]
+    fn failures_on_the_input_name_where_and_internal_ones_say_nothing() {
+        let (status, doc) = rendered(JobError::Refine(RefineError::NonFinite {
+            point: Point::new(0.5, 0.25),
+            value: f64::NAN,
+        }));
+        assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY);
+        assert_eq!(
+            (&doc["type"], &doc["point"]),
+            (&json!("/problems/non-finite-value"), &json!([0.5, 0.25]))
+        );
+        assert!(doc.get("field").is_none());
+        let (status, doc) =
+            rendered(JobError::Solve(SolveError::NonFiniteG { x: 1.0, y: 0.0, value: f64::NAN, vertex: 2 }));
+        assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY);
+        assert_eq!((&doc["type"], &doc["field"]), (&json!("/problems/invalid-problem"), &json!("/g")));
+        let (status, doc) = rendered(JobError::Internal("secret detail".into()));
+        assert_eq!(status, StatusCode::INTERNAL_SERVER_ERROR);
+        assert!(!doc.to_string().contains("secret"), "{doc}");
     }
 }

@@ -60,7 +60,7 @@ pub(super) fn view(r: &Posting) -> Record {
         status: Status::parse(&r.status).unwrap_or(Status::Queued),
         progress: r.progress,
         stats: r.stats.clone(),
-        error: r.problem.clone().map(JobError::Relayed),
+        error: r.failure.clone().map(JobError::Relayed),
         elapsed: r.elapsed_ms.map(|ms| Duration::from_secs_f64(ms / 1e3)),
         last_event: r.seq,
     }
@@ -141,7 +141,7 @@ fn apply(job: &Job, r: &Posting) {
     });
 }
 
-/// The outcome of a finished job's posting: its result, or its problem; `None` while the
+/// The outcome of a finished job's posting: its result, or why it failed; `None` while the
 /// result cannot be looked for (the store away), to look again later.
 async fn outcome(inner: &Arc<Inner>, id: &str, r: &Posting) -> Option<Outcome> {
     Some(match Status::parse(&r.status) {
@@ -155,8 +155,8 @@ async fn outcome(inner: &Arc<Inner>, id: &str, r: &Posting) -> Option<Outcome> {
             }
         }
         Some(Status::Cancelled) => Outcome::Cancelled,
-        _ => Outcome::Failed(r.problem.clone().map_or_else(
-            || JobError::Internal(format!("job {id} failed on another replica without a problem")),
+        _ => Outcome::Failed(r.failure.clone().map_or_else(
+            || JobError::Internal(format!("job {id} failed on another replica, which did not say why")),
             JobError::Relayed,
         )),
     })
@@ -236,9 +236,13 @@ async fn keep_current(inner: Arc<Inner>, job: Arc<Job>, mut run: Option<String>)
                     let why = format!("job {} is run by no replica; submit it again", job.id);
                     let error = JobError::Internal(why);
                     // Ended for every replica, unless a run has taken the job meanwhile.
-                    let problem = Some(shared.wire.problem(&error));
-                    let posting =
-                        super::publish::ended(Status::Failed, None, problem, job.snapshot().seq, "");
+                    let posting = super::publish::ended(
+                        Status::Failed,
+                        None,
+                        Some(error.failure()),
+                        job.snapshot().seq,
+                        "",
+                    );
                     let _ = peers.post(&job.id, None, &posting).await;
                     job.finish(Outcome::Failed(error), None);
                     break;

@@ -65,9 +65,9 @@ pub enum JobError {
     /// again (any replica will follow it there).
     #[error("handed to another replica at shutdown")]
     HandedBack,
-    /// The job failed on another replica, which sent this problem document.
-    #[error("failed on another replica: {0}")]
-    Relayed(serde_json::Value),
+    /// The job failed on another replica, which stored why.
+    #[error("failed on another replica: {}", .0.message)]
+    Relayed(super::Failure),
 }
 
 /// How a job ended.

@@ -14,6 +14,7 @@
 //!   ([`SpecError`] names the field at fault), as a canonical [`JobSpec`] of a mesh or of a
 //!   boundary value problem, and its id;
 //! - `job`: a job's state, its outcome, and [`Record`], the one view clients get;
+//! - `failure`: why a job failed as data ([`Failure`]), the same whichever replica ran it;
 //! - `state`: the job table behind its lock (functions that need the lock take its guard),
 //!   the waiters, and what every part below shares;
 //! - `admit`: admission (shutdown, the queue's bound, each [`Client`]'s share from `share`,
@@ -35,6 +36,7 @@ mod budget;
 mod cache;
 mod checks;
 mod dispatch;
+mod failure;
 mod follow;
 mod job;
 mod key;
@@ -54,6 +56,7 @@ pub use budget::{
 };
 pub use cache::{Cache, CacheSettings, Hit};
 pub use checks::{DEFAULT_MAX_VERTICES, Limits, SpecError};
+pub use failure::{Cause, Failure};
 pub use job::{Job, JobError, Lifetime, Outcome, Record, Snapshot, Status};
 pub use key::{ENGINE_VERSION, JobKeys, job_id, job_keys};
 pub use registry::{Found, Jobs, Pool};
@@ -62,15 +65,13 @@ pub use solution::{Coef, SolveSpec};
 pub use spec::{JobSpec, MeshSpec, Work};
 pub use state::{SubmitError, Ticket, Waiter};
 
-/// How kept requests are read and problems written when replicas share: the server's own
-/// parsing of a request body and its problem documents, given to the registry by the caller.
-pub trait Wire: Send + Sync + 'static {
+/// How a request another replica kept is read when replicas share: the server's own parsing
+/// of a request body (its content types are the HTTP layer's), given to the registry by the
+/// caller.
+pub trait RequestParser: Send + Sync + 'static {
     /// Reads a request another replica kept, as if a client had just sent it here.
     fn parse(
         &self,
         request: peers::KeptRequest,
     ) -> futures_util::future::BoxFuture<'static, Result<(JobKeys, JobSpec), String>>;
-
-    /// The problem document of a job that failed, as clients get it.
-    fn problem(&self, error: &JobError) -> serde_json::Value;
 }

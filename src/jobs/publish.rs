@@ -3,6 +3,7 @@
 //! its lease and reads what followers ask of it, and at the end stores the result before the
 //! final posting, so that a replica that reads the posting can fetch the result.
 
+use super::Failure;
 use super::job::{Job, JobError, Outcome, Snapshot, Status};
 use super::peers::{Claim, Kept, KeptRequest, Peers, Posting, Take};
 use super::state::{Inner, Lease};
@@ -118,8 +119,7 @@ const DELIVER_FOR: Duration = Duration::from_secs(600);
 /// the store is away this is tried again at each sweep, so that a job that finished during an
 /// outage is known to every replica once the store is back.
 async fn finish(inner: &Arc<Inner>, peers: &dyn Peers, job: &Job, token: &str, snapshot: &Snapshot) {
-    let Some(shared) = &inner.shared else { return };
-    let (problem, result) = match snapshot.outcome.as_ref().expect("finished") {
+    let (failure, result) = match snapshot.outcome.as_ref().expect("finished") {
         Outcome::Failed(JobError::HandedBack) => {
             tracing::info!(job = %job.id, "handed back for another replica to take over");
             let _ = peers.release(&job.id, token).await;
@@ -128,10 +128,10 @@ async fn finish(inner: &Arc<Inner>, peers: &dyn Peers, job: &Job, token: &str, s
         // Renewed meanwhile: encoding and storing a large result can outlast a short lease,
         // and a follower would then take the job over and run it again.
         Outcome::Succeeded(result) => (None, renewing(peers, &job.id, token, encode(&job.id, result)).await),
-        Outcome::Failed(e) => (Some(shared.wire.problem(e)), None),
+        Outcome::Failed(e) => (Some(e.failure()), None),
         Outcome::Cancelled => (None, None),
     };
-    let posting = wire(snapshot, problem, token);
+    let posting = wire(snapshot, failure, token);
     let give_up = Instant::now() + DELIVER_FOR;
     while !renewing(peers, &job.id, token, deliver(peers, &job.id, token, result.as_ref(), &posting)).await {
         if inner.closed.load(Ordering::SeqCst) || Instant::now() >= give_up {
@@ -239,7 +239,7 @@ pub(super) async fn close(peers: &dyn Peers, id: &str, token: &str, posting: &Po
 pub(super) fn ended(
     status: Status,
     stats: Option<Summary>,
-    problem: Option<serde_json::Value>,
+    failure: Option<Failure>,
     seq: u64,
     token: &str,
 ) -> Posting {
@@ -248,14 +248,14 @@ pub(super) fn ended(
         seq: seq + 1,
         progress: None,
         stats,
-        problem,
+        failure,
         elapsed_ms: None,
         run: token.to_owned(),
     }
 }
 
 /// A snapshot as replicas exchange it.
-fn wire(s: &Snapshot, problem: Option<serde_json::Value>, token: &str) -> Posting {
+fn wire(s: &Snapshot, failure: Option<Failure>, token: &str) -> Posting {
     let stats = match &s.outcome {
         Some(Outcome::Succeeded(result)) => Some(result.stats.clone()),
         _ => None,
@@ -265,7 +265,7 @@ fn wire(s: &Snapshot, problem: Option<serde_json::Value>, token: &str) -> Postin
         seq: s.seq,
         progress: s.progress,
         stats,
-        problem,
+        failure,
         elapsed_ms: s.elapsed.map(|d| d.as_secs_f64() * 1e3),
         run: token.to_owned(),
     }

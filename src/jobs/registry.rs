@@ -7,7 +7,7 @@ use super::job::{Job, Lifetime, Record, Status};
 use super::peers::{self, Claim, Control, Kept, KeptRequest, Peers, Take};
 use super::share::{Client, Shares};
 use super::state::{Inner, Lease, Listing, Shared, Start, SubmitError, Table, Ticket, Waiter};
-use super::{Cache, JobKeys, JobSpec, Wire, follow, takeover};
+use super::{Cache, JobKeys, JobSpec, RequestParser, follow, takeover};
 use crate::metrics::Metrics;
 use crate::refine::trace::replay;
 use crate::result::MeshResult;
@@ -131,18 +131,18 @@ impl Jobs {
         }
     }
 
-    /// Shares results and jobs with the other replicas through `peers`; `wire` reads the
-    /// requests of jobs taken over and writes the problems of jobs that failed. Call it
+    /// Shares results and jobs with the other replicas through `peers`; `parser` reads the
+    /// requests of jobs taken over. Call it
     /// before the registry is cloned, from within the runtime.
     ///
     /// # Panics
     /// When the registry has been cloned.
     #[must_use]
-    pub fn shared(mut self, peers: Arc<dyn Peers>, wire: Arc<dyn Wire>) -> Self {
+    pub fn shared(mut self, peers: Arc<dyn Peers>, parser: Arc<dyn RequestParser>) -> Self {
         let inner = Arc::get_mut(&mut self.inner).expect("shared before the registry is cloned");
         let messages = peers.messages();
         let fetching = moka::sync::Cache::new(FETCHES_KEPT);
-        inner.shared = Some(Shared { peers, wire, fetching });
+        inner.shared = Some(Shared { peers, parser, fetching });
         tokio::spawn(follow::dispatch(Arc::downgrade(&self.inner), messages));
         tokio::spawn(takeover::sweep(Arc::downgrade(&self.inner)));
         self

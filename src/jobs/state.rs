@@ -7,7 +7,7 @@ use super::dispatch::Dispatch;
 use super::job::{Job, JobError, Lifetime, Record, Status};
 use super::peers::{KeptRequest, Peers};
 use super::share::Shares;
-use super::{Cache, Wire};
+use super::{Cache, RequestParser};
 use crate::metrics::Metrics;
 use crate::result::MeshResult;
 use std::collections::{HashMap, VecDeque};
@@ -115,11 +115,10 @@ pub(super) struct Inner {
     pub(super) publishing: AtomicUsize,
 }
 
-/// What a replica needs to share: the store, and the HTTP layer's reading of requests and
-/// writing of problems.
+/// What a replica needs to share: the store, and the HTTP layer's reading of requests.
 pub(super) struct Shared {
     pub(super) peers: Arc<dyn Peers>,
-    pub(super) wire: Arc<dyn Wire>,
+    pub(super) parser: Arc<dyn RequestParser>,
     /// A turn per result being read from the store (see `follow::fetch`).
     pub(super) fetching: moka::sync::Cache<String, Arc<tokio::sync::Mutex<()>>>,
 }

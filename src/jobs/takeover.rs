@@ -3,7 +3,7 @@
 //! runs it again from its kept request. Results are deterministic, so the clients following
 //! it get the same bytes the dead replica would have stored.
 
-use super::JobError;
+use super::Failure;
 use super::follow::{self, Fetched};
 use super::job::{Lifetime, Status};
 use super::peers::{Claim, Kept, Peers, Take};
@@ -101,7 +101,7 @@ async fn take_over(inner: &Arc<Inner>, peers: &dyn Peers, id: &str, token: Strin
         }
     }
     let parsed = match peers.request(id).await {
-        Ok(Some(request)) => shared.wire.parse(request).await,
+        Ok(Some(request)) => shared.parser.parse(request).await,
         Ok(None) => Err("its request is no longer kept".to_owned()),
         Err(_) => {
             let _ = peers.release(id, &token).await;
@@ -114,12 +114,12 @@ async fn take_over(inner: &Arc<Inner>, peers: &dyn Peers, id: &str, token: Strin
             // Replicas with other limits, say: tell the followers rather than leave them waiting.
             let why = outcome.err().unwrap_or_else(|| "its request gives another id here".into());
             tracing::warn!(job = id, %why, "cannot take the job over");
-            let problem = shared.wire.problem(&JobError::Internal(format!("could not be taken over: {why}")));
+            let failure = Failure::internal(format!("could not be taken over: {why}"));
             publish::close(
                 peers,
                 id,
                 &token,
-                &publish::ended(Status::Failed, None, Some(problem), seq, &token),
+                &publish::ended(Status::Failed, None, Some(failure), seq, &token),
             )
             .await;
             return Taken::Done;

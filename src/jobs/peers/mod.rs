@@ -33,8 +33,8 @@ pub struct Posting {
     pub progress: Option<ProgressEvent>,
     /// The stats, once succeeded.
     pub stats: Option<Summary>,
-    /// The problem document, once failed.
-    pub problem: Option<serde_json::Value>,
+    /// Why it failed, once failed.
+    pub failure: Option<super::Failure>,
     /// How long the engine ran, once finished.
     pub elapsed_ms: Option<f64>,
     /// The token of the run that posted it (see [`Peers::token`]).

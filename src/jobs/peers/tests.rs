@@ -8,8 +8,8 @@ use super::{KeptRequest, Peers};
 use crate::api::JobRequest;
 use crate::jobs::dispatch::Worker;
 use crate::jobs::{
-    Cache, Client, JobError, JobKeys, JobSpec, Jobs, Lifetime, Limits, Outcome, Pool, Ticket, Waiter, Wire,
-    job_keys,
+    Cache, Client, JobError, JobKeys, JobSpec, Jobs, Lifetime, Limits, Outcome, Pool, RequestParser, Ticket,
+    Waiter, job_keys,
 };
 use crate::metrics::Metrics;
 use crate::result::{MeshResult, compact};
@@ -48,16 +48,12 @@ fn id_of(body: &str) -> String {
     parsed(body.as_bytes()).unwrap().0.id
 }
 
-/// Reads kept requests as JSON mesh requests, and writes problems as their message.
+/// Reads kept requests as JSON mesh requests.
 struct Json;
 
-impl Wire for Json {
+impl RequestParser for Json {
     fn parse(&self, request: KeptRequest) -> BoxFuture<'static, Result<(JobKeys, JobSpec), String>> {
         Box::pin(async move { parsed(&request.body) })
-    }
-
-    fn problem(&self, error: &JobError) -> serde_json::Value {
-        serde_json::json!({ "detail": error.to_string() })
     }
 }
 
@@ -214,10 +210,32 @@ async fn a_follower_ends_a_job_that_no_replica_runs_or_can_take_over() {
     a.peers.cut(true);
     let Outcome::Failed(JobError::Internal(why)) = on_b.job().outcome().await else { panic!("not failed") };
     assert!(why.contains("run by no replica"), "{why}");
-    // Ended for every replica, with the problem written by the jobs' own wire.
+    // Ended for every replica, saying why.
     let last = bus.posting_of(&id_of(BODY)).unwrap();
     assert_eq!(last.status, "failed");
-    assert_eq!(last.problem.unwrap()["detail"].as_str().unwrap(), JobError::Internal(why).to_string());
+    assert_eq!(last.failure, Some(JobError::Internal(why).failure()));
+    assert_eq!(b.engine_runs(), 0);
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_failure_on_the_input_reads_the_same_on_the_replica_that_follows() {
+    const POLE: &str = r#"{"function": "1/(x-0.5)", "max_vertices": 100}"#;
+    let (bus, a, b) = pair(LEASE, 1 << 20);
+    let held = a.jobs.hold_worker().await;
+    let on_a = a.wait_on(POLE, Lifetime::WhileWaited).await;
+    let on_b = b.wait_on(POLE, Lifetime::WhileWaited).await;
+    assert!(on_b.job().follows);
+    drop(held);
+    let Outcome::Failed(here @ JobError::Refine(_)) = on_a.job().outcome().await else {
+        panic!("not failed")
+    };
+    let Outcome::Failed(there @ JobError::Relayed(_)) = on_b.job().outcome().await else {
+        panic!("not relayed")
+    };
+    // The store holds the engine's failure, not a rendering of it: field, point and message
+    // reach b as a's clients see them.
+    assert_eq!(there.failure(), here.failure());
+    assert_eq!(bus.posting_of(&id_of(POLE)).unwrap().failure, Some(here.failure()));
     assert_eq!(b.engine_runs(), 0);
 }
 
