@@ -575,7 +575,7 @@ pub const SETTINGS: &[Setting] = &[
         flag: Some("redis-ttl-ms"),
         value_name: "MS",
         default: Fallback::Value("86400000"),
-        help: "how long Redis keeps results, job records and requests",
+        help: "how long Redis keeps results, job postings and requests",
         parse: |v, c| millis(v, 1).map(|d| c.redis.ttl = d),
     },
     Setting {

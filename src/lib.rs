@@ -26,8 +26,9 @@
 //!   from a result; shared by the command line and the API.
 //! - [`jobs`]: validated, hashed job specs, the job record, the table, admission (the
 //!   bounded worker pool, each client's share of it, the memory budget), the worker, the cache
-//!   of results, and [`jobs::peers`], the one trait through which jobs talk to other
-//!   replicas. The only bridge between async code and the engine.
+//!   of results, why a job failed as data ([`jobs::Failure`]), and [`jobs::peers`], the one
+//!   trait through which jobs talk to other replicas (a replica on its own implements it with
+//!   no store). The only bridge between async code and the engine.
 //! - [`cluster`]: Redis, for replicas that share results and jobs: implements
 //!   [`jobs::peers::Peers`] in keys, scripts and channels. `jobs` decides what to do with
 //!   them, and knows nothing of Redis.

@@ -81,7 +81,7 @@ mod tests {
 
     #[test]
     fn messages_read_back_as_sent_and_anything_else_is_ignored() {
-        let record = Posting {
+        let posting = Posting {
             status: "running".into(),
             seq: 7,
             progress: None,
@@ -90,9 +90,9 @@ mod tests {
             elapsed_ms: None,
             run: "a#0".into(),
         };
-        let json = serde_json::to_string(&record).unwrap();
+        let json = serde_json::to_string(&posting).unwrap();
         let Some(Message::Posted(id, got)) = parse(EVENTS, &event("abc", &json)) else { panic!() };
-        assert_eq!((id.as_str(), *got), ("abc", record));
+        assert_eq!((id.as_str(), *got), ("abc", posting));
         for what in [Control::Cancel, Control::Detach] {
             let Some(Message::Control(id, got)) = parse(CONTROL, &control("abc", what)) else { panic!() };
             assert_eq!((id.as_str(), got), ("abc", what));

@@ -209,6 +209,10 @@ impl Peers for Cluster {
         token.strip_prefix(&self.inner.replica).is_some_and(|rest| rest.starts_with('#'))
     }
 
+    fn is_shared(&self) -> bool {
+        true
+    }
+
     fn is_up(&self) -> bool {
         self.inner.up.load(Ordering::Relaxed)
     }

@@ -2,7 +2,6 @@
 //! the server renders for every client, whichever replica it asks. One shape on both paths,
 //! so a failure reads the same everywhere.
 
-use super::JobError;
 use crate::geom::ConstrainedError;
 use crate::refine::RefineError;
 use crate::solve::SolveError;
@@ -39,40 +38,35 @@ impl Failure {
         Self { cause: Cause::Internal, message: message.into(), field: None, point: None }
     }
 
+    /// A failure on the input, at (x, y) if that is a point.
     fn input(cause: Cause, message: String, field: Option<&str>, x: f64, y: f64) -> Self {
         let point = (x.is_finite() && y.is_finite()).then_some([x, y]);
         Self { cause, message, field: field.map(str::to_owned), point }
     }
 }
 
-impl JobError {
-    /// The failure as clients are told it. [`JobError::Evicted`] and
-    /// [`JobError::HandedBack`] are not failures of a run (the server answers them in its own
-    /// terms); they read as internal.
-    pub fn failure(&self) -> Failure {
-        match self {
-            JobError::Refine(e @ RefineError::NonFinite { point, .. }) => {
-                Failure::input(Cause::NonFiniteValue, e.to_string(), None, point.x, point.y)
-            }
-            JobError::Solve(e) => {
-                let (field, x, y) = match *e {
-                    SolveError::InvalidK { x, y, .. } => ("k", x, y),
-                    SolveError::NonFiniteF { x, y, .. } | SolveError::Overflow { x, y, .. } => ("f", x, y),
-                    SolveError::NonFiniteG { x, y, .. } => ("g", x, y),
-                    SolveError::Regions(ConstrainedError::BadPoint { x, y }) => ("regions", x, y),
-                    SolveError::Regions(_) => ("regions", f64::NAN, f64::NAN),
-                    SolveError::Unmatched { x, y } => ("boundary", x, y),
-                    // A mesh the server made that the solver cannot use: the server's fault.
-                    SolveError::DegenerateTriangle { .. }
-                    | SolveError::NotPositiveDefinite { .. }
-                    | SolveError::Factorisation(_) => return Failure::internal(e.to_string()),
-                };
-                Failure::input(Cause::InvalidProblem, e.to_string(), Some(field), x, y)
-            }
-            JobError::Internal(message) => Failure::internal(message.clone()),
-            JobError::Evicted | JobError::HandedBack => Failure::internal(self.to_string()),
-            JobError::Relayed(failure) => failure.clone(),
-        }
+impl From<&RefineError> for Failure {
+    fn from(e: &RefineError) -> Self {
+        let RefineError::NonFinite { point, .. } = e;
+        Failure::input(Cause::NonFiniteValue, e.to_string(), None, point.x, point.y)
+    }
+}
+
+impl From<&SolveError> for Failure {
+    fn from(e: &SolveError) -> Self {
+        let (field, x, y) = match *e {
+            SolveError::InvalidK { x, y, .. } => ("k", x, y),
+            SolveError::NonFiniteF { x, y, .. } | SolveError::Overflow { x, y, .. } => ("f", x, y),
+            SolveError::NonFiniteG { x, y, .. } => ("g", x, y),
+            SolveError::Regions(ConstrainedError::BadPoint { x, y }) => ("regions", x, y),
+            SolveError::Regions(_) => ("regions", f64::NAN, f64::NAN),
+            SolveError::Unmatched { x, y } => ("boundary", x, y),
+            // A mesh the server made that the solver cannot use: the server's fault.
+            SolveError::DegenerateTriangle { .. }
+            | SolveError::NotPositiveDefinite { .. }
+            | SolveError::Factorisation(_) => return Failure::internal(e.to_string()),
+        };
+        Failure::input(Cause::InvalidProblem, e.to_string(), Some(field), x, y)
     }
 }
 
@@ -85,35 +79,32 @@ mod tests {
     /// (they travel in the message; the point is dropped rather than written as null).
     #[test]
     fn failures_read_back_as_written() {
-        let errors = [
-            JobError::Refine(RefineError::NonFinite { point: Point::new(0.5, 1.0), value: f64::NAN }),
-            JobError::Solve(SolveError::InvalidK { x: 0.25, y: 0.75, value: f64::NEG_INFINITY, triangle: 3 }),
-            JobError::Solve(SolveError::Regions(ConstrainedError::Budget { budget: 10 })),
-            JobError::Solve(SolveError::Unmatched { x: 0.0, y: f64::NAN }),
-            JobError::Solve(SolveError::NotPositiveDefinite { pivot: 2, unknowns: 9 }),
-            JobError::Internal("the refinement panicked".into()),
+        let failures = [
+            Failure::from(&RefineError::NonFinite { point: Point::new(0.5, 1.0), value: f64::NAN }),
+            Failure::from(&SolveError::InvalidK { x: 0.25, y: 0.75, value: f64::NEG_INFINITY, triangle: 3 }),
+            Failure::from(&SolveError::Regions(ConstrainedError::Budget { budget: 10 })),
+            Failure::from(&SolveError::Unmatched { x: 0.0, y: f64::NAN }),
+            Failure::from(&SolveError::NotPositiveDefinite { pivot: 2, unknowns: 9 }),
+            Failure::internal("the refinement panicked"),
         ];
-        for error in errors {
-            let failure = error.failure();
+        for failure in failures {
             let stored = serde_json::to_string(&failure).unwrap();
             let read: Failure = serde_json::from_str(&stored).unwrap();
             assert_eq!(read, failure, "{stored}");
-            assert_eq!(JobError::Relayed(read).failure(), failure);
         }
     }
 
     #[test]
     fn the_field_and_point_name_where_the_input_is_wrong() {
-        let e = JobError::Solve(SolveError::NonFiniteG { x: 1.0, y: 0.0, value: f64::INFINITY, vertex: 4 });
-        let f = e.failure();
+        let f = Failure::from(&SolveError::NonFiniteG { x: 1.0, y: 0.0, value: f64::INFINITY, vertex: 4 });
         assert_eq!(
             (f.cause, f.field.as_deref(), f.point),
             (Cause::InvalidProblem, Some("g"), Some([1.0, 0.0]))
         );
         assert!(f.message.contains("inf"), "{}", f.message);
-        let f = JobError::Solve(SolveError::Regions(ConstrainedError::Invalid("x".into()))).failure();
+        let f = Failure::from(&SolveError::Regions(ConstrainedError::Invalid("x".into())));
         assert_eq!((f.field.as_deref(), f.point), (Some("regions"), None));
-        let f = JobError::Solve(SolveError::DegenerateTriangle { triangle: 1, area: -1.0 }).failure();
+        let f = Failure::from(&SolveError::DegenerateTriangle { triangle: 1, area: -1.0 });
         assert_eq!(f.cause, Cause::Internal);
     }
 }

@@ -90,8 +90,7 @@ impl Fetched {
 /// now on. One look per id at a time: the clients of a result just made elsewhere arrive
 /// together, and each copy of a large mesh is megabytes.
 pub(super) async fn fetch(inner: &Arc<Inner>, id: &str, kept: Kept) -> Fetched {
-    let Some(shared) = inner.shared.as_ref() else { return Fetched::Unreachable };
-    let turn = shared.fetching.get_with_by_ref(id, Default::default);
+    let turn = inner.fetching.get_with_by_ref(id, Default::default);
     let _turn = turn.lock().await;
     let here = match kept {
         Kept::Whole => inner.cache.get_memory(id),
@@ -100,7 +99,7 @@ pub(super) async fn fetch(inner: &Arc<Inner>, id: &str, kept: Kept) -> Fetched {
     if let Some(result) = here {
         return Fetched::Found(result);
     }
-    let bytes = match shared.peers.result(id, kept).await {
+    let bytes = match inner.peers.result(id, kept).await {
         Ok(Some(bytes)) => bytes,
         Ok(None) => return Fetched::Missing,
         Err(_) => return Fetched::Unreachable,
@@ -214,8 +213,7 @@ async fn look(inner: &Arc<Inner>, peers: &dyn Peers, job: &Job, run: &mut Option
 /// Keeps mirror `job` current until it finishes, then files it like a job run here; or,
 /// once nobody has waited on it for two looks, drops it.
 async fn keep_current(inner: Arc<Inner>, job: Arc<Job>, mut run: Option<String>) {
-    let Some(shared) = &inner.shared else { return };
-    let peers = &*shared.peers;
+    let peers = &*inner.peers;
     let every = peers.sweep_every();
     let (mut told, mut idle, mut lost) = (None, 0, 0);
     loop {

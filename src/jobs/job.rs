@@ -1,5 +1,6 @@
 //! The job record: a job's status, progress and outcome, and the one view of them clients get.
 
+use super::Failure;
 use crate::api::ProgressEvent;
 use crate::geom::Vertex;
 use crate::refine::RefineError;
@@ -67,7 +68,22 @@ pub enum JobError {
     HandedBack,
     /// The job failed on another replica, which stored why.
     #[error("failed on another replica: {}", .0.message)]
-    Relayed(super::Failure),
+    Relayed(Failure),
+}
+
+impl JobError {
+    /// The failure as clients are told it, whichever replica they ask. [`JobError::Evicted`]
+    /// and [`JobError::HandedBack`] are not failures of a run (the server answers them in its
+    /// own terms); they read as internal.
+    pub fn failure(&self) -> Failure {
+        match self {
+            JobError::Refine(e) => e.into(),
+            JobError::Solve(e) => e.into(),
+            JobError::Internal(message) => Failure::internal(message.clone()),
+            JobError::Evicted | JobError::HandedBack => Failure::internal(self.to_string()),
+            JobError::Relayed(failure) => failure.clone(),
+        }
+    }
 }
 
 /// How a job ended.

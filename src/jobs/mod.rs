@@ -13,8 +13,8 @@
 //! - `checks`, `spec`, `solution`, `key`: a request checked against the server's [`Limits`]
 //!   ([`SpecError`] names the field at fault), as a canonical [`JobSpec`] of a mesh or of a
 //!   boundary value problem, and its id;
-//! - `job`: a job's state, its outcome, and [`Record`], the one view clients get;
 //! - `failure`: why a job failed as data ([`Failure`]), the same whichever replica ran it;
+//! - `job`: a job's state, its outcome, and [`Record`], the one view clients get;
 //! - `state`: the job table behind its lock (functions that need the lock take its guard),
 //!   the waiters, and what every part below shares;
 //! - `admit`: admission (shutdown, the queue's bound, each [`Client`]'s share from `share`,
@@ -26,7 +26,9 @@
 //! - `registry`: [`Jobs`], the one public face: submit, find, watch, cancel, shut down.
 //! - [`peers`]: the store replicas share, as the one trait [`Peers`](peers::Peers) that jobs
 //!   talk to other replicas through, with its wire types (postings, kept requests, controls);
-//!   [`crate::cluster`] implements it over Redis, and the tests in memory;
+//!   [`crate::cluster`] implements it over Redis, `peers::alone` for a replica on its own
+//!   (no store: every operation finds none, and the replica acts alone, as it does while a
+//!   store is away), and the tests in memory;
 //! - `publish`, `follow`, `takeover`: the replica protocol over that trait: the replica
 //!   holding a job's lease publishes it, the others follow it, and a job whose replica died is
 //!   run again by the first replica to take its expired lease.

@@ -19,8 +19,7 @@ const PUBLISH_EVERY: Duration = Duration::from_millis(100);
 
 /// Publishes job `job` for run `lease` until it finishes.
 pub(super) async fn run(inner: &Arc<Inner>, job: Arc<Job>, lease: Lease, request: Option<KeptRequest>) {
-    let Some(shared) = &inner.shared else { return };
-    let (peers, token) = (&*shared.peers, lease.token.as_str());
+    let (peers, token) = (&*inner.peers, lease.token.as_str());
     let mut rx = job.subscribe();
     // The first posting first: the submission's client waits for it, and a large request
     // would keep it waiting.

@@ -4,9 +4,9 @@ use super::budget::Budget;
 use super::dispatch::Dispatch;
 use super::follow::Fetched;
 use super::job::{Job, Lifetime, Record, Status};
-use super::peers::{self, Claim, Control, Kept, KeptRequest, Peers, Take};
+use super::peers::{self, Alone, Claim, Control, Kept, KeptRequest, Peers, Take};
 use super::share::{Client, Shares};
-use super::state::{Inner, Lease, Listing, Shared, Start, SubmitError, Table, Ticket, Waiter};
+use super::state::{Inner, Lease, Listing, Start, SubmitError, Table, Ticket, Waiter};
 use super::{Cache, JobKeys, JobSpec, RequestParser, follow, takeover};
 use crate::metrics::Metrics;
 use crate::refine::trace::replay;
@@ -95,7 +95,10 @@ impl LeaseGuard {
 
 impl Drop for LeaseGuard {
     fn drop(&mut self) {
-        if let (Some(token), Ok(runtime)) = (self.token.take(), tokio::runtime::Handle::try_current()) {
+        // (A replica alone holds no lease to give back.)
+        if let (Some(token), Ok(runtime), true) =
+            (self.token.take(), tokio::runtime::Handle::try_current(), self.peers.is_shared())
+        {
             let (peers, id) = (self.peers.clone(), std::mem::take(&mut self.id));
             runtime.spawn(async move { peers.release(&id, &token).await });
         }
@@ -104,7 +107,7 @@ impl Drop for LeaseGuard {
 
 impl Jobs {
     /// A registry of the workers, queue, shares and memory budget of `pool`, in front of
-    /// `cache`.
+    /// `cache`, on its own until [`shared`](Self::shared).
     pub fn new(pool: &Pool, cache: Cache, metrics: Arc<Metrics>) -> Self {
         let Pool { workers, queue, client_share, memory_bytes } = *pool;
         let workers = workers.get();
@@ -125,7 +128,8 @@ impl Jobs {
                 shares,
                 budget,
                 mean_run: AtomicU64::new(1f64.to_bits()),
-                shared: None,
+                peers: Arc::new(Alone::new()),
+                fetching: moka::sync::Cache::new(FETCHES_KEPT),
                 publishing: AtomicUsize::new(0),
             }),
         }
@@ -141,16 +145,16 @@ impl Jobs {
     pub fn shared(mut self, peers: Arc<dyn Peers>, parser: Arc<dyn RequestParser>) -> Self {
         let inner = Arc::get_mut(&mut self.inner).expect("shared before the registry is cloned");
         let messages = peers.messages();
-        let fetching = moka::sync::Cache::new(FETCHES_KEPT);
-        inner.shared = Some(Shared { peers, parser, fetching });
+        inner.peers = peers;
         tokio::spawn(follow::dispatch(Arc::downgrade(&self.inner), messages));
-        tokio::spawn(takeover::sweep(Arc::downgrade(&self.inner)));
+        tokio::spawn(takeover::sweep(Arc::downgrade(&self.inner), parser));
         self
     }
 
     /// Whether replicas share through the store, and if so whether the store answered last.
     pub fn redis(&self) -> Option<bool> {
-        self.inner.shared.as_ref().map(|s| s.peers.is_up())
+        let peers = &self.inner.peers;
+        peers.is_shared().then(|| peers.is_up())
     }
 
     /// The metrics the registry updates.
@@ -228,16 +232,11 @@ impl Jobs {
         if let Some(ticket) = inner.join(&id, lifetime) {
             return Ok(ticket);
         }
-        let Some(shared) = &inner.shared else {
-            let start = Start { id, family, seq: 0, lease: None, request: None };
-            return inner.start(start, spec, lifetime, client).map(|(ticket, _)| ticket);
-        };
-        let peers = &*shared.peers;
+        let peers = &*inner.peers;
         // One replica runs a job: the one whose run takes its lease. Guarded from before the
         // first try: a client hanging up while the lease is being taken leaves none behind.
         let token = peers.token();
-        let mut guard =
-            LeaseGuard { peers: shared.peers.clone(), id: id.clone(), token: Some(token.clone()) };
+        let mut guard = LeaseGuard { peers: inner.peers.clone(), id: id.clone(), token: Some(token.clone()) };
         // An ended run lets go of its lease within a lease, even if its release was lost.
         let patience = (peers.lease() + Duration::from_secs(1)).as_millis() / OWN_RUN_WAIT.as_millis();
         let mut waits: u128 = 0;
@@ -245,7 +244,7 @@ impl Jobs {
             let held = match peers.acquire(&id, &token, Take::Fresh).await {
                 Ok(Claim::Won) => break true,
                 Ok(Claim::Held(holder)) => holder,
-                // The store is away: run it here, unshared.
+                // The store is away, or there is none: run it here, unshared.
                 Err(_) => break false,
             };
             waits += 1;
@@ -298,16 +297,14 @@ impl Jobs {
         };
         match &found {
             // A job that failed or was cancelled here may have run again elsewhere since.
-            Some(Found::Done(record))
-                if record.status != Status::Succeeded && self.inner.shared.is_some() => {}
+            Some(Found::Done(record)) if record.status != Status::Succeeded => {}
             Some(_) => return found,
             None => {}
         }
         if let Some(result) = self.cached(id).await {
             return Some(Found::Cached(result));
         }
-        let Some(shared) = &self.inner.shared else { return found };
-        let peers = &*shared.peers;
+        let peers = &*self.inner.peers;
         let posting = match peers.posting(id).await.ok().flatten() {
             Some(posting) => posting,
             // A job whose run has taken its lease and not yet posted.
@@ -329,19 +326,20 @@ impl Jobs {
     /// Registers a client waiting on job `id` while it runs (server-sent events), here or,
     /// when replicas share, on another replica.
     pub async fn watch(&self, id: &str) -> Option<Waiter> {
-        let shared = {
+        {
             let table = self.inner.lock();
-            match (table.jobs.get(id), &self.inner.shared) {
-                (Some(Listing::Live(job)), _) => {
+            match table.jobs.get(id) {
+                Some(Listing::Live(job)) => {
                     return Some(self.inner.attach(&table, job, Lifetime::WhileWaited));
                 }
-                // A job that failed or was cancelled here may run again elsewhere.
-                (Some(Listing::Done(r)), Some(shared)) if r.status != Status::Succeeded => shared,
-                (None, Some(shared)) => shared,
-                _ => return None,
+                Some(Listing::Done(r)) if r.status == Status::Succeeded => return None,
+                // A job that failed or was cancelled here may run again elsewhere, and one
+                // unknown here may run on another replica.
+                _ => {}
             }
-        };
-        let (holder, record) = (shared.peers.holder(id).await.ok()?, shared.peers.posting(id).await.ok()?);
+        }
+        let peers = &*self.inner.peers;
+        let (holder, record) = (peers.holder(id).await.ok()?, peers.posting(id).await.ok()?);
         let running = match (&holder, &record) {
             // A run holds the lease and has not stored its end.
             (Some(h), record) => record.as_ref().is_none_or(|r| !(r.run == *h && r.is_final())),
@@ -357,13 +355,11 @@ impl Jobs {
     /// # Errors
     /// When another replica runs it and the store cannot be reached to tell it.
     pub async fn cancel(&self, job: &Job) -> Result<(), peers::Unavailable> {
-        match (&self.inner.shared, job.follows) {
-            (Some(shared), true) => shared.peers.control(&job.id, Control::Cancel).await,
-            _ => {
-                job.cancel();
-                Ok(())
-            }
+        if job.follows {
+            return self.inner.peers.control(&job.id, Control::Cancel).await;
         }
+        job.cancel();
+        Ok(())
     }
 
     /// The result of `spec` replayed from the furthest cached run of its family, stored under
@@ -518,6 +514,24 @@ mod tests {
             matches!(submit(&jobs, request(body), Lifetime::WhileWaited).await, Ticket::Cached(_)),
             "then cached"
         );
+    }
+
+    #[tokio::test]
+    async fn a_replica_alone_shares_nothing_and_cancels_rather_than_hands_back_at_shutdown() {
+        let jobs = jobs(1, 4);
+        assert_eq!(jobs.redis(), None, "no store to report on");
+        let held = jobs.hold_worker().await;
+        let body = serde_json::json!({"function": "x*y", "max_vertices": 500});
+        let job = waiter(submit(&jobs, request(body.clone()), Lifetime::Detached).await).job().clone();
+        assert!(!job.follows);
+        // Nothing is published, so shutdown waits on the job alone.
+        assert_eq!(jobs.inner.publishing.load(Ordering::SeqCst), 0);
+        assert!(jobs.find(&job.id).await.is_some_and(|f| matches!(f, Found::Job(_))));
+        jobs.cancel_all();
+        drop(held);
+        // No other replica could take it over: cancelled, not handed back.
+        assert_eq!(job.outcome().await, Outcome::Cancelled);
+        assert!(jobs.watch(&job.id).await.is_none(), "nothing to follow elsewhere");
     }
 
     #[tokio::test]

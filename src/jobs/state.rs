@@ -1,13 +1,13 @@
 //! The job table and what every part of the registry shares: the table's lock, the queue's
-//! count, the cache, the families, the store when replicas share, and the helpers that read
+//! count, the cache, the families, the other replicas, and the helpers that read
 //! or change the table under its lock.
 
+use super::Cache;
 use super::budget::Budget;
 use super::dispatch::Dispatch;
 use super::job::{Job, JobError, Lifetime, Record, Status};
 use super::peers::{KeptRequest, Peers};
 use super::share::Shares;
-use super::{Cache, RequestParser};
 use crate::metrics::Metrics;
 use crate::result::MeshResult;
 use std::collections::{HashMap, VecDeque};
@@ -108,19 +108,14 @@ pub(super) struct Inner {
     /// The mean time a job ran, in seconds (f64 bits; a moving average): the basis of every
     /// `Retry-After`.
     pub(super) mean_run: AtomicU64,
-    /// The store, when replicas share results and jobs.
-    pub(super) shared: Option<Shared>,
+    /// The other replicas: [`Alone`](super::peers::Alone) until the registry is
+    /// [`shared`](super::Jobs::shared).
+    pub(super) peers: Arc<dyn Peers>,
+    /// A turn per result being read from the store (see `follow::fetch`).
+    pub(super) fetching: moka::sync::Cache<String, Arc<tokio::sync::Mutex<()>>>,
     /// Jobs whose state is still being told to the store: shutdown waits for them too, so that a
     /// job handed back gives up its lease before the process ends.
     pub(super) publishing: AtomicUsize,
-}
-
-/// What a replica needs to share: the store, and the HTTP layer's reading of requests.
-pub(super) struct Shared {
-    pub(super) peers: Arc<dyn Peers>,
-    pub(super) parser: Arc<dyn RequestParser>,
-    /// A turn per result being read from the store (see `follow::fetch`).
-    pub(super) fetching: moka::sync::Cache<String, Arc<tokio::sync::Mutex<()>>>,
 }
 
 /// A new job's id, family and place among the replicas.

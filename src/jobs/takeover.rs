@@ -3,35 +3,35 @@
 //! runs it again from its kept request. Results are deterministic, so the clients following
 //! it get the same bytes the dead replica would have stored.
 
-use super::Failure;
 use super::follow::{self, Fetched};
 use super::job::{Lifetime, Status};
-use super::peers::{Claim, Kept, Peers, Take};
+use super::peers::{Claim, Kept, Take};
 use super::publish;
 use super::share::Client;
 use super::state::{Inner, Lease, Start};
+use super::{Failure, RequestParser};
 use std::sync::{Arc, Weak};
 
 /// Looks for orphaned jobs until the registry is gone or closed. Also pings the store first, so
 /// that `/readyz` and `/metrics` say whether it answers even when no request needs it.
-pub(super) async fn sweep(inner: Weak<Inner>) {
+pub(super) async fn sweep(inner: Weak<Inner>, parser: Arc<dyn RequestParser>) {
     loop {
         // Held only while sweeping: the registry may go between sweeps.
         let every = {
             let Some(inner) = inner.upgrade() else { return };
-            let Some(shared) = &inner.shared else { return };
             if inner.closed.load(std::sync::atomic::Ordering::SeqCst) {
                 return;
             }
-            sweep_once(&inner, &*shared.peers).await;
-            shared.peers.sweep_every()
+            sweep_once(&inner, &*parser).await;
+            inner.peers.sweep_every()
         };
         tokio::time::sleep(every).await;
     }
 }
 
 /// One look at the pending jobs, after a ping.
-async fn sweep_once(inner: &Arc<Inner>, peers: &dyn Peers) {
+async fn sweep_once(inner: &Arc<Inner>, parser: &dyn RequestParser) {
+    let peers = &*inner.peers;
     if peers.ping().await.is_err() {
         return;
     }
@@ -46,7 +46,7 @@ async fn sweep_once(inner: &Arc<Inner>, peers: &dyn Peers) {
         }
         let token = peers.token();
         if let Ok(Claim::Won) = peers.acquire(&id, &token, Take::Over).await
-            && take_over(inner, peers, &id, token).await == Taken::Refused
+            && take_over(inner, parser, &id, token).await == Taken::Refused
         {
             // Full here: the other jobs would be fetched, parsed and refused too. Another
             // replica, or this one at a later sweep, takes them.
@@ -67,8 +67,8 @@ enum Taken {
 /// Ends or runs again job `id`, whose lease run `token` has just taken: ends it if it finished
 /// after all (its replica died between storing the result and the final posting) or cannot be
 /// run here, else starts it from its kept request.
-async fn take_over(inner: &Arc<Inner>, peers: &dyn Peers, id: &str, token: String) -> Taken {
-    let Some(shared) = &inner.shared else { return Taken::Done };
+async fn take_over(inner: &Arc<Inner>, parser: &dyn RequestParser, id: &str, token: String) -> Taken {
+    let peers = &*inner.peers;
     let Ok(posting) = peers.posting(id).await else {
         let _ = peers.release(id, &token).await;
         return Taken::Done;
@@ -101,7 +101,7 @@ async fn take_over(inner: &Arc<Inner>, peers: &dyn Peers, id: &str, token: Strin
         }
     }
     let parsed = match peers.request(id).await {
-        Ok(Some(request)) => shared.parser.parse(request).await,
+        Ok(Some(request)) => parser.parse(request).await,
         Ok(None) => Err("its request is no longer kept".to_owned()),
         Err(_) => {
             let _ = peers.release(id, &token).await;

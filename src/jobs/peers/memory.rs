@@ -150,6 +150,10 @@ impl Peers for Replica {
         token.strip_prefix(&self.name).is_some_and(|rest| rest.starts_with('#'))
     }
 
+    fn is_shared(&self) -> bool {
+        true
+    }
+
     fn is_up(&self) -> bool {
         self.up.load(Ordering::SeqCst)
     }

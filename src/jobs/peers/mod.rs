@@ -8,9 +8,11 @@
 //!
 //! What a replica does with these (publish the jobs it runs, follow the ones others run, take
 //! over those whose replica died) is decided in `publish`, `follow` and `takeover`, against this
-//! interface alone. [`crate::cluster`] implements it over Redis; the tests implement it in
-//! memory, several replicas over one bus, with tokio's paused time.
+//! interface alone. [`crate::cluster`] implements it over Redis; `alone` for a replica on its
+//! own, with no store at all; the tests in memory, several replicas over one bus, with
+//! tokio's paused time.
 
+mod alone;
 #[cfg(test)]
 pub(super) mod memory;
 #[cfg(test)]
@@ -21,6 +23,8 @@ use crate::result::Summary;
 use serde::{Deserialize, Serialize};
 use std::time::Duration;
 use tokio::sync::broadcast;
+
+pub(super) use alone::Alone;
 
 /// A job's state as the run holding its lease last posted it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -127,6 +131,9 @@ pub trait Peers: Send + Sync + 'static {
 
     /// Whether `token` names a run of this replica.
     fn is_mine(&self, token: &str) -> bool;
+
+    /// Whether other replicas read this store: false for a replica on its own.
+    fn is_shared(&self) -> bool;
 
     /// Whether the last operation reached the store.
     fn is_up(&self) -> bool;
