@@ -148,13 +148,12 @@ impl RequestParser for KeptRequestParser {
             if let Ok(value) = HeaderValue::from_str(&request.content_type) {
                 headers.insert(header::CONTENT_TYPE, value);
             }
-            let body = JobBody::from_parts(&headers, request.body, kind.takes())
-                .await
-                .map_err(|e| e.to_json().to_string())?;
+            let body =
+                JobBody::from_parts(&headers, request.body, kind.takes()).await.map_err(|e| e.detail())?;
             crate::cpu::spawn(move || parse_body(body, kind, &limits))
                 .await
                 .map_err(|e| e.to_string())?
-                .map_err(|e| e.to_json().to_string())
+                .map_err(|e| e.detail())
         })
     }
 }

@@ -197,19 +197,19 @@ impl ApiError {
                 };
                 (unprocessable, slug, title, e.to_string())
             }
-            ApiError::Failed(f) if f.cause != Cause::Internal => {
+            ApiError::Failed(f) => {
+                let (slug, title) = match f.cause {
+                    Cause::NonFiniteValue => ("non-finite-value", "F is not finite where the mesh needs it"),
+                    Cause::InvalidProblem => ("invalid-problem", "Boundary value problem is invalid"),
+                    // Its message is for the logs only.
+                    Cause::Internal => return ApiError::Internal(f.message.clone()).parts(),
+                };
                 if let Some(field) = &f.field {
                     ext.insert("field".into(), json!(pointer(field)));
                 }
                 if let Some(point) = f.point {
                     ext.insert("point".into(), json!(point));
                 }
-                // (An internal failure is answered as one, below.)
-                let (slug, title) = if f.cause == Cause::NonFiniteValue {
-                    ("non-finite-value", "F is not finite where the mesh needs it")
-                } else {
-                    ("invalid-problem", "Boundary value problem is invalid")
-                };
                 (unprocessable, slug, title, f.message.clone())
             }
             ApiError::NotFound(d) => (StatusCode::NOT_FOUND, "not-found", "Not found", d.clone()),
@@ -286,7 +286,7 @@ impl ApiError {
                 "The job's replica cannot be reached",
                 "the job is not known here and may run on another replica, or runs on another replica, and Redis, through which replicas reach each other, does not answer now; retry shortly".into(),
             ),
-            ApiError::Internal(_) | ApiError::Failed(_) => (
+            ApiError::Internal(_) => (
                 StatusCode::INTERNAL_SERVER_ERROR,
                 "internal",
                 "Internal server error",
@@ -294,6 +294,11 @@ impl ApiError {
             ),
         };
         (status, slug, title, detail, ext)
+    }
+
+    /// The problem's `detail`: what went wrong, in a sentence.
+    pub fn detail(&self) -> String {
+        self.parts().3
     }
 
     /// The problem document.

@@ -7,6 +7,7 @@
 //! holding the lease, so that a final posting of an earlier run (cancelled, say) is not taken
 //! for this one's.
 
+use super::Failure;
 use super::job::{Job, JobError, Lifetime, Outcome, Record, Status};
 use super::peers::{Control, Kept, Message, Peers, Posting};
 use super::state::{Inner, Listing, Waiter};
@@ -60,10 +61,18 @@ pub(super) fn view(r: &Posting) -> Record {
         status: Status::parse(&r.status).unwrap_or(Status::Queued),
         progress: r.progress,
         stats: r.stats.clone(),
-        error: r.failure.clone().map(JobError::Relayed),
+        error: (r.status == Status::Failed.as_str()).then(|| failure_of(r)),
         elapsed: r.elapsed_ms.map(|ms| Duration::from_secs_f64(ms / 1e3)),
         last_event: r.seq,
     }
+}
+
+/// Why the run of a failed posting failed (a posting of an earlier version may not say).
+fn failure_of(r: &Posting) -> JobError {
+    let failure = r.failure.clone();
+    JobError::Relayed(
+        failure.unwrap_or_else(|| Failure::internal("failed on another replica, which did not say why")),
+    )
 }
 
 /// What a look for a result found.
@@ -90,6 +99,10 @@ impl Fetched {
 /// now on. One look per id at a time: the clients of a result just made elsewhere arrive
 /// together, and each copy of a large mesh is megabytes.
 pub(super) async fn fetch(inner: &Arc<Inner>, id: &str, kept: Kept) -> Fetched {
+    // A replica alone has no store to look in, nor a turn to take.
+    if !inner.peers.is_shared() {
+        return Fetched::Unreachable;
+    }
     let turn = inner.fetching.get_with_by_ref(id, Default::default);
     let _turn = turn.lock().await;
     let here = match kept {
@@ -154,10 +167,7 @@ async fn outcome(inner: &Arc<Inner>, id: &str, r: &Posting) -> Option<Outcome> {
             }
         }
         Some(Status::Cancelled) => Outcome::Cancelled,
-        _ => Outcome::Failed(r.failure.clone().map_or_else(
-            || JobError::Internal(format!("job {id} failed on another replica, which did not say why")),
-            JobError::Relayed,
-        )),
+        _ => Outcome::Failed(failure_of(r)),
     })
 }
 
@@ -291,5 +301,28 @@ pub(super) async fn dispatch(inner: Weak<Inner>, mut messages: broadcast::Receiv
             Message::Control(_, Control::Detach) if !job.follows => job.detach(&table),
             _ => {}
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::jobs::Cause;
+
+    fn posting(status: &str, failure: Option<Failure>) -> Posting {
+        let run = "r".to_owned();
+        Posting { status: status.into(), seq: 3, progress: None, stats: None, failure, elapsed_ms: None, run }
+    }
+
+    #[test]
+    fn a_failed_posting_says_why_even_when_its_writer_did_not() {
+        let said = Failure::internal("the refinement panicked");
+        let seen = view(&posting("failed", Some(said.clone()))).error.map(|e| e.failure());
+        assert_eq!(seen, Some(said));
+        // A build from before postings carried failures: an internal failure, not none (which
+        // would read as a job whose mesh left the cache).
+        let unsaid = record(&posting("failed", None)).expect("final").error.expect("an error");
+        assert_eq!(unsaid.failure().cause, Cause::Internal);
+        assert!(view(&posting("running", None)).error.is_none());
     }
 }

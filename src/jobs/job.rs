@@ -53,7 +53,8 @@ pub enum JobError {
     /// The engine refused the input (F not finite at a point).
     #[error(transparent)]
     Refine(RefineError),
-    /// The boundary value problem is invalid where the solver sampled it (k ≤ 0, say).
+    /// The solver failed: on the problem (k ≤ 0 where it sampled it, say), or on a mesh it
+    /// cannot use (see [`Failure`]'s causes).
     #[error(transparent)]
     Solve(SolveError),
     /// Something went wrong inside the server; the detail is logged, not sent.

@@ -27,8 +27,8 @@
 //! - [`peers`]: the store replicas share, as the one trait [`Peers`](peers::Peers) that jobs
 //!   talk to other replicas through, with its wire types (postings, kept requests, controls);
 //!   [`crate::cluster`] implements it over Redis, `peers::alone` for a replica on its own
-//!   (no store: every operation finds none, and the replica acts alone, as it does while a
-//!   store is away), and the tests in memory;
+//!   (no store: every operation fails as if the store were away, and the replica acts
+//!   alone, as it does then), and the tests in memory;
 //! - `publish`, `follow`, `takeover`: the replica protocol over that trait: the replica
 //!   holding a job's lease publishes it, the others follow it, and a job whose replica died is
 //!   run again by the first replica to take its expired lease.

@@ -95,10 +95,7 @@ impl LeaseGuard {
 
 impl Drop for LeaseGuard {
     fn drop(&mut self) {
-        // (A replica alone holds no lease to give back.)
-        if let (Some(token), Ok(runtime), true) =
-            (self.token.take(), tokio::runtime::Handle::try_current(), self.peers.is_shared())
-        {
+        if let (Some(token), Ok(runtime)) = (self.token.take(), tokio::runtime::Handle::try_current()) {
             let (peers, id) = (self.peers.clone(), std::mem::take(&mut self.id));
             runtime.spawn(async move { peers.release(&id, &token).await });
         }
@@ -128,16 +125,16 @@ impl Jobs {
                 shares,
                 budget,
                 mean_run: AtomicU64::new(1f64.to_bits()),
-                peers: Arc::new(Alone::new()),
+                peers: Arc::new(Alone),
                 fetching: moka::sync::Cache::new(FETCHES_KEPT),
                 publishing: AtomicUsize::new(0),
             }),
         }
     }
 
-    /// Shares results and jobs with the other replicas through `peers`; `parser` reads the
-    /// requests of jobs taken over. Call it
-    /// before the registry is cloned, from within the runtime.
+    /// Shares results and jobs with the other replicas through `peers`, in place of the
+    /// store-less `peers::Alone`; `parser` reads the requests of jobs taken over. Call it before
+    /// the registry is cloned, from within the runtime.
     ///
     /// # Panics
     /// When the registry has been cloned.
@@ -236,7 +233,12 @@ impl Jobs {
         // One replica runs a job: the one whose run takes its lease. Guarded from before the
         // first try: a client hanging up while the lease is being taken leaves none behind.
         let token = peers.token();
-        let mut guard = LeaseGuard { peers: inner.peers.clone(), id: id.clone(), token: Some(token.clone()) };
+        // (A replica alone takes no lease, and has none to give back.)
+        let mut guard = LeaseGuard {
+            peers: inner.peers.clone(),
+            id: id.clone(),
+            token: peers.is_shared().then(|| token.clone()),
+        };
         // An ended run lets go of its lease within a lease, even if its release was lost.
         let patience = (peers.lease() + Duration::from_secs(1)).as_millis() / OWN_RUN_WAIT.as_millis();
         let mut waits: u128 = 0;
@@ -297,7 +299,8 @@ impl Jobs {
         };
         match &found {
             // A job that failed or was cancelled here may have run again elsewhere since.
-            Some(Found::Done(record)) if record.status != Status::Succeeded => {}
+            Some(Found::Done(record))
+                if record.status != Status::Succeeded && self.inner.peers.is_shared() => {}
             Some(_) => return found,
             None => {}
         }
@@ -339,13 +342,13 @@ impl Jobs {
             }
         }
         let peers = &*self.inner.peers;
-        let (holder, record) = (peers.holder(id).await.ok()?, peers.posting(id).await.ok()?);
-        let running = match (&holder, &record) {
+        let (holder, posting) = (peers.holder(id).await.ok()?, peers.posting(id).await.ok()?);
+        let running = match (&holder, &posting) {
             // A run holds the lease and has not stored its end.
-            (Some(h), record) => record.as_ref().is_none_or(|r| !(r.run == *h && r.is_final())),
-            // None does, and its record is not an end: a takeover is due, or it is lost (the
+            (Some(h), posting) => posting.as_ref().is_none_or(|r| !(r.run == *h && r.is_final())),
+            // None does, and its posting is not an end: a takeover is due, or it is lost (the
             // mirror finds out which).
-            (None, record) => record.as_ref().is_some_and(|r| !r.is_final()),
+            (None, posting) => posting.as_ref().is_some_and(|r| !r.is_final()),
         };
         running.then(|| follow::follow(&self.inner, id.to_owned(), id.to_owned(), holder))
     }

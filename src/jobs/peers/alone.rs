@@ -1,7 +1,7 @@
-//! [`Peers`] for a replica on its own: there is no store, so every operation finds none and
-//! the replica acts alone, as every replica does while its store is away. A single process
-//! thus runs the same protocol code as a replica among others, down its tested
-//! "store away" paths, and nothing it does leaves the process.
+//! [`Peers`] for a replica on its own: there is no store, so every operation fails as if the
+//! store were away, and the replica acts alone, as every replica does while its store is
+//! away. A single process thus runs the same protocol code as a replica among others, down
+//! its tested "store away" paths, and nothing it does leaves the process.
 
 use super::{Claim, Control, Kept, KeptRequest, Message, Peers, Posting, Result, Take, Unavailable};
 use std::time::Duration;
@@ -9,16 +9,7 @@ use tokio::sync::broadcast;
 
 /// No other replica: the registry's peers until [`Jobs::shared`](crate::jobs::Jobs::shared)
 /// gives it a store.
-pub(crate) struct Alone {
-    /// Never sent on: nobody else posts.
-    messages: broadcast::Sender<Message>,
-}
-
-impl Alone {
-    pub(crate) fn new() -> Self {
-        Self { messages: broadcast::channel(1).0 }
-    }
-}
+pub(crate) struct Alone;
 
 fn none<T>() -> Result<T> {
     Err(Unavailable("this replica shares with no other".into()))
@@ -48,7 +39,8 @@ impl Peers for Alone {
     }
 
     fn messages(&self) -> broadcast::Receiver<Message> {
-        self.messages.subscribe()
+        // Closed at once: nobody else posts.
+        broadcast::channel(1).1
     }
 
     async fn ping(&self) -> Result<()> {
