@@ -5,8 +5,8 @@
 //! facade: it declares what they share and routes to them, so it is not a file of any circle;
 //! an item it re-exports counts as the file that defines it.
 //!
-//! An import is a path from `crate::`, `super::`, `self::` or a child module, outside
-//! comments and test modules. A path that names a module points at that module's file.
+//! An import is a path from `crate::`, `super::` or `self::`, outside comments and test
+//! modules. A path that names a module points at that module's file.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -73,10 +73,9 @@ fn ident(s: &str) -> &str {
     &s[..end]
 }
 
-/// Every path in `code` that starts at `crate::`, `super::`, `self::` or a child module of
-/// `module` (`listen::run` in `cluster/mod.rs`), from the crate root: `a::b::{c, d::e}` gives
-/// `[a, b, c]` and `[a, b, d, e]`.
-fn paths(code: &str, module: &Module, children: &BTreeSet<String>) -> Vec<Module> {
+/// Every path in `code`, a file without child modules, that starts at `crate::`, `super::` or
+/// `self::`, from the crate root: `a::b::{c, d::e}` gives `[a, b, c]` and `[a, b, d, e]`.
+fn paths(code: &str, module: &Module) -> Vec<Module> {
     let mut found = Vec::new();
     for (at, _) in code.match_indices("::") {
         let head_start = code[..at].rfind(|c: char| !(c.is_alphanumeric() || c == '_')).map_or(0, |i| i + 1);
@@ -90,7 +89,6 @@ fn paths(code: &str, module: &Module, children: &BTreeSet<String>) -> Vec<Module
             // `super` from a file module is its parent; from a mod.rs, the directory's parent.
             "super" => module[..module.len().saturating_sub(1)].to_vec(),
             "self" => module.clone(),
-            child if children.contains(child) => module.iter().cloned().chain([child.to_owned()]).collect(),
             _ => continue,
         };
         let mut rest = &code[at + 2..];
@@ -156,12 +154,9 @@ fn no_two_files_of_src_import_each_other_in_a_circle() {
     for module in &test_only {
         modules.remove(module);
     }
-    let mut children: BTreeMap<Module, BTreeSet<String>> = BTreeMap::new();
-    for module in modules.keys() {
-        if let Some((name, parent)) = module.split_last() {
-            children.entry(parent.to_vec()).or_default().insert(name.clone());
-        }
-    }
+    // The modules with modules inside them.
+    let facades: BTreeSet<Module> =
+        modules.keys().filter_map(|m| m.split_last()).map(|(_, parent)| parent.to_vec()).collect();
     // (facade, item) → the child module that defines it, from `pub use child::…`.
     let mut reexports: BTreeMap<(Module, String), Module> = BTreeMap::new();
     for (module, text) in &modules {
@@ -188,16 +183,12 @@ fn no_two_files_of_src_import_each_other_in_a_circle() {
             Some(reexports.get(&(prefix.clone(), next)).cloned().unwrap_or(prefix))
         })
     };
-    let none = BTreeSet::new();
     let mut imports: BTreeMap<Module, BTreeSet<Module>> = BTreeMap::new();
-    for (module, text) in &modules {
-        if children.contains_key(module) {
-            continue;
-        }
-        let targets = paths(text, module, children.get(module).unwrap_or(&none))
+    for (module, text) in modules.iter().filter(|(m, _)| !facades.contains(*m)) {
+        let targets = paths(text, module)
             .into_iter()
             .filter_map(|p| resolve(&p))
-            .filter(|t| t != module && !children.contains_key(t));
+            .filter(|t| t != module && !facades.contains(t));
         imports.entry(module.clone()).or_default().extend(targets);
     }
     // A file that reaches itself through its imports is in a circle.

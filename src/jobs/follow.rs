@@ -57,11 +57,12 @@ pub(super) fn record(r: &Posting) -> Option<Record> {
 
 /// A stored posting as clients see it.
 pub(super) fn view(r: &Posting) -> Record {
+    let status = Status::parse(&r.status).unwrap_or(Status::Queued);
     Record {
-        status: Status::parse(&r.status).unwrap_or(Status::Queued),
+        status,
         progress: r.progress,
         stats: r.stats.clone(),
-        error: (r.status == Status::Failed.as_str()).then(|| failure_of(r)),
+        error: (status == Status::Failed).then(|| failure_of(r)),
         elapsed: r.elapsed_ms.map(|ms| Duration::from_secs_f64(ms / 1e3)),
         last_event: r.seq,
     }
@@ -69,9 +70,9 @@ pub(super) fn view(r: &Posting) -> Record {
 
 /// Why the run of a failed posting failed (a posting of an earlier version may not say).
 fn failure_of(r: &Posting) -> JobError {
-    let failure = r.failure.clone();
+    let said = r.failure.clone();
     JobError::Relayed(
-        failure.unwrap_or_else(|| Failure::internal("failed on another replica, which did not say why")),
+        said.unwrap_or_else(|| Failure::internal("failed on another replica, which did not say why")),
     )
 }
 

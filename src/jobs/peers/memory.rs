@@ -117,14 +117,14 @@ impl Replica {
     /// refuses commands until a ping finds Redis again.
     async fn reach(&self, probe: bool) -> Result<std::sync::MutexGuard<'_, State>> {
         tokio::task::yield_now().await;
-        let refused = Unavailable(format!("{} cannot reach the bus", self.name));
+        let refused = || Unavailable(format!("{} cannot reach the bus", self.name));
         if !probe && !self.up.load(Ordering::SeqCst) {
-            return Err(refused);
+            return Err(refused());
         }
         let state = self.bus.state();
         let reached = !state.down && !self.cut.load(Ordering::SeqCst);
         self.up.store(reached, Ordering::SeqCst);
-        if reached { Ok(state) } else { Err(refused) }
+        if reached { Ok(state) } else { Err(refused()) }
     }
 
     fn send(&self, message: Message) {
