@@ -2,7 +2,8 @@
 //! `variation` criterion asks for each new vertex) and in batches (what the error criterion's
 //! samples use), against the same function as native Rust, with std's `exp` and with `libm`'s
 //! (the portable one the compiled expression calls, so results agree on every machine); and
-//! batches of 3 to 12 points, the sizes the error criterion's triangle estimates ask for.
+//! batches of 3 to 12 points (one triangle's samples) and of 30 (about what one step of the
+//! error criterion asks for).
 //!
 //! Run with `cargo bench --bench expression`; throughput is in points per second.
 
@@ -46,7 +47,7 @@ fn expression(c: &mut Criterion) {
             out[0]
         })
     });
-    for size in [3, 6, 9, 12] {
+    for size in [3, 6, 9, 12, 30] {
         group.bench_function(format!("compiled_batches_of_{size}"), |b| {
             b.iter(|| {
                 for (p, o) in black_box(&points).chunks(size).zip(out.chunks_mut(size)) {

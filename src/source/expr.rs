@@ -16,7 +16,7 @@ use meval::shunting_yard::{RPNError, to_rpn};
 use meval::tokenizer::{Operation, ParseError, Token, tokenize};
 use std::cell::RefCell;
 use std::fmt;
-use std::sync::Arc;
+use std::sync::{Arc, LazyLock};
 
 mod closures;
 mod hint;
@@ -102,7 +102,7 @@ enum Op {
     Rem,
     Pow,
     /// A function of one argument, and its form over a batch's lanes where one exists.
-    Call(fn(f64) -> f64, Option<fn(&mut [f64])>),
+    Call(fn(f64) -> f64, Option<Lanes>),
     Atan2,
     Max(u32),
     Min(u32),
@@ -247,11 +247,17 @@ fn unary(name: &str) -> Option<fn(f64) -> f64> {
     })
 }
 
-/// The functions of one argument that a batch runs over its lanes at once, bit for bit as
-/// [`unary`]'s one value at a time.
-fn over_lanes(name: &str) -> Option<fn(&mut [f64])> {
+/// A function of one argument that a batch runs over its lanes at once, bit for bit as
+/// [`unary`]'s one value at a time. An enum rather than a pointer, so that the lanes are
+/// inlined into the batch evaluator and compiled for its instruction set.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Lanes {
+    Exp,
+}
+
+fn over_lanes(name: &str) -> Option<Lanes> {
     match name {
-        "exp" => Some(lanes::exp),
+        "exp" => Some(Lanes::Exp),
         _ => None,
     }
 }
@@ -401,8 +407,9 @@ impl Expression {
 }
 
 /// Points evaluated together by [`Expression::eval_many`]: each operation is decoded once per
-/// batch and runs over all lanes in a tight loop.
-pub const BATCH: usize = 16;
+/// batch and runs over all lanes in a tight loop. 32 holds a step's samples in the error
+/// criterion (about 30) in one batch; the lanes' stack is then 16 KiB, within L1.
+pub const BATCH: usize = 32;
 
 /// Batches smaller than this run one point at a time through the closures.
 const SCALAR_BELOW: usize = 6;
@@ -425,35 +432,33 @@ fn min_of(a: f64, b: f64) -> f64 {
 
 thread_local! {
     /// The lanes of the batch evaluator's stack, kept per thread so a batch neither allocates
-    /// nor clears 8 KiB of stack each time.
+    /// nor clears 16 KiB of stack each time.
     static LANES: RefCell<Vec<[f64; BATCH]>> = const { RefCell::new(Vec::new()) };
 }
 
 impl Expression {
     /// F at each of `points` into `out` (same length), bit for bit what
     /// [`Expression::eval_xy`] gives: the same operations in the same order on each lane.
+    ///
+    /// The batch evaluator is compiled twice, for AVX2 and for the x86-64 baseline, and runs
+    /// the one this CPU has; the bits are the same (IEEE operations round alike at any width,
+    /// and Rust never fuses a product and a sum).
     pub fn eval_many(&self, points: &[Point], out: &mut [f64]) {
+        static ARCH: LazyLock<pulp::Arch> = LazyLock::new(pulp::Arch::new);
+        self.eval_many_on(*ARCH, points, out);
+    }
+
+    fn eval_many_on(&self, arch: pulp::Arch, points: &[Point], out: &mut [f64]) {
         assert_eq!(points.len(), out.len(), "one output per point");
         LANES.with_borrow_mut(|stack| {
             if stack.len() < MAX_DEPTH {
                 stack.resize(MAX_DEPTH, [0.0; BATCH]);
             }
-            for (points, out) in points.chunks(BATCH).zip(out.chunks_mut(BATCH)) {
-                match &self.scalar {
-                    // Decoding the program costs a batch of a few points more than the
-                    // closures do (`benches/expression.rs`: 130 ns a point in threes, 90
-                    // one by one, 87 in sixes).
-                    Some(f) if points.len() < SCALAR_BELOW => {
-                        for (p, out) in points.iter().zip(out) {
-                            *out = f(p.x, p.y);
-                        }
-                    }
-                    _ => self.eval_batch(points, out, stack),
-                }
-            }
+            arch.dispatch(Batches { f: self, points, out, stack });
         });
     }
 
+    #[inline(always)]
     fn eval_batch(&self, points: &[Point], out: &mut [f64], stack: &mut [[f64; BATCH]]) {
         let n = points.len();
         let mut sp = 0usize;
@@ -478,7 +483,7 @@ impl Expression {
                 Op::DivConst(c) => stack[sp - 1][..n].iter_mut().for_each(|v| *v /= c),
                 Op::ConstSub(c) => stack[sp - 1][..n].iter_mut().for_each(|v| *v = c - *v),
                 Op::ConstDiv(c) => stack[sp - 1][..n].iter_mut().for_each(|v| *v = c / *v),
-                Op::Call(_, Some(lanes)) => lanes(&mut stack[sp - 1][..n]),
+                Op::Call(_, Some(Lanes::Exp)) => lanes::exp(&mut stack[sp - 1][..n]),
                 Op::Call(f, None) => stack[sp - 1][..n].iter_mut().for_each(|v| *v = f(*v)),
                 Op::Add | Op::Sub | Op::Mul | Op::Div | Op::Rem | Op::Pow | Op::Atan2 => {
                     sp -= 1;
@@ -511,6 +516,39 @@ impl Expression {
             }
         }
         out.copy_from_slice(&stack[0][..n]);
+    }
+}
+
+/// [`Expression::eval_many`] as a [`pulp::WithSimd`] operation: pulp compiles it once per
+/// instruction set (the batch evaluator and the lanes are `#[inline(always)]`) and runs the
+/// one this CPU has. One dispatch for a call's every batch: a call per batch into code that
+/// could not be inlined cost batches of 6 a fifth of their time (docs/speed.md).
+struct Batches<'a> {
+    f: &'a Expression,
+    points: &'a [Point],
+    out: &'a mut [f64],
+    stack: &'a mut [[f64; BATCH]],
+}
+
+impl pulp::WithSimd for Batches<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) {
+        let Self { f, points, out, stack } = self;
+        for (points, out) in points.chunks(BATCH).zip(out.chunks_mut(BATCH)) {
+            match &f.scalar {
+                // Decoding the program costs a batch of a few points more than the
+                // closures do (`benches/expression.rs`: 130 ns a point in threes, 90
+                // one by one, 87 in sixes).
+                Some(g) if points.len() < SCALAR_BELOW => {
+                    for (p, out) in points.iter().zip(out) {
+                        *out = g(p.x, p.y);
+                    }
+                }
+                _ => f.eval_batch(points, out, stack),
+            }
+        }
     }
 }
 
@@ -708,12 +746,15 @@ mod tests {
             let f = Expression::parse(text).unwrap();
             // More points than a batch takes one by one, so the batched program runs too.
             let many: Vec<Point> = points.iter().copied().cycle().take(4 * points.len()).collect();
-            let mut out = vec![0.0; many.len()];
-            f.eval_many(&many, &mut out);
-            for (p, got) in many.iter().zip(&out) {
-                let (closures, program) = (f.eval_xy(p.x, p.y), f.run_program(p.x, p.y));
-                assert_eq!(closures.to_bits(), program.to_bits(), "{text} at {p:?}");
-                assert_eq!(closures.to_bits(), got.to_bits(), "{text} at {p:?}: batched");
+            // In both builds of the batch evaluator (one build twice on a CPU without AVX2).
+            for arch in [pulp::Arch::Scalar, pulp::Arch::new()] {
+                let mut out = vec![0.0; many.len()];
+                f.eval_many_on(arch, &many, &mut out);
+                for (p, got) in many.iter().zip(&out) {
+                    let (closures, program) = (f.eval_xy(p.x, p.y), f.run_program(p.x, p.y));
+                    assert_eq!(closures.to_bits(), program.to_bits(), "{text} at {p:?}");
+                    assert_eq!(closures.to_bits(), got.to_bits(), "{text} at {p:?}: batched");
+                }
             }
         }
         // And the rule itself: of equal values the first, and a NaN gives way. (Which zero
@@ -868,8 +909,34 @@ mod tests {
             let points: Vec<Point> = points.into_iter().map(|(x, y)| Point::new(x, y)).collect();
             let mut out = vec![0.0; points.len()];
             f.eval_many(&points, &mut out);
-            for (p, got) in points.iter().zip(&out) {
-                prop_assert_eq!(got.to_bits(), f.eval_xy(p.x, p.y).to_bits(), "{} at {:?}", text, p);
+            for (p, &got) in points.iter().zip(&out) {
+                let want = f.eval_xy(p.x, p.y);
+                prop_assert!(got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan()), "{text} at {p:?}: {got} vs {want}");
+            }
+        }
+
+        /// The batch evaluator compiled for AVX2 and for the x86-64 baseline, on the same
+        /// points (several batches and a short last one, with `exp` of any size), agree bit
+        /// for bit. Skipped where the CPU has no AVX2, as the two would be one build.
+        #[test]
+        fn the_avx2_build_gives_the_portable_bits(
+            text in expression(),
+            points in prop::collection::vec((-800.0..800.0f64, -3.0..3.0f64), 6..80),
+        ) {
+            let arch = pulp::Arch::new();
+            if matches!(arch, pulp::Arch::Scalar) {
+                return Ok(());
+            }
+            let f = Expression::parse(&format!("({text}) + exp(x) * exp(y * {text})")).unwrap();
+            let points: Vec<Point> = points.into_iter().map(|(x, y)| Point::new(x, y)).collect();
+            let mut outs = [vec![0.0; points.len()], vec![0.0; points.len()]];
+            for (arch, out) in [pulp::Arch::Scalar, arch].into_iter().zip(&mut outs) {
+                f.eval_many_on(arch, &points, out);
+            }
+            // A NaN's sign and payload are not promised by Rust, and F is never NaN in an output.
+            for (i, p) in points.iter().enumerate() {
+                let (a, b) = (outs[0][i], outs[1][i]);
+                prop_assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()), "{} at {:?}: {a} vs {b}", f.text(), p);
             }
         }
 

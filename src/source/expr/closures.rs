@@ -2,10 +2,10 @@
 //!
 //! The stack program decodes every operation for every point and moves each value through a
 //! stack array in memory; for one point that is most of the cost (the batch evaluator pays it
-//! once per 16 points). Here each operation is a closure that calls its operands' closures
-//! and keeps the values in registers, and an operand that is a constant or a variable is
-//! folded into its operator's closure. The operations, and their order on each value, are the program's, so
-//! the results are the same bits.
+//! once per batch of up to 32 points). Here each operation is a closure that calls its
+//! operands' closures and keeps the values in registers, and an operand that is a constant or
+//! a variable is folded into its operator's closure. The operations, and their order on each
+//! value, are the program's, so the results are the same bits.
 
 use super::{Op, max_of, min_of};
 

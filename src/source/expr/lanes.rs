@@ -3,12 +3,12 @@
 //! `libm::exp` (FreeBSD's `e_exp.c`) branches on the size of its argument, divides, and ends
 //! in `scalbn`. One lane at a time, that call was most of a batch of Franke's function
 //! (docs/speed.md). Here four lanes run together: the branches that pick the reduction are
-//! selects, so the compiler keeps the lanes in vector registers (two to a register on the
-//! x86-64 baseline) and the divisions overlap. A lane outside the common range
-//! (|x| ≥ 708.39, |x| ≤ 2⁻²⁸, NaN) is left to `libm::exp` itself. On every other lane the
-//! operations, and their order, are libm's, so the results are the same bits on every
-//! machine. (AVX2, picked at run time, was faster on full batches and slower on the short ones
-//! the error criterion also makes; docs/speed.md has the figures.)
+//! selects, so the compiler keeps the lanes in vector registers (one AVX2 register, or two on
+//! the x86-64 baseline: this is inlined into the batch evaluator, which is compiled for
+//! both) and the divisions overlap. A lane outside the common range (|x| ≥ 708.39,
+//! |x| ≤ 2⁻²⁸, NaN) is left to `libm::exp` itself. On every other lane the operations, and
+//! their order, are libm's, so the results are the same bits on every machine and with
+//! either instruction set.
 
 // libm's constants, by the bit patterns its source gives them.
 const LN2HI: f64 = f64::from_bits(0x3fe6_2e42_fee0_0000);
@@ -23,24 +23,39 @@ const P5: f64 = f64::from_bits(0x3e66_3769_72be_a4d0);
 /// Lanes computed together.
 const WIDTH: usize = 4;
 
-/// Each value of `lanes` replaced by `libm::exp` of it.
+/// Each value of `lanes` replaced by `libm::exp` of it. Inlined, so that it is compiled for
+/// the instruction set of the batch evaluator that calls it.
+#[inline(always)]
 pub(super) fn exp(lanes: &mut [f64]) {
     let mut chunks = lanes.chunks_exact_mut(WIDTH);
     for chunk in &mut chunks {
-        let x: [f64; WIDTH] = (*chunk).try_into().expect("chunks of WIDTH");
-        let (y, rare) = exp_common(x);
-        chunk.copy_from_slice(&y);
-        if rare {
-            for (out, x) in chunk.iter_mut().zip(x) {
-                if is_rare(high_word(x)) {
-                    *out = libm::exp(x);
-                }
+        exp_chunk(chunk);
+    }
+    // Two or three last lanes as a chunk of their own, padded with a common-range argument;
+    // a single one costs less through libm (`benches/expression.rs`, batches of 9 and 6).
+    let rest = chunks.into_remainder();
+    if let [v] = rest {
+        *v = libm::exp(*v);
+    } else if !rest.is_empty() {
+        let mut padded = [1.0; WIDTH];
+        padded[..rest.len()].copy_from_slice(rest);
+        exp_chunk(&mut padded);
+        rest.copy_from_slice(&padded[..rest.len()]);
+    }
+}
+
+/// [`exp`] of one chunk of [`WIDTH`] lanes.
+#[inline(always)]
+fn exp_chunk(chunk: &mut [f64]) {
+    let x: [f64; WIDTH] = (*chunk).try_into().expect("chunks of WIDTH");
+    let (y, rare) = exp_common(x);
+    chunk.copy_from_slice(&y);
+    if rare {
+        for (out, x) in chunk.iter_mut().zip(x) {
+            if is_rare(high_word(x)) {
+                *out = libm::exp(x);
             }
         }
-    }
-    // Measured: padding the last lanes into a chunk of their own cost more than it saved.
-    for v in chunks.into_remainder() {
-        *v = libm::exp(*v);
     }
 }
 
@@ -100,10 +115,31 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
-    /// `exp` against `libm::exp` on `values`, with every lane position and remainder length.
+    /// [`exp`] compiled for whichever instruction set pulp dispatches to, as the batch
+    /// evaluator compiles it.
+    struct Exp<'a>(&'a mut [f64]);
+
+    impl pulp::WithSimd for Exp<'_> {
+        type Output = ();
+
+        #[inline(always)]
+        fn with_simd<S: pulp::Simd>(self, _: S) {
+            exp(self.0);
+        }
+    }
+
+    /// `exp` against `libm::exp` on `values`, with every lane position and remainder length,
+    /// in the x86-64 baseline build and in the one this CPU runs (AVX2 where it has it).
     fn check(values: &[f64]) -> Result<(), TestCaseError> {
+        for arch in [pulp::Arch::Scalar, pulp::Arch::new()] {
+            check_on(arch, values)?;
+        }
+        Ok(())
+    }
+
+    fn check_on(arch: pulp::Arch, values: &[f64]) -> Result<(), TestCaseError> {
         let mut lanes = values.to_vec();
-        exp(&mut lanes);
+        arch.dispatch(Exp(&mut lanes));
         for (x, got) in values.iter().zip(&lanes) {
             let want = libm::exp(*x);
             prop_assert_eq!(
