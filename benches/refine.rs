@@ -4,7 +4,8 @@
 //! and 10^5, on the 4097 × 4097 grid at 10^6, and on a real DEM: the 256 × 256 Terrain-RGB
 //! tile of examples/tiles (SRTM-derived heights) at 10^4 and 3·10^4 vertices. `check/delaunay`
 //! is the final independent Delaunay check alone, on the semi-recursive mesh of Franke's
-//! function at 10^6 vertices.
+//! function at 10^6 vertices. `estimate/error` is the final E_n estimate alone (F through
+//! meval on every triangle's lattice), on the error criterion's mesh of Franke at 10^5.
 //!
 //! Run with `cargo bench --bench refine`; pick a subset with a filter, e.g.
 //! `cargo bench --bench refine -- semi-recursive/franke_native`.
@@ -14,7 +15,7 @@ use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_m
 mod support;
 
 use meshfit::geom::Rect;
-use meshfit::refine::{Method, Params, refine};
+use meshfit::refine::{Method, Params, estimate_error, refine};
 use meshfit::source::{Encoding, Expression, Grid, GridHints, Source, Surface, decode_grid};
 use std::hint::black_box;
 use std::time::Duration;
@@ -79,9 +80,21 @@ fn delaunay_check(c: &mut Criterion) {
     group.finish();
 }
 
+/// The final E_n estimate behind `stats.error`, on a mesh built once.
+fn error_estimate(c: &mut Criterion, meval: &Source) {
+    let mesh = refine(meval, Rect::unit(), &Params::new(100_000).unwrap(), &mut ()).unwrap().mesh;
+    let mut group = c.benchmark_group("estimate");
+    group.throughput(Throughput::Elements(mesh.num_triangles() as u64));
+    group.bench_function("error/franke_meval/100000", |b| {
+        b.iter(|| black_box(estimate_error(&mesh, meval).max_error))
+    });
+    group.finish();
+}
+
 fn benches(c: &mut Criterion) {
     delaunay_check(c);
     let meval = Source::Expression(Expression::parse(FRANKE).unwrap());
+    error_estimate(c, &meval);
     run(c, "franke_native", &franke);
     run(c, "franke_meval", &meval);
     let grid4097 = Source::Grid(franke_grid(4097));
