@@ -59,8 +59,8 @@ pub(super) enum Repair {
 pub(super) struct Repairs {
     /// cos² of the angle above which an apex encroaches its boundary edge, if any does.
     encroachment: Option<f64>,
-    /// cos² of `min_angle`, or above 1 when there is none: an angle below it has a larger cos.
-    min_angle_cos_sq: f64,
+    /// cos² of `min_angle`, if one is set: an angle below it has a larger cos.
+    min_angle_cos_sq: Option<f64>,
     /// Triangles a step rewrote that may need a repair, looked at last first.
     pending: Vec<u32>,
 }
@@ -69,13 +69,16 @@ impl Repairs {
     /// Repairs of boundary edges their apex encroaches and, with a `min_angle` in degrees, of
     /// triangles with a smaller angle.
     pub(super) fn new(encroachment: Encroachment, min_angle: Option<f64>) -> Self {
-        let min_angle_cos_sq = min_angle.map_or(2.0, cos_sq_of);
-        Self { encroachment: encroachment.cos_sq(), min_angle_cos_sq, pending: Vec::new() }
+        Self {
+            encroachment: encroachment.cos_sq(),
+            min_angle_cos_sq: min_angle.map(cos_sq_of),
+            pending: Vec::new(),
+        }
     }
 
     /// Whether this asks for nothing, so that the loops need not look.
     pub(super) fn is_idle(&self) -> bool {
-        self.encroachment.is_none() && self.min_angle_cos_sq > 1.0
+        self.encroachment.is_none() && self.min_angle_cos_sq.is_none()
     }
 
     /// Triangles `ts`, just rewritten, may need a repair.
@@ -106,7 +109,9 @@ impl Repairs {
                 }
             }
         }
-        (smallest_angle_cos_sq(a, b, c) > self.min_angle_cos_sq).then_some(Repair::Skinny)
+        // Without a floor the angles are not measured at all.
+        let skinny = self.min_angle_cos_sq.is_some_and(|floor| smallest_angle_cos_sq(a, b, c) > floor);
+        skinny.then_some(Repair::Skinny)
     }
 }
 
