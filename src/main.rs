@@ -238,7 +238,9 @@ struct MeshArgs {
     /// The vertex budget n (at least 4).
     #[arg(long, value_name = "N", default_value_t = 10_000)]
     max_vertices: usize,
-    /// recursive (no flips) or semi-recursive (Delaunay flips after each insertion).
+    /// recursive (no flips), semi-recursive (Delaunay flips after each insertion) or, for a
+    /// grid with criterion error, data-dependent (semi-recursive, then flips that lower the
+    /// largest error; not Delaunay).
     #[arg(long, default_value_t = Method::default())]
     method: Method,
     /// How the worst edge is chosen: error (an edge of the triangle with the largest sampled
@@ -429,6 +431,7 @@ fn mesh(args: &MeshArgs) -> Result<()> {
     if let Some(ms) = args.time_limit_ms {
         params = params.with_time_limit(Duration::from_millis(ms));
     }
+    params.check_source(matches!(source, Source::Grid(_))).context("--method")?;
     let format = args.output.check()?;
     check_memory(params.max_vertices(), cli_mesh_bytes_per_vertex(args.criterion), available_memory())?;
     let result = refine(&source, rect, &params, &mut ())?;

@@ -156,6 +156,20 @@ fn bad_grids_and_domains_say_what_to_fix() {
 
     let err = stderr_of_failure(&["mesh", "--max-vertices", "10"]);
     assert!(err.contains("--function") && err.contains("--grid"), "{err}");
+
+    let err = stderr_of_failure(&["mesh", "--function", "x", "--method", "data-dependent"]);
+    assert!(err.contains("--method: method data-dependent needs a grid"), "{err}");
+    let grid = temp_file("grid_dd.json", r#"{"nx": 3, "ny": 2, "values": [0, 1, 4, 1, 2, 0]}"#);
+    let doc = document(&[
+        "mesh",
+        "--grid",
+        grid.to_str().unwrap(),
+        "--method",
+        "data-dependent",
+        "--max-vertices",
+        "5",
+    ]);
+    assert_eq!(doc["stats"]["vertices"], 5);
 }
 
 #[test]

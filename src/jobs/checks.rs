@@ -106,6 +106,7 @@ impl SpecError {
                 ParamsError::MaxVertices { .. } => "max_vertices",
                 ParamsError::Tolerance(_) => "tolerance",
                 ParamsError::MinAngle(_) | ParamsError::MinAngleCriterion => "min_angle",
+                ParamsError::DataDependentSource => "method",
             },
             SpecError::Limit { name, .. } => name,
         })

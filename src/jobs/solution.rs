@@ -3,7 +3,7 @@
 use super::checks::{Limits, SpecError, at_most, budget, domain_of};
 use crate::api::{BoundaryInput, Coefficient, RegionInput, SolveRequest};
 use crate::geom::{Point, Rect};
-use crate::refine::Observer;
+use crate::refine::{Method, Observer};
 use crate::solve::{
     Adapted, BhCurve, Boundary, Exact, MU_0, Physics, Polygon, Problem, Region, Settings, Shape, SolveError,
     adapt,
@@ -385,6 +385,11 @@ impl SolveSpec {
         if let Some(t) = request.tolerance {
             params = params.with_tolerance(t + 0.0).map_err(SpecError::Parameter)?;
         }
+        let method = request.method.unwrap_or_default();
+        if method == Method::DataDependent {
+            let detail = "data-dependent is for meshes of a grid; use semi-recursive or recursive";
+            return Err(invalid("method", detail));
+        }
         let growth = request.growth.unwrap_or(DEFAULT_GROWTH);
         if !(growth > 1.0 && growth <= MAX_GROWTH) {
             return Err(invalid("growth", format!("must be in (1, {MAX_GROWTH}], got {growth}")));
@@ -393,7 +398,7 @@ impl SolveSpec {
         let settings = Settings {
             max_vertices: params.max_vertices(),
             tolerance: params.tolerance(),
-            method: request.method.unwrap_or_default(),
+            method,
             indicator: request.criterion.unwrap_or_default(),
             growth,
             time_limit: Some(

@@ -179,6 +179,7 @@ impl JobSpec {
             }
             params = params.with_min_angle(degrees + 0.0).map_err(SpecError::Parameter)?;
         }
+        params.check_source(matches!(source, Source::Grid(_))).map_err(SpecError::Parameter)?;
         let quality = request.quality.unwrap_or(false);
         let mesh = MeshSpec { source: Arc::new(source), domain, params, quality };
         Ok(Self { work: Work::Mesh(mesh), requested_time_limit })

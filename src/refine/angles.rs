@@ -123,7 +123,9 @@ pub(super) fn count_below(mesh: &Mesh, degrees: f64) -> u64 {
     mesh.triangles().filter(skinny).count() as u64
 }
 
-fn cos_sq_of(degrees: f64) -> f64 {
+/// cos² of an angle of `degrees`: a triangle whose smallest angle is below it has a larger
+/// [`smallest_angle_cos_sq`].
+pub(super) fn cos_sq_of(degrees: f64) -> f64 {
     degrees.to_radians().cos().powi(2)
 }
 

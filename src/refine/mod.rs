@@ -17,6 +17,8 @@
 //! Start from S₄ (the corners, diagonal P1P3). Repeatedly take the worst edge and insert its
 //! midpoint M with z = F(M), splitting the one or two triangles beside it. `semi-recursive`
 //! then restores the Delaunay property with Lawson flips around M; `recursive` never flips.
+//! `data-dependent` (a grid with criterion `error`) is `semi-recursive` until the last
+//! insertion, then flips the worst triangles' edges where that lowers the largest error.
 //!
 //! The criterion says which edge is worst. [`Criterion::Variation`] is the paper's: the
 //! largest |zᵢ − zⱼ|, then the longest, then the smallest ids. With [`Criterion::Error`] (the
@@ -28,7 +30,8 @@
 //! - Every triangle is strictly counter-clockwise (exact `orient2d`), and the triangles tile
 //!   the rectangle; vertex ids are in insertion order and old vertices never move.
 //! - `semi-recursive` meshes pass the exact in-circle test on every interior edge; the
-//!   reported `delaunay` flag is an independent check of the final mesh.
+//!   reported `delaunay` flag is an independent check of the final mesh (false for a
+//!   `data-dependent` mesh once it flipped for its error).
 //! - The same input gives the same mesh bit for bit: one thread, a total order on edges.
 //!
 //! # Limitations
@@ -237,7 +240,7 @@ where
     let mut mesh = Mesh::with_capacity(rect, z, params.max_vertices());
     let floors = Floors::of_rect(rect);
     let round = match surface.grid() {
-        Some(grid) if params.criterion() == Criterion::Error && params.method() == Method::SemiRecursive => {
+        Some(grid) if params.criterion() == Criterion::Error && params.method() != Method::Recursive => {
             let mut run = Run::new(params, observer, floors);
             let (stop, errors) = nodes::refine(&mut mesh, grid, &mut run, &mut sampler.evaluations);
             run.finish(&mesh, stop, Some(errors))
@@ -657,13 +660,14 @@ fn insert(
         Placement::OnEdge => mesh.split(e, v),
         Placement::Inside => mesh.insert_inside(e / 3, v),
     };
+    // `data-dependent` is `semi-recursive` until its last insertion.
     let flips = match method {
         Method::Recursive => 0,
-        Method::SemiRecursive if split.exact => {
+        Method::SemiRecursive | Method::DataDependent if split.exact => {
             stack.extend_from_slice(split.link());
             mesh.legalize(stack, on_flip)
         }
-        Method::SemiRecursive => {
+        Method::SemiRecursive | Method::DataDependent => {
             stack.extend(split.suspects());
             mesh.legalize_all(stack, on_flip)
         }

@@ -4,7 +4,7 @@ use std::fmt;
 use std::str::FromStr;
 use std::time::Duration;
 
-/// Whether edges are flipped after each insertion.
+/// Whether edges are flipped after each insertion, and after the last one.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Method {
@@ -13,6 +13,12 @@ pub enum Method {
     /// Lawson flips after each insertion keep the mesh a Delaunay triangulation.
     #[default]
     SemiRecursive,
+    /// `semi-recursive`, then data-dependent flips (Dyn, Levin and Rippa 1990) of the worst
+    /// triangles: while a flip of the worst triangle's edge lowers the larger error of the two
+    /// triangles beside it, the best such flip is made. The vertices are the same, the largest
+    /// error never higher, and the mesh no longer Delaunay where a flip was made. Grids with
+    /// criterion `error` only: the flips compare the mesh with the grid's nodes.
+    DataDependent,
 }
 
 /// How the worst edge is chosen.
@@ -75,6 +81,11 @@ pub enum ParamsError {
     /// `min_angle` with the paper's criterion, which has no triangles to repair first.
     #[error("min_angle needs criterion error: the paper's variation splits only its worst edge")]
     MinAngleCriterion,
+    /// Method `data-dependent` without a grid and criterion `error`.
+    #[error(
+        "method data-dependent needs a grid and criterion error: its flips compare the mesh with the grid's nodes"
+    )]
+    DataDependentSource,
 }
 
 impl Params {
@@ -134,6 +145,16 @@ impl Params {
         Ok(self)
     }
 
+    /// Checks the method against the source: `data-dependent` needs a grid (`grid` true) and
+    /// criterion `error`. (Elsewhere [`refine`](super::refine) would run it as `semi-recursive`.)
+    ///
+    /// # Errors
+    /// [`ParamsError::DataDependentSource`] when it does not fit.
+    pub fn check_source(&self, grid: bool) -> Result<(), ParamsError> {
+        let fits = self.method != Method::DataDependent || (grid && self.criterion == Criterion::Error);
+        if fits { Ok(()) } else { Err(ParamsError::DataDependentSource) }
+    }
+
     /// Stops once this much time has passed.
     pub fn with_time_limit(mut self, limit: Duration) -> Self {
         self.time_limit = Some(limit);
@@ -187,7 +208,13 @@ macro_rules! names {
     };
 }
 
-names!(Method, "method", "recursive" => Method::Recursive, "semi-recursive" => Method::SemiRecursive);
+names!(
+    Method,
+    "method",
+    "recursive" => Method::Recursive,
+    "semi-recursive" => Method::SemiRecursive,
+    "data-dependent" => Method::DataDependent
+);
 names!(Criterion, "criterion", "variation" => Criterion::Variation, "error" => Criterion::Error);
 
 #[cfg(test)]
@@ -206,15 +233,21 @@ mod tests {
         for bad in [0.0, -1.0, 30.5, f64::NAN, f64::INFINITY] {
             assert!(matches!(p.clone().with_min_angle(bad), Err(ParamsError::MinAngle(_))), "{bad}");
         }
-        assert_eq!(p.with_min_angle(30.0).unwrap().min_angle(), Some(30.0));
+        assert_eq!(p.clone().with_min_angle(30.0).unwrap().min_angle(), Some(30.0));
+        let dd = p.with_method(Method::DataDependent);
+        assert_eq!(dd.check_source(true), Ok(()));
+        assert_eq!(dd.check_source(false), Err(ParamsError::DataDependentSource));
+        let variation = dd.with_criterion(Criterion::Variation);
+        assert_eq!(variation.check_source(true), Err(ParamsError::DataDependentSource));
+        assert_eq!(variation.with_method(Method::SemiRecursive).check_source(false), Ok(()));
     }
 
     #[test]
     fn names_round_trip_and_unknown_names_list_the_choices() {
-        for m in [Method::Recursive, Method::SemiRecursive] {
+        for m in [Method::Recursive, Method::SemiRecursive, Method::DataDependent] {
             assert_eq!(m.to_string().parse::<Method>(), Ok(m));
         }
         let err = "semi".parse::<Method>().unwrap_err();
-        assert_eq!(err, "unknown method `semi`; expected one of: recursive, semi-recursive");
+        assert_eq!(err, "unknown method `semi`; expected one of: recursive, semi-recursive, data-dependent");
     }
 }

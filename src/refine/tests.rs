@@ -371,7 +371,8 @@ impl Observer for Checker {
             return self.fail(format!("after inserting vertex {vertex}: {e}"));
         }
         match self.method {
-            Method::SemiRecursive => {
+            // Delaunay after every insertion: `data-dependent` flips only after its last.
+            Method::SemiRecursive | Method::DataDependent => {
                 if let Some(e) = mesh.find_non_delaunay_edge() {
                     let (p, q) = (mesh.origin(e), mesh.dest(e));
                     let (r, s) = (mesh.apex(e), mesh.apex(mesh.twin(e)));

@@ -59,7 +59,13 @@ impl Trace {
     /// Whether a run of `max_vertices` and `tolerance` stops within this trace of a run that
     /// ended with `vertices` vertices, so that [`replay`] answers it: a cheap test to make
     /// before a replay, which would otherwise walk the whole trace to find it does not.
+    ///
+    /// Never for `data-dependent`: its last flips depend on where it stopped, so a prefix of
+    /// its steps is not a smaller run's mesh.
     pub fn covers(&self, vertices: usize, max_vertices: usize, tolerance: Option<f64>) -> bool {
+        if self.method == Method::DataDependent {
+            return false;
+        }
         max_vertices <= vertices
             || self.stop == StopReason::Exhausted
             || tolerance.is_some_and(|t| self.worst.iter().any(|&w| w <= t))
@@ -152,13 +158,17 @@ impl<O: Observer> Observer for Recorder<'_, O> {
 /// `trace` and the traced run's `vertices` already contain, as a fresh run would make it; or
 /// `None` when that run would go past the traced one. Evaluates no F.
 ///
-/// The time a replay takes is not a run's time: `elapsed` is zero.
+/// The time a replay takes is not a run's time: `elapsed` is zero. `None` for a
+/// `data-dependent` run (see [`Trace::covers`]).
 pub fn replay(
     trace: &Trace,
     vertices: &[Vertex],
     max_vertices: usize,
     tolerance: Option<f64>,
 ) -> Option<Refinement> {
+    if trace.method == Method::DataDependent {
+        return None;
+    }
     let [p1, _, p3, _] = vertices.get(..4)?.try_into().ok()?;
     let rect = Rect::new(p1.x, p3.x, p1.y, p3.y).ok()?;
     let z = [0, 1, 2, 3].map(|k| vertices[k].z);
@@ -327,6 +337,17 @@ mod tests {
         assert!(!trace.covers(300, 301, None));
         assert!(!trace.covers(300, 10_000, Some(lowest / 2.0)));
         assert!(trace.covers(300, 300, None) && trace.covers(300, 10_000, Some(lowest)));
+    }
+
+    #[test]
+    fn a_data_dependent_run_is_never_replayed_as_its_last_flips_depend_on_where_it_stops() {
+        let (_, source, rect) = sources().remove(1);
+        let params = Params::new(300).unwrap().with_method(Method::DataDependent);
+        let (full, trace) = traced(&source, rect, &params);
+        assert_eq!(trace.method, Method::DataDependent);
+        assert!(!trace.covers(300, 300, None) && !trace.covers(300, 200, None));
+        assert!(replay(&trace, full.mesh.vertices(), 200, None).is_none());
+        assert!(replay(&trace, full.mesh.vertices(), 300, None).is_none());
     }
 
     #[test]

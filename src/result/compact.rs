@@ -183,7 +183,7 @@ pub fn write(result: &MeshResult, id: &str, out: impl Write) -> io::Result<u64> 
 }
 
 /// The codes of a trace's method, criterion and stop reason: their index here.
-const METHODS: [Method; 2] = [Method::Recursive, Method::SemiRecursive];
+const METHODS: [Method; 3] = [Method::Recursive, Method::SemiRecursive, Method::DataDependent];
 const CRITERIA: [Criterion; 2] = [Criterion::Variation, Criterion::Error];
 const STOPS: [StopReason; 6] = [
     StopReason::MaxVertices,
@@ -380,6 +380,13 @@ mod tests {
             let result = crate::result::testing::traced(300, criterion);
             assert!(result.trace.is_some());
             assert_eq!(read(&bytes(&result), ID).unwrap(), result);
+        }
+        // Every method's code reads back as that method.
+        for method in METHODS {
+            let mut result = crate::result::testing::traced(30, Criterion::Error);
+            Arc::get_mut(result.trace.as_mut().unwrap()).unwrap().method = method;
+            let back = read(&bytes(&result), ID).unwrap();
+            assert_eq!(back.trace.as_ref().map(|t| t.method), Some(method));
         }
     }
 

@@ -213,6 +213,21 @@ fn cases() -> Vec<Case> {
             "invalid-parameter",
         )
         .detail("needs criterion error"),
+        case(
+            "data-dependent on an expression",
+            r#"{"function": "x", "method": "data-dependent"}"#,
+            422,
+            "invalid-parameter",
+        )
+        .detail("needs a grid and criterion error")
+        .field("/field", json!("/method")),
+        case(
+            "data-dependent with the paper's criterion",
+            r#"{"grid": {"nx": 2, "ny": 2, "values": [1, 2, 3, 4]}, "method": "data-dependent", "criterion": "variation"}"#,
+            422,
+            "invalid-parameter",
+        )
+        .field("/field", json!("/method")),
         case("unknown method", r#"{"function": "x", "method": "semi"}"#, 422, "invalid-request")
             .detail("semi-recursive"),
         case("unknown criterion", r#"{"function": "x", "criterion": "curvature"}"#, 422, "invalid-request")

@@ -334,6 +334,43 @@ async fn no_needles_by_default_and_min_angle_bounds_every_angle_it_could_repair(
 }
 
 #[tokio::test]
+async fn data_dependent_lowers_a_grid_meshs_worst_error_and_a_smaller_budget_runs_afresh() {
+    let app = spawn_app().await;
+    // A sharp peak and a ridge on 61 × 45 nodes, whose greedy run leaves one worst triangle.
+    let (nx, ny) = (61, 45);
+    let values: Vec<f64> = (0..nx * ny)
+        .map(|k| {
+            let (x, y) = ((k % nx) as f64, (k / nx) as f64);
+            100.0 * (-((x - 17.0).powi(2) + (y - 29.0).powi(2)) / 8.0).exp() + 0.3 * (x - 2.0 * y).abs()
+        })
+        .collect();
+    let request = |method: &str, n: u64| json!({"grid": {"nx": nx, "ny": ny, "values": values}, "max_vertices": n, "method": method});
+    let delaunay: Value = app.post("/v1/meshes", &request("semi-recursive", 200)).await.json().await.unwrap();
+    let flipped: Value = app.post("/v1/meshes", &request("data-dependent", 200)).await.json().await.unwrap();
+    assert_ne!(flipped["id"], delaunay["id"], "the method is part of the id");
+    assert_eq!(flipped["vertices"], delaunay["vertices"], "flips move no vertex");
+    let worst = |doc: &Value| doc["stats"]["max_triangle_error"].as_f64().unwrap();
+    assert!(worst(&flipped) < 0.6 * worst(&delaunay), "{} vs {}", worst(&flipped), worst(&delaunay));
+    assert_eq!(
+        (delaunay["stats"]["delaunay"].as_bool(), flipped["stats"]["delaunay"].as_bool()),
+        (Some(true), Some(false))
+    );
+    // Its last flips depend on where it stops: a smaller budget is a run of its own, not a
+    // replay of the larger one's steps, and gives what a fresh server gives.
+    let smaller = app.post("/v1/meshes", &request("data-dependent", 150)).await;
+    assert_eq!(smaller.headers()["x-cache"], "miss");
+    let smaller = smaller.bytes().await.unwrap();
+    assert_eq!(app.metric("meshfit_engine_runs_total").await, 3.0);
+    let fresh = spawn_app().await;
+    assert_eq!(
+        fresh.post("/v1/meshes", &request("data-dependent", 150)).await.bytes().await.unwrap(),
+        smaller
+    );
+    fresh.shutdown().await;
+    app.shutdown().await;
+}
+
+#[tokio::test]
 async fn the_error_criterion_is_the_default_and_reports_its_max_triangle_error() {
     let app = spawn_app().await;
     let bump = "exp(-100*((x-0.4)^2+(y-0.6)^2))";

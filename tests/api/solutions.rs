@@ -158,6 +158,8 @@ async fn bad_problems_are_422_naming_the_field_and_the_column_or_point() {
     assert_eq!(p["field"], "/k", "{p}");
     let p = refused(&app, json!({"growth": 1})).await;
     assert_eq!(p["field"], "/growth", "{p}");
+    let p = refused(&app, json!({"method": "data-dependent"})).await;
+    assert_eq!(p["field"], "/method", "{p}");
 
     // k is an expression that turns negative: found where the solver samples it.
     let p = refused(&app, json!({"k": "x - 0.5", "max_vertices": 100})).await;
