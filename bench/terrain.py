@@ -13,8 +13,13 @@ Run by hand, never in CI (it builds the release binary and takes a few minutes):
 DEMs: the two elevation rasters of matplotlib's sample data (jacksboro_fault_dem.npz, 344 x 403
 SRTM-derived metres; topobathy.npz, 91 x 120), each also as a web-map tile in both colour
 encodings (Terrain-RGB and Terrarium PNG, made here from the raster; the heights the tile holds
-are the decoded ones, so both tools mesh the same numbers), and any GeoTIFF or .npy given with
---dem. A budget is measured only where it is at most half the pixels.
+are the decoded ones, so both tools mesh the same numbers), and any .npy, single-band GeoTIFF or
+colour tile given with --dem (meshfit reads the file itself, pydelatin its decoded heights):
+
+    bench/.venv/bin/python bench/terrain.py --dem dem.tif fuji.png:terrain-rgb
+
+A budget is measured only where it is at most half the pixels. Each of meshfit's --methods
+(semi-recursive and data-dependent by default) is a row beside pydelatin.
 
 E_max and RMS come from one function for both meshes: F_n is interpolated linearly over the
 mesh's triangles at every pixel (matplotlib's triangle finder) and compared with the pixel's
@@ -83,13 +88,25 @@ def dems(args, tmp):
             np.save(plain, decoded)
             out.append((f"{label} ({encoding})", decoded, ["--grid", str(png), "--encoding", encoding],
                         ["--grid", str(plain)]))
-    for dem in args.dem:
-        heights = np.load(dem) if dem.suffix == ".npy" else None
-        if heights is None:
-            print(f"skipping {dem}: only .npy here (meshfit reads GeoTIFFs; pass it as .npy for pydelatin)",
-                  file=sys.stderr)
-            continue
-        out.append((dem.stem, heights.astype(np.float64), ["--grid", str(dem)], ["--grid", str(dem)]))
+    for spec in args.dem:
+        path, _, encoding = str(spec).partition(":")
+        path = Path(path)
+        if path.suffix == ".npy":
+            heights = np.load(path).astype(np.float64)
+        elif encoding:
+            rgb = np.asarray(Image.open(path).convert("RGB")).astype(np.int64)
+            code = (rgb[..., 0] << 16) | (rgb[..., 1] << 8) | rgb[..., 2]
+            heights = (-10000.0 + code * 0.1 if encoding == "terrain-rgb"
+                       else (code.astype(np.float64) / 256.0 - 32768.0))
+        else:  # a single-band GeoTIFF, or any image PIL reads as one band
+            heights = np.asarray(Image.open(path)).astype(np.float64)
+        plain = Path(tmp) / f"{path.stem}.npy"
+        np.save(plain, heights)
+        rows, cols = heights.shape
+        # Pixel units, whatever a GeoTIFF's own georeferencing says, as pixel_errors measures.
+        source = ["--grid", str(path), "--domain", f"0,{cols - 1},0,{rows - 1}"]
+        source += ["--encoding", encoding] if encoding else []
+        out.append((f"{path.stem}{f' ({encoding})' if encoding else ''}", heights, source, ["--grid", str(plain)]))
     return out
 
 
@@ -108,15 +125,17 @@ def pixel_errors(heights, xs, ys, zs, triangles):
     return float(np.abs(diff).max()), float(np.sqrt(np.mean(diff * diff)))
 
 
-def meshfit_time(binary, source, n):
-    out = subprocess.run([str(binary), "mesh", *source, "--max-vertices", str(n), "--stats"],
+def meshfit_time(binary, source, n, method=None):
+    method = ["--method", method] if method else []
+    out = subprocess.run([str(binary), "mesh", *source, "--max-vertices", str(n), *method, "--stats"],
                          check=True, capture_output=True).stdout
     doc = json.loads(out)
     return doc["elapsed_ms"], doc["stats"]["vertices"]
 
 
-def meshfit_mesh(binary, source, n):
-    out = subprocess.run([str(binary), "mesh", *source, "--max-vertices", str(n)],
+def meshfit_mesh(binary, source, n, method=None):
+    method = ["--method", method] if method else []
+    out = subprocess.run([str(binary), "mesh", *source, "--max-vertices", str(n), *method],
                          check=True, capture_output=True).stdout
     doc = json.loads(out)
     v = np.asarray(doc["vertices"], dtype=np.float64)
@@ -139,13 +158,20 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--runs", type=int, default=5, help="timed runs per tool and case (medians)")
     parser.add_argument("--sizes", type=int, nargs="+", default=[1_000, 10_000, 50_000, 100_000])
-    parser.add_argument("--dem", type=Path, nargs="*", default=[], help="more DEMs as .npy (rows, cols)")
+    parser.add_argument("--dem", nargs="*", default=[], metavar="FILE[:ENCODING]",
+                        help="more DEMs: .npy (rows, cols), a single-band GeoTIFF, or a colour tile with "
+                             "its encoding (tile.png:terrain-rgb, tile.png:terrarium)")
+    parser.add_argument("--methods", nargs="+", default=["semi-recursive", "data-dependent"],
+                        help="meshfit's methods, each a row beside pydelatin")
     parser.add_argument("--no-build", action="store_true", help="use target/release/meshfit as it is")
     parser.add_argument("--before", type=Path, metavar="BINARY", help="an earlier meshfit build, run alternately")
     args = parser.parse_args()
     if not args.no_build:
         subprocess.run(["cargo", "build", "--release"], cwd=ROOT, check=True)
-    tools = [("meshfit", MESHFIT)] + ([("before", args.before)] if args.before else [])
+    # (label, binary, method, whether it reads tiles): each meshfit method, then the earlier build
+    # with its default method on the decoded heights.
+    tools = [(m, MESHFIT, m, True) for m in args.methods]
+    tools += [("before", args.before, None, False)] if args.before else []
 
     rows, ratios = [], {}
     with tempfile.TemporaryDirectory(prefix="meshfit-terrain-") as tmp:
@@ -158,42 +184,45 @@ def main():
             for n in args.sizes:
                 if n > nx * ny // 2:
                     continue
-                times = {t: [] for t, _ in tools}
+                times = {label: [] for label, *_ in tools}
                 times["pydelatin"] = []
                 for _ in range(args.runs):  # alternate, so drift in the machine's speed hits all
-                    for tool, binary in tools:
-                        times[tool].append(meshfit_time(binary, source if tool == "meshfit" else plain, n)[0])
+                    for label, binary, method, tiles in tools:
+                        times[label].append(meshfit_time(binary, source if tiles else plain, n, method)[0])
                     times["pydelatin"].append(pydelatin_run(heights32, n)[0])
                 _, tin = pydelatin_run(heights32, n)
                 hv, ht = np.asarray(tin.vertices, dtype=np.float64), np.asarray(tin.triangles, dtype=np.int64)
-                hmm = pixel_errors(heights, hv[:, 0], hv[:, 1], hv[:, 2], ht)
-                results = {"pydelatin": (len(hv), *hmm, statistics.median(times["pydelatin"]))}
-                for tool, binary in tools:
-                    xs, ys, zs, tris = meshfit_mesh(binary, source if tool == "meshfit" else plain, n)
-                    results[tool] = (len(xs), *pixel_errors(heights, xs, ys, zs, tris),
-                                     statistics.median(times[tool]))
-                m, h = results["meshfit"], results["pydelatin"]
-                ratios.setdefault(n, []).append((m[1] / h[1], m[3] / h[3]))
+                h = (len(hv), *pixel_errors(heights, hv[:, 0], hv[:, 1], hv[:, 2], ht),
+                     statistics.median(times["pydelatin"]))
+                results = {}
+                for label, binary, method, tiles in tools:
+                    xs, ys, zs, tris = meshfit_mesh(binary, source if tiles else plain, n, method)
+                    results[label] = (len(xs), *pixel_errors(heights, xs, ys, zs, tris),
+                                      statistics.median(times[label]))
                 before = ""
                 if args.before:
                     b = results["before"]
                     before = f" {b[1]:.3f} | {b[1] / h[1]:.3f} | {b[3]:.1f} |"
-                rows.append(f"| {name} | {nx}x{ny} | {n} | {m[0]} | {h[0]} | {m[1]:.3f} | {h[1]:.3f} |"
-                            f" {m[1] / h[1]:.3f} | {m[2]:.3f} | {h[2]:.3f} | {m[3]:.1f} | {h[3]:.1f} |"
-                            f" {m[3] / h[3]:.2f} |{before}")
-                print(rows[-1], file=sys.stderr, flush=True)
+                for method in args.methods:
+                    m = results[method]
+                    ratios.setdefault((method, n), []).append((m[1] / h[1], m[3] / h[3]))
+                    rows.append(f"| {name} | {nx}x{ny} | {n} | {method} | {m[0]} | {h[0]} | {m[1]:.3f} |"
+                                f" {h[1]:.3f} | {m[1] / h[1]:.3f} | {m[2]:.3f} | {h[2]:.3f} | {m[3]:.1f} |"
+                                f" {h[3]:.1f} | {m[3] / h[3]:.2f} |{before}")
+                    print(rows[-1], file=sys.stderr, flush=True)
 
     extra = " E_max before | before / hmm | before ms |" if args.before else ""
     print(f"{args.runs} timed run(s) per tool and case, medians; E_max and RMS at every pixel\n")
-    print("| DEM | pixels | n | vertices meshfit | vertices hmm | E_max meshfit | E_max hmm | E_max ratio"
-          f" | RMS meshfit | RMS hmm | ms meshfit | ms hmm | time ratio |{extra}")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|" + ("---|---|---|" if args.before else ""))
+    print("| DEM | pixels | n | method | vertices meshfit | vertices hmm | E_max meshfit | E_max hmm"
+          f" | E_max ratio | RMS meshfit | RMS hmm | ms meshfit | ms hmm | time ratio |{extra}")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|" + ("---|---|---|" if args.before else ""))
     print("\n".join(rows))
-    print("\n| n | E_max ratio, geometric mean | E_max ratio, max | time ratio, geometric mean | time ratio, max |")
-    print("|---|---|---|---|---|")
-    for n, rs in sorted(ratios.items()):
+    print("\n| method | n | E_max ratio, geometric mean | E_max ratio, max | time ratio, geometric mean"
+          " | time ratio, max |")
+    print("|---|---|---|---|---|---|")
+    for (method, n), rs in sorted(ratios.items()):
         e, t = [r[0] for r in rs], [r[1] for r in rs]
-        print(f"| {n} | {geomean(e):.3f} | {max(e):.3f} | {geomean(t):.2f} | {max(t):.2f} |")
+        print(f"| {method} | {n} | {geomean(e):.3f} | {max(e):.3f} | {geomean(t):.2f} | {max(t):.2f} |")
 
 
 if __name__ == "__main__":
