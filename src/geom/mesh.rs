@@ -211,6 +211,23 @@ impl Mesh {
         self.walk_around(a, |neighbour, _| neighbour == b)
     }
 
+    /// The half-edge [`Mesh::find_edge`] gives for (a, b), from half-edge `h` alone when `h`
+    /// lies on that edge: `h` when it runs a → b, else its twin, or `h` itself on the boundary
+    /// (the walk finds a → b where it exists). `None` when `h` lies on another edge, which
+    /// says nothing of (a, b): a flip may have moved it to another slot.
+    #[inline]
+    pub fn edge_at(&self, h: u32, a: u32, b: u32) -> Option<u32> {
+        let (p, q) = (self.origin(h), self.dest(h));
+        if (p, q) == (a, b) {
+            Some(h)
+        } else if (p, q) == (b, a) {
+            let twin = self.twin(h);
+            Some(if twin == NONE { h } else { twin })
+        } else {
+            None
+        }
+    }
+
     /// Calls `f(neighbour, halfedge)` for every vertex joined to `v` by an edge, where
     /// `halfedge` is a half-edge of that edge.
     pub fn for_each_neighbour(&self, v: u32, mut f: impl FnMut(u32, u32)) {

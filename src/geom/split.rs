@@ -281,7 +281,7 @@ mod properties {
         /// Any sequence of midpoint splits and insertions inside triangles, with or without
         /// flips, leaves a valid mesh whose edge count grows by 2 (boundary split) or 3
         /// (interior split, inside insertion) per step, and Lawson flips after each step keep
-        /// it Delaunay.
+        /// it Delaunay; `edge_at` agrees with the walk on every half-edge of the result.
         #[test]
         fn any_sequence_of_splits_leaves_the_mesh_valid(
             picks in prop::collection::vec((any::<u32>(), prop::option::of((1u8..15, 1u8..15))), 1..150),
@@ -329,6 +329,17 @@ mod properties {
                 }
                 if let Err(err) = mesh.check_invariants() {
                     prop_assert!(false, "after inserting {}: {}", split.vertex, err);
+                }
+            }
+            // A half-edge on (a, b) gives the half-edge the walk gives, in either order; one
+            // on another edge gives nothing.
+            for h in 0..mesh.num_halfedges() as u32 {
+                let (p, q) = (mesh.origin(h), mesh.dest(h));
+                prop_assert_eq!(mesh.edge_at(h, p, q), mesh.find_edge(p, q));
+                prop_assert_eq!(mesh.edge_at(h, q, p), mesh.find_edge(q, p));
+                let other = (q + 1) % mesh.num_vertices() as u32;
+                if other != p {
+                    prop_assert_eq!(mesh.edge_at(h, p, other), None);
                 }
             }
         }

@@ -348,7 +348,7 @@ impl Observer for Checker {
         // Oracle: the largest candidate among all current edges that were not retired.
         let best = mesh
             .edges()
-            .map(|e| candidate(mesh, e.a, e.b))
+            .map(|e| candidate(mesh, e.a, e.b, e.halfedge))
             .filter(|c| !self.retired.contains(&(c.a, c.b)))
             .max_by(|x, y| x.cmp(y, mesh.vertices()))
             .map(|c| (c.a, c.b));
