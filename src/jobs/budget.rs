@@ -11,8 +11,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Peak bytes per vertex of a mesh job: the engine, the result and its trace. Measured with
 /// `/usr/bin/time -f %M meshfit mesh --function 'sin(9*x)*cos(7*y)' --max-vertices 1000000`:
-/// 142 MB with `--criterion variation`, 212 MB with `error`; with the 24-byte copy of each
-/// vertex a running job keeps for viewers, 236 MB; rounded up.
+/// 158 MB with `--criterion variation` (its queue entries carry a half-edge since 3082c02),
+/// 212 MB with `error`; with the 24-byte copy of each vertex a running job keeps for viewers,
+/// 236 MB; rounded up.
 pub const MESH_BYTES_PER_VERTEX: u64 = 256;
 
 /// Peak bytes per vertex of a solution: the sparse Cholesky factor dominates. Measured the
@@ -21,11 +22,11 @@ pub const MESH_BYTES_PER_VERTEX: u64 = 256;
 pub const SOLUTION_BYTES_PER_VERTEX: u64 = 1536;
 
 /// Peak bytes per vertex of the command line's `meshfit mesh` (no viewer copy, no trace):
-/// measured as the server's `MESH_BYTES_PER_VERTEX` is, 147 MB at 10^6 vertices with `--criterion
+/// measured as the server's `MESH_BYTES_PER_VERTEX` is, 163 MB at 10^6 vertices with `--criterion
 /// variation` and 201 MB with `error`, the output written as JSON or PLY; rounded up.
 pub const fn cli_mesh_bytes_per_vertex(criterion: Criterion) -> u64 {
     match criterion {
-        Criterion::Variation => 160,
+        Criterion::Variation => 176,
         Criterion::Error => 224,
     }
 }
