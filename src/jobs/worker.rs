@@ -10,7 +10,7 @@ use crate::api::ProgressEvent;
 use crate::geom::Mesh;
 use crate::metrics::StateLabel;
 use crate::refine::trace::Recorder;
-use crate::refine::{Observer, Progress, StopReason, refine};
+use crate::refine::{Method, Observer, Progress, StopReason, refine};
 use crate::result::MeshResult;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
@@ -146,7 +146,8 @@ fn compute(job: &Job, spec: &JobSpec, inner: &Inner) -> (Outcome, Option<Duratio
             result
         }
         _ => {
-            result.trace = trace.map(Arc::new);
+            // A data-dependent run is never replayed (`Trace::covers`): no trace to keep.
+            result.trace = trace.filter(|t| t.method != Method::DataDependent).map(Arc::new);
             let result = Arc::new(result);
             inner.cache.insert(&job.id, result.clone());
             if result.trace.is_some() {
