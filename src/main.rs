@@ -240,7 +240,7 @@ struct MeshArgs {
     max_vertices: usize,
     /// recursive (no flips), semi-recursive (Delaunay flips after each insertion) or, for a
     /// grid with criterion error, data-dependent (semi-recursive, then flips that lower the
-    /// largest error; not Delaunay).
+    /// largest error, and so leave Delaunay).
     #[arg(long, default_value_t = Method::default())]
     method: Method,
     /// How the worst edge is chosen: error (an edge of the triangle with the largest sampled

@@ -15,9 +15,10 @@ pub enum Method {
     SemiRecursive,
     /// `semi-recursive`, then data-dependent flips (Dyn, Levin and Rippa 1990) of the worst
     /// triangles: while a flip of the worst triangle's edge lowers the larger error of the two
-    /// triangles beside it, the best such flip is made. The vertices are the same, the largest
-    /// error never higher, and the mesh no longer Delaunay where a flip was made. Grids with
-    /// criterion `error` only: the flips compare the mesh with the grid's nodes.
+    /// triangles beside it, the best such flip is made; flips that lowered no maximum are
+    /// undone. The vertices are the same, the largest error never higher, and the mesh is the
+    /// Delaunay one unless flips lowered the maximum. Grids with criterion `error` only: the
+    /// flips compare the mesh with the grid's nodes.
     DataDependent,
 }
 
