@@ -48,10 +48,6 @@ struct Estimates<'g> {
 
 impl Estimates<'_> {
     /// Measures triangle `t` and queues it when its error is above zero.
-    ///
-    /// When the worst node is a corner, every node's deviation is within the plane's rounding
-    /// (a few units in the last place of z at the other corners): F_n matches the triangle's
-    /// nodes, and its error is 0.
     fn estimate<O: Observer>(&mut self, mesh: &Mesh, t: u32, observer: &mut O) {
         let slot = self.measure(mesh, mesh.triangle(t as usize));
         observer.estimated(t, slot.error);
@@ -59,6 +55,10 @@ impl Estimates<'_> {
     }
 
     /// e(T) and its node for the triangle with these corners (in the mesh or not).
+    ///
+    /// When the worst node is a corner, every node's deviation is within the plane's rounding
+    /// (a few units in the last place of z at the other corners): F_n matches the triangle's
+    /// nodes, and its error is 0.
     fn measure(&self, mesh: &Mesh, corners: [u32; 3]) -> Slot {
         let in_grid = corners.map(|v| self.at[v as usize]);
         let worst = worst_node(self.grid, in_grid, corners.map(|v| mesh.vertex(v).z), 0.0);
