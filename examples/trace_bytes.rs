@@ -14,7 +14,7 @@ fn main() {
             let mut q = ();
             let mut r = Recorder::new(&mut q, &p);
             let run = refine(&f, Rect::unit(), &p, &mut r).unwrap();
-            let t = r.finish(run.stats.stop);
+            let t = r.finish(run.stats.stop).expect("a replayable method");
             let disk =
                 8 * t.worst.len() + 12 * t.splits.len() + 12 * t.estimates.len() + 4 * t.estimate_ends.len();
             println!(

@@ -10,7 +10,7 @@ use crate::api::ProgressEvent;
 use crate::geom::Mesh;
 use crate::metrics::StateLabel;
 use crate::refine::trace::Recorder;
-use crate::refine::{Method, Observer, Progress, StopReason, refine};
+use crate::refine::{Observer, Progress, StopReason, refine};
 use crate::result::MeshResult;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
@@ -125,7 +125,7 @@ fn compute(job: &Job, spec: &JobSpec, inner: &Inner) -> (Outcome, Option<Duratio
             let trace = recorder.finish(refinement.stats.stop);
             let elapsed = refinement.elapsed;
             mesh.measure(&mut refinement);
-            (MeshResult::from(refinement), Some(trace), elapsed)
+            (MeshResult::from(refinement), trace, elapsed)
         }
         Work::Solve(solve) => {
             let adapted = match solve.solve(&mut observer) {
@@ -146,8 +146,7 @@ fn compute(job: &Job, spec: &JobSpec, inner: &Inner) -> (Outcome, Option<Duratio
             result
         }
         _ => {
-            // A data-dependent run is never replayed (`Trace::covers`): no trace to keep.
-            result.trace = trace.filter(|t| t.method != Method::DataDependent).map(Arc::new);
+            result.trace = trace.map(Arc::new);
             let result = Arc::new(result);
             inner.cache.insert(&job.id, result.clone());
             if result.trace.is_some() {

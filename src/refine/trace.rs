@@ -75,13 +75,16 @@ impl Trace {
 /// An observer that traces a run and passes every report on to `inner`.
 pub struct Recorder<'o, O> {
     inner: &'o mut O,
-    trace: Trace,
+    /// `None` for a run no trace can replay (`data-dependent`, see [`Trace::covers`]): it
+    /// records nothing rather than hold a trace nobody reads.
+    trace: Option<Trace>,
 }
 
 impl<'o, O: Observer> Recorder<'o, O> {
     /// Traces a run of `params`, reporting to `inner` as well.
     pub fn new(inner: &'o mut O, params: &super::Params) -> Self {
-        let trace = Trace {
+        let replayable = params.method() != Method::DataDependent;
+        let trace = replayable.then(|| Trace {
             method: params.method(),
             criterion: params.criterion(),
             on_nodes: false,
@@ -93,14 +96,13 @@ impl<'o, O: Observer> Recorder<'o, O> {
             evaluations: Vec::new(),
             estimates: Vec::new(),
             estimate_ends: Vec::new(),
-        };
+        });
         Self { inner, trace }
     }
 
-    /// The trace of the run that ended with `stop`.
-    pub fn finish(mut self, stop: StopReason) -> Trace {
-        self.trace.stop = stop;
-        self.trace
+    /// The trace of the run that ended with `stop`; `None` for a run no trace can replay.
+    pub fn finish(self, stop: StopReason) -> Option<Trace> {
+        self.trace.map(|trace| Trace { stop, ..trace })
     }
 }
 
@@ -126,30 +128,40 @@ impl<O: Observer> Observer for Recorder<'_, O> {
     }
 
     fn on_nodes(&mut self) {
-        self.trace.on_nodes = true;
+        if let Some(trace) = &mut self.trace {
+            trace.on_nodes = true;
+        }
         self.inner.on_nodes();
     }
 
     fn started(&mut self, evaluations: u64) {
-        self.trace.base_evaluations = evaluations;
-        self.trace.estimate_ends.push(self.trace.estimates.len() as u32);
+        if let Some(trace) = &mut self.trace {
+            trace.base_evaluations = evaluations;
+            trace.estimate_ends.push(trace.estimates.len() as u32);
+        }
         self.inner.started(evaluations);
     }
 
     fn checked(&mut self, worst: f64) {
-        self.trace.worst.push(worst);
+        if let Some(trace) = &mut self.trace {
+            trace.worst.push(worst);
+        }
         self.inner.checked(worst);
     }
 
     fn estimated(&mut self, t: u32, error: f64) {
-        self.trace.estimates.push((t, error));
+        if let Some(trace) = &mut self.trace {
+            trace.estimates.push((t, error));
+        }
         self.inner.estimated(t, error);
     }
 
     fn stepped(&mut self, split: Option<u32>, evaluations: u64) {
-        self.trace.splits.push(split.unwrap_or(NONE));
-        self.trace.evaluations.push(evaluations);
-        self.trace.estimate_ends.push(self.trace.estimates.len() as u32);
+        if let Some(trace) = &mut self.trace {
+            trace.splits.push(split.unwrap_or(NONE));
+            trace.evaluations.push(evaluations);
+            trace.estimate_ends.push(trace.estimates.len() as u32);
+        }
         self.inner.stepped(split, evaluations);
     }
 }
@@ -265,7 +277,7 @@ mod tests {
         let mut quiet = ();
         let mut recorder = Recorder::new(&mut quiet, params);
         let run = refine(source, rect, params, &mut recorder).unwrap();
-        let trace = recorder.finish(run.stats.stop);
+        let trace = recorder.finish(run.stats.stop).expect("a replayable method");
         (run, trace)
     }
 
@@ -343,8 +355,13 @@ mod tests {
     fn a_data_dependent_run_is_never_replayed_as_its_last_flips_depend_on_where_it_stops() {
         let (_, source, rect) = sources().remove(1);
         let params = Params::new(300).unwrap().with_method(Method::DataDependent);
-        let (full, trace) = traced(&source, rect, &params);
-        assert_eq!(trace.method, Method::DataDependent);
+        // Its recorder keeps nothing; a trace that says the method anyway is refused.
+        let mut quiet = ();
+        let mut recorder = Recorder::new(&mut quiet, &params);
+        let full = refine(&source, rect, &params, &mut recorder).unwrap();
+        assert!(recorder.finish(full.stats.stop).is_none());
+        let (_, mut trace) = traced(&source, rect, &params.clone().with_method(Method::SemiRecursive));
+        trace.method = Method::DataDependent;
         assert!(!trace.covers(300, 300, None) && !trace.covers(300, 200, None));
         assert!(replay(&trace, full.mesh.vertices(), 200, None).is_none());
         assert!(replay(&trace, full.mesh.vertices(), 300, None).is_none());

@@ -187,7 +187,7 @@ pub(crate) mod testing {
         let mut quiet = ();
         let mut recorder = Recorder::new(&mut quiet, &params);
         let run = refine(&bump, rect(), &params, &mut recorder).unwrap();
-        let trace = recorder.finish(run.stats.stop);
+        let trace = recorder.finish(run.stats.stop).expect("a replayable method");
         MeshResult { trace: Some(Arc::new(trace)), ..run.into() }
     }
 }
