@@ -1,14 +1,20 @@
-//! The boundary value problem solver: one assembly and factorisation at 10^5 vertices, and
-//! the whole adaptive loop on a sharp peak, −Δu = f with u = exp(−1000 r²).
+//! The boundary value problem solver: one assembly and factorisation at 10^5 vertices, the
+//! whole adaptive loop on a sharp peak, −Δu = f with u = exp(−1000 r²), and the adaptive loop
+//! of a nonlinear magnetostatic problem, where Newton's method solves each mesh several times.
 //!
-//! Run with `cargo bench --bench solve`; ids are `solve/once/100000` and
-//! `solve/adaptive_peak/<vertices>`. The peak's f is a native closure here; through the API
-//! it is a meval expression, which `bench/solve.py` times side by side with scikit-fem.
+//! Run with `cargo bench --bench solve`; ids are `solve/once/100000`,
+//! `solve/adaptive_peak/<vertices>` and `solve/adaptive_electromagnet/20000`. The peak's f is a
+//! native closure here; through the API it is a meval expression, which `bench/solve.py` times
+//! side by side with scikit-fem. The electromagnet is examples/requests/electromagnet.json (two
+//! iron parts with a published B–H curve and a coil), as `meshfit solve` reads it.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use meshfit::api::SolveRequest;
 use meshfit::geom::Rect;
+use meshfit::jobs::{Limits, SolveSpec};
 use meshfit::refine::{Params, refine};
 use meshfit::solve::{Problem, Settings, adapt, solve};
+use std::time::Duration;
 
 fn peak(x: f64, y: f64) -> f64 {
     (-1000.0 * ((x - 0.5).powi(2) + (y - 0.5).powi(2))).exp()
@@ -49,5 +55,24 @@ fn adaptive(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, once, adaptive);
+fn electromagnet(c: &mut Criterion) {
+    let request: SolveRequest =
+        meshfit::api::from_json(include_bytes!("../examples/requests/electromagnet.json")).unwrap();
+    let limits = Limits {
+        max_vertices: usize::MAX,
+        max_grid_points: usize::MAX,
+        max_expression_len: usize::MAX,
+        job_time_limit: Duration::MAX,
+    };
+    let (spec, _) = SolveSpec::from_request(request, &limits).unwrap();
+    let mut group = c.benchmark_group("solve");
+    group.sample_size(10);
+    group.throughput(Throughput::Elements(spec.settings.max_vertices as u64));
+    group.bench_function(format!("adaptive_electromagnet/{}", spec.settings.max_vertices), |b| {
+        b.iter(|| spec.solve(&mut ()).unwrap().stats.energy)
+    });
+    group.finish();
+}
+
+criterion_group!(benches, once, adaptive, electromagnet);
 criterion_main!(benches);

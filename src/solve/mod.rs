@@ -548,56 +548,11 @@ impl Numbering {
 
 /// Solves A x = b for the symmetric positive definite A given by its lower-triangle
 /// `entries` (column, row, value); duplicates are summed.
-fn solve_spd(n: usize, entries: Vec<(usize, usize, f64)>, mut b: Vec<f64>) -> Result<Vec<f64>, SolveError> {
+fn solve_spd(n: usize, entries: Vec<(usize, usize, f64)>, b: Vec<f64>) -> Result<Vec<f64>, SolveError> {
     if n == 0 {
         return Ok(b);
     }
-    let (col_ptr, row_idx, values) = compress(n, &entries);
-    drop(entries);
-    cholesky::Cholesky::new(n, &col_ptr, &row_idx, &values)?.solve_in_place(&mut b);
-    Ok(b)
-}
-
-/// The compressed columns (column pointers, row indices, values) of `entries` (column, row,
-/// value), n columns, with duplicates summed in assembly order so that their sum rounds the
-/// same way on every run (faer's own triplet constructor does not promise an order).
-///
-/// A counting sort by column, then a stable sort of each column's few entries by row (std's
-/// small-slice insertion sort): near linear in the entries, where a comparison sort of them
-/// all was 8.5% of a solve.
-fn compress(n: usize, entries: &[(usize, usize, f64)]) -> (Vec<usize>, Vec<usize>, Vec<f64>) {
-    let mut start = vec![0usize; n + 1];
-    for &(col, _, _) in entries {
-        start[col + 1] += 1;
-    }
-    for c in 0..n {
-        start[c + 1] += start[c];
-    }
-    let mut next = start.clone();
-    let mut sorted = vec![(0usize, 0.0f64); entries.len()];
-    for &(col, row, value) in entries {
-        sorted[next[col]] = (row, value);
-        next[col] += 1;
-    }
-    let mut col_ptr = Vec::with_capacity(n + 1);
-    let mut row_idx = Vec::with_capacity(entries.len());
-    let mut values = Vec::with_capacity(entries.len());
-    col_ptr.push(0);
-    for c in 0..n {
-        let column = &mut sorted[start[c]..start[c + 1]];
-        column.sort_by_key(|&(row, _)| row);
-        let first = row_idx.len();
-        for &(row, value) in &*column {
-            if row_idx.len() > first && row_idx.last() == Some(&row) {
-                *values.last_mut().expect("a previous entry") += value;
-            } else {
-                row_idx.push(row);
-                values.push(value);
-            }
-        }
-        col_ptr.push(row_idx.len());
-    }
-    (col_ptr, row_idx, values)
+    cholesky::Analysis::new(n, &entries)?.solve(entries, b)
 }
 
 impl Solution {

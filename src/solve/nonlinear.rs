@@ -7,6 +7,7 @@
 //! field and ν across it. Both are positive for a rising H(B), so every Newton system is
 //! symmetric positive definite and goes to the same Cholesky as a linear one.
 
+use super::cholesky::Analysis;
 use super::{Coefficients, Element, Problem, SolveError, solve_spd};
 use serde::{Deserialize, Serialize};
 
@@ -96,11 +97,17 @@ impl System<'_, '_> {
         let mut residuals = vec![relative];
         let mut iterations = 0;
         let mut trial = u.to_vec();
+        let mut analysis = None;
         while relative > NEWTON_TOLERANCE && iterations < MAX_NEWTON_ITERATIONS {
             for v in &mut r {
                 *v = -*v;
             }
-            let step = solve_spd(self.unknowns, std::mem::take(&mut entries), std::mem::take(&mut r))?;
+            // Every iteration assembles the same pattern in the same order: analyse it once.
+            let analysis = match &analysis {
+                Some(analysis) => analysis,
+                None => analysis.insert(Analysis::new(self.unknowns, &entries)?),
+            };
+            let step = analysis.solve(std::mem::take(&mut entries), std::mem::take(&mut r))?;
             // Armijo's rule on ‖R‖₂; past the last halving the step is taken if R stays finite.
             let mut alpha = 1.0;
             let mut halvings = 0;

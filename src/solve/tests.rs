@@ -291,31 +291,3 @@ fn an_interior_vertex_in_no_triangle_makes_the_matrix_singular() {
     let err = solve(&Problem::new(Rect::unit()), &points, &triangles).unwrap_err();
     assert!(matches!(err, SolveError::NotPositiveDefinite { unknowns: 2, .. }), "{err:?}");
 }
-
-proptest::proptest! {
-    /// The compressed columns are what a stable sort by (column, row) and a sum of each run of
-    /// duplicates in assembly order give, to the bit.
-    #[test]
-    fn compress_sums_duplicates_in_assembly_order_like_a_stable_sort(
-        entries in proptest::collection::vec((0usize..6, 0usize..6, -1e3f64..1e3), 0..120),
-    ) {
-        let n = 6;
-        let mut sorted = entries.clone();
-        sorted.sort_by_key(|&(col, row, _)| (col, row));
-        let mut expected: Vec<(usize, usize, f64)> = Vec::new();
-        for (col, row, value) in sorted {
-            match expected.last_mut() {
-                Some(last) if (last.0, last.1) == (col, row) => last.2 += value,
-                _ => expected.push((col, row, value)),
-            }
-        }
-        let (col_ptr, row_idx, values) = compress(n, &entries);
-        proptest::prop_assert_eq!(col_ptr.len(), n + 1);
-        let got: Vec<_> = (0..n)
-            .flat_map(|c| (col_ptr[c]..col_ptr[c + 1]).map(move |k| (c, k)))
-            .map(|(c, k)| (c, row_idx[k], values[k].to_bits()))
-            .collect();
-        let expected: Vec<_> = expected.into_iter().map(|(c, r, v)| (c, r, v.to_bits())).collect();
-        proptest::prop_assert_eq!(got, expected);
-    }
-}
