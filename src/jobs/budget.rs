@@ -17,9 +17,11 @@ use std::sync::atomic::{AtomicU64, Ordering};
 pub const MESH_BYTES_PER_VERTEX: u64 = 256;
 
 /// Peak bytes per vertex of a solution: the sparse Cholesky factor dominates. Measured the
-/// same way on `meshfit solve` at 10^5 vertices (a Poisson peak, 125 MB) and 2·10^5 (the
-/// README's magnet, 282 MB); rounded up.
-pub const SOLUTION_BYTES_PER_VERTEX: u64 = 1536;
+/// same way on `meshfit solve` (65f9fa4 and after): at 10^5 vertices a Poisson peak 140 MB and
+/// examples/requests/electromagnet.json 169 MB (Newton keeps its analysis and Jacobian), at
+/// 2·10^5 the README's magnet 276 MB and the electromagnet 275 MB; rounded up from the
+/// electromagnet at 10^5.
+pub const SOLUTION_BYTES_PER_VERTEX: u64 = 1792;
 
 /// Peak bytes per vertex of the command line's `meshfit mesh` (no viewer copy, no trace):
 /// measured as the server's `MESH_BYTES_PER_VERTEX` is, 163 MB at 10^6 vertices with `--criterion

@@ -109,12 +109,15 @@ impl System<'_, '_> {
             };
             let step = analysis.solve(std::mem::take(&mut entries), std::mem::take(&mut r))?;
             // Armijo's rule on ‖R‖₂; past the last halving the step is taken if R stays finite.
+            // Each trial assembles its Jacobian too: the step taken is then ready for the next
+            // iteration, where a second pass over the elements would compute the same bits.
             let mut alpha = 1.0;
             let mut halvings = 0;
             let accepted = loop {
                 trial.copy_from_slice(u);
                 self.scatter(&step, &mut trial, |u, d| u + alpha * d);
-                let tried = norm(&self.residual(&trial, None)) / scale;
+                r = self.residual(&trial, Some(&mut entries));
+                let tried = norm(&r) / scale;
                 if tried <= (1.0 - 1e-4 * alpha) * relative {
                     break true;
                 }
@@ -129,7 +132,6 @@ impl System<'_, '_> {
             }
             u.copy_from_slice(&trial);
             iterations += 1;
-            r = self.residual(u, Some(&mut entries));
             relative = norm(&r) / scale;
             residuals.push(relative);
         }
