@@ -17,7 +17,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 pub const MESH_BYTES_PER_VERTEX: u64 = 256;
 
 /// Peak bytes per vertex of a solution: the sparse Cholesky factor dominates. Measured the
-/// same way on `meshfit solve` (65f9fa4 and after): at 10^5 vertices a Poisson peak 140 MB and
+/// same way on `meshfit solve` (2026-12-06, 08f08c1): at 10^5 vertices a Poisson peak 140 MB and
 /// examples/requests/electromagnet.json 169 MB (Newton keeps its analysis and Jacobian), at
 /// 2·10^5 the README's magnet 276 MB and the electromagnet 275 MB; rounded up from the
 /// electromagnet at 10^5.
