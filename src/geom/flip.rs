@@ -21,20 +21,31 @@ impl Mesh {
     pub(crate) fn flip(&mut self, e: u32) -> [u32; 2] {
         let f = self.twin(e);
         debug_assert_ne!(f, NONE, "flip of a boundary edge");
-        let (u, v, m, w) = (self.origin(e), self.dest(e), self.apex(e), self.apex(f));
+        let [first, second] = self.flipped(e);
         let (out_vm, out_mu) = (self.twin(next(e)), self.twin(prev(e)));
         let (out_uw, out_wv) = (self.twin(next(f)), self.twin(prev(f)));
         let (t0, t1) = (e / 3, f / 3);
-        self.set_triangle(t0, [u, w, m], [out_uw, 3 * t1 + 2, out_mu]);
-        self.set_triangle(t1, [w, v, m], [out_wv, out_vm, 3 * t0 + 1]);
+        self.set_triangle(t0, first, [out_uw, 3 * t1 + 2, out_mu]);
+        self.set_triangle(t1, second, [out_wv, out_vm, 3 * t0 + 1]);
         self.claim_corners(t0);
         self.claim_corners(t1);
         debug_assert!(
-            super::predicates::is_ccw(self.point(u), self.point(w), self.point(m))
-                && super::predicates::is_ccw(self.point(w), self.point(v), self.point(m)),
+            [first, second].iter().all(|t| super::predicates::is_ccw(
+                self.point(t[0]),
+                self.point(t[1]),
+                self.point(t[2])
+            )),
             "flip produced a non-CCW triangle"
         );
         [3 * t0, 3 * t1]
+    }
+
+    /// The corners of the two triangles [`Mesh::flip`] makes of `e`'s two, in the order
+    /// [`Mesh::triangle`] then lists them: (u, w, m) and (w, v, m).
+    #[inline]
+    pub(crate) fn flipped(&self, e: u32) -> [[u32; 3]; 2] {
+        let (u, v, m, w) = (self.origin(e), self.dest(e), self.apex(e), self.apex(self.twin(e)));
+        [[u, w, m], [w, v, m]]
     }
 
     /// Lawson's algorithm after inserting a vertex *exactly* on an edge or inside a triangle:

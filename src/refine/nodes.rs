@@ -207,7 +207,8 @@ fn flip_worst<O: Observer>(mesh: &mut Mesh, estimates: &mut Estimates<'_>, run: 
         let [a, b] = mesh.flip(h);
         estimates.set(a / 3, s0);
         estimates.set(b / 3, s1);
-        pending.push((mesh.origin(a + 1), mesh.dest(a + 1)));
+        // The new diagonal runs from a's end to its apex (w → m).
+        pending.push((mesh.dest(a), mesh.apex(a)));
     }
     for &(w, m) in pending.iter().rev() {
         let diagonal = mesh.find_edge(w, m).expect("undoing the flips after it brought the diagonal back");
@@ -236,9 +237,7 @@ fn best_flip(
         if f == NONE || mesh.is_constrained(h) {
             continue;
         }
-        // The flip's two triangles, as `Mesh::flip` makes them.
-        let (u, v, m, w) = (mesh.origin(h), mesh.dest(h), mesh.apex(h), mesh.apex(f));
-        let new = [[u, w, m], [w, v, m]];
+        let new = mesh.flipped(h);
         let fits = |&[a, b, c]: &[u32; 3]| {
             let (a, b, c) = (mesh.point(a), mesh.point(b), mesh.point(c));
             is_ccw(a, b, c)
