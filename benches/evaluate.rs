@@ -17,7 +17,7 @@ use support::{franke, scatter};
 fn evaluate(c: &mut Criterion) {
     let mut group = c.benchmark_group("evaluate");
     for method in [Method::SemiRecursive, Method::Recursive] {
-        let params = Params::new(100_000).unwrap().with_method(method);
+        let params = Params::builder(100_000).method(method).build().unwrap();
         let mesh: MeshResult = refine(&franke, Rect::unit(), &params, &mut ()).unwrap().into();
         let locator = Locator::new(&mesh);
         let points: Vec<Point> = scatter(1_000_000);

@@ -48,7 +48,7 @@ fn run_with<S: Surface + ?Sized>(
     let mut group = c.benchmark_group("refine");
     for method in [Method::Recursive, Method::SemiRecursive] {
         for &n in sizes {
-            let params = Params::new(n).unwrap().with_method(method).with_criterion(criterion);
+            let params = Params::builder(n).method(method).criterion(criterion).build().unwrap();
             // Ids read refine/<method>/<surface>/<n> for the paper's criterion and
             // refine/<method>-error/<surface>/<n> for the error criterion.
             let method = match criterion {

@@ -18,7 +18,7 @@ fn main() {
     let n: usize = args.next().as_deref().unwrap_or("100000").parse().expect("a vertex count");
     let criterion: Criterion = args.next().as_deref().unwrap_or("variation").parse().expect("a criterion");
     let params =
-        Params::new(n).expect("a budget of at least 4").with_method(method).with_criterion(criterion);
+        Params::builder(n).method(method).criterion(criterion).build().expect("a budget of at least 4");
     let surface = args.next().unwrap_or_else(|| "native".into());
     let repeat: usize = std::env::var("PROFILE_REPEAT").map_or(1, |n| n.parse().expect("a repeat count"));
     for _ in 1..repeat {

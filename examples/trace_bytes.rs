@@ -10,7 +10,7 @@ fn main() {
     };
     for criterion in [Criterion::Variation, Criterion::Error] {
         for method in [Method::SemiRecursive, Method::Recursive] {
-            let p = Params::new(100_000).unwrap().with_method(method).with_criterion(criterion);
+            let p = Params::builder(100_000).method(method).criterion(criterion).build().unwrap();
             let mut q = ();
             let mut r = Recorder::new(&mut q, &p);
             let run = refine(&f, Rect::unit(), &p, &mut r).unwrap();

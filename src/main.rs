@@ -3,16 +3,17 @@
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
-use meshfit::api::SolveRequest;
+use meshfit::api::{DomainInput, GridInput, JobRequest, SolveRequest};
 use meshfit::config::{Config, RawConfig, SETTINGS, Setting};
 use meshfit::geom::Rect;
 use meshfit::jobs::{
-    Limits, SOLUTION_BYTES_PER_VERTEX, SolveSpec, available_memory, cli_mesh_bytes_per_vertex,
+    JobSpec, Limits, SOLUTION_BYTES_PER_VERTEX, SolveSpec, SpecError, available_memory,
+    cli_mesh_bytes_per_vertex,
 };
 use meshfit::output::{self, Format, Options, json};
-use meshfit::refine::{Criterion, MAX_VERTICES, Method, Params, estimate_error, refine};
+use meshfit::refine::{Criterion, Method, estimate_error, refine};
 use meshfit::result::MeshResult;
-use meshfit::source::{Encoding, Expression, GridHints, RawType, Source, decode_grid};
+use meshfit::source::{Encoding, RawType};
 use std::io::{BufWriter, Write};
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -354,26 +355,20 @@ fn solve(args: &SolveArgs) -> Result<()> {
     };
     let request: SolveRequest = meshfit::api::from_json(text.as_bytes())
         .with_context(|| format!("{} is not a valid request", path.display()))?;
-    let limits = Limits {
-        max_vertices: MAX_VERTICES,
-        max_grid_points: usize::MAX,
-        max_expression_len: usize::MAX,
-        job_time_limit: Duration::MAX,
-    };
-    let (spec, _) = SolveSpec::from_request(request, &limits)?;
+    let (spec, _) = SolveSpec::from_request(request, &Limits::NONE)?;
     let format = args.output.check()?;
     check_memory(spec.settings.max_vertices, SOLUTION_BYTES_PER_VERTEX, available_memory())?;
     let adapted = spec.solve(&mut ())?;
     if args.stats {
         let times: Vec<f64> = adapted.times.iter().map(|t| t.as_secs_f64() * 1e3).collect();
-        let result = MeshResult::solution(adapted, spec.physics);
+        let result = adapted.into_result(spec.physics);
         let doc = serde_json::json!({"stats": result.stats, "solve_times_ms": times});
         return to_stdout(|out| {
             serde_json::to_writer_pretty(&mut *out, &doc)?;
             writeln!(out)
         });
     }
-    args.output.write(MeshResult::solution(adapted, spec.physics), format)
+    args.output.write(adapted.into_result(spec.physics), format)
 }
 
 fn parse_domain(s: &str) -> Result<Rect, String> {
@@ -396,49 +391,67 @@ fn parse_encoding(s: &str) -> Result<Encoding, String> {
         .ok_or_else(|| format!("`{s}` is not a tile encoding; use terrain-rgb or terrarium"))
 }
 
-/// F, and the rectangle its file names (a GeoTIFF's), if any.
-fn load_source(args: &MeshArgs) -> Result<(Source, Option<Rect>)> {
-    if let Some(text) = &args.function {
-        let expr = Expression::parse(text)
-            .map_err(|e| anyhow::anyhow!("--function: {e}\n  {text}\n  {:>1$}", "^", e.column))?;
-        return Ok((Source::Expression(expr), None));
+/// The request `args` make, with the grid file's bytes if they name one: the same request the
+/// API would take, so the command line checks it by the same rules.
+fn mesh_request(args: &MeshArgs) -> Result<(JobRequest<'static>, Option<Vec<u8>>)> {
+    let file = match &args.grid {
+        Some(path) => {
+            Some(std::fs::read(path).with_context(|| format!("cannot read grid file {}", path.display()))?)
+        }
+        None => None,
+    };
+    let grid = args.grid.as_ref().map(|_| GridInput {
+        nx: args.nx.map(|n| n as u64),
+        ny: args.ny.map(|n| n as u64),
+        values: None,
+        dtype: args.dtype,
+        encoding: args.encoding,
+    });
+    let request = JobRequest {
+        function: args.function.clone(),
+        grid,
+        domain: args.domain.map(|r| DomainInput { x: vec![r.x0(), r.x1()], y: vec![r.y0(), r.y1()] }),
+        max_vertices: Some(args.max_vertices as u64),
+        tolerance: args.tolerance,
+        method: Some(args.method),
+        criterion: Some(args.criterion),
+        min_angle: args.min_angle,
+        time_limit_ms: args.time_limit_ms,
+        quality: None,
+    };
+    Ok((request, file))
+}
+
+/// A request's error as the command line names it: by its flag, with a caret under the column
+/// of a bad expression.
+fn flag_error(e: SpecError, args: &MeshArgs) -> anyhow::Error {
+    match (&e, &args.function) {
+        (SpecError::Expression(x), Some(text)) => {
+            anyhow::anyhow!("--function: {x}\n  {text}\n  {:>1$}", "^", x.column)
+        }
+        _ => match e.field() {
+            Some(field) => anyhow::Error::new(e.clone()).context(format!("--{}", field.replace('_', "-"))),
+            None => e.into(),
+        },
     }
-    let Some(path) = &args.grid else { bail!("give --function or --grid") };
-    let bytes = std::fs::read(path).with_context(|| format!("cannot read grid file {}", path.display()))?;
-    let hints = GridHints { nx: args.nx, ny: args.ny, dtype: args.dtype, encoding: args.encoding };
-    let decoded =
-        decode_grid(&bytes, &hints, usize::MAX).with_context(|| format!("grid file {}", path.display()))?;
-    Ok((Source::Grid(decoded.grid), decoded.domain))
 }
 
 fn mesh(args: &MeshArgs) -> Result<()> {
-    let (source, file_domain) = load_source(args)?;
-    let rect = args.domain.or(file_domain).unwrap_or_else(|| source.default_domain());
-    let source = source.with_domain(rect);
-    let mut params = Params::new(args.max_vertices)
-        .context("--max-vertices")?
-        .with_method(args.method)
-        .with_criterion(args.criterion);
-    if let Some(t) = args.tolerance {
-        params = params.with_tolerance(t).context("--tolerance")?;
+    let (request, file) = mesh_request(args)?;
+    let spec = match &file {
+        Some(bytes) => JobSpec::from_upload(request, bytes, &Limits::NONE),
+        None => JobSpec::from_request(request, &Limits::NONE),
     }
-    if let Some(degrees) = args.min_angle {
-        if args.criterion == Criterion::Variation {
-            bail!("--min-angle needs --criterion error: the paper's variation splits only its worst edge");
-        }
-        params = params.with_min_angle(degrees).context("--min-angle")?;
-    }
-    if let Some(ms) = args.time_limit_ms {
-        params = params.with_time_limit(Duration::from_millis(ms));
-    }
-    params.check_source(matches!(source, Source::Grid(_))).context("--method")?;
+    .map_err(|e| flag_error(e, args))?;
+    let mesh = spec.mesh().expect("a mesh request makes a mesh spec");
+    let (source, rect, params) = (&*mesh.source, mesh.domain, &mesh.params);
     let format = args.output.check()?;
     check_memory(params.max_vertices(), cli_mesh_bytes_per_vertex(args.criterion), available_memory())?;
-    let result = refine(&source, rect, &params, &mut ())?;
+    let result = refine(source, rect, params, &mut ())?;
     if args.stats {
         let document = json::StatsDocument {
             stats: &result.stats,
-            error: estimate_error(&result.mesh, &source),
+            error: estimate_error(&result.mesh, source),
             elapsed_ms: result.elapsed.as_secs_f64() * 1e3,
         };
         return to_stdout(|out| {

@@ -236,7 +236,7 @@ fn solve_prints_the_solution_document_the_api_serves() {
     let (spec, _) =
         meshfit::jobs::SolveSpec::from_request(serde_json::from_str(request).unwrap(), &limits).unwrap();
     let adapted = spec.solve(&mut ()).unwrap();
-    let result = std::sync::Arc::new(meshfit::result::MeshResult::solution(adapted, spec.physics));
+    let result = std::sync::Arc::new(adapted.into_result(spec.physics));
     let encoded =
         meshfit::output::encode(&result, meshfit::output::Format::Json, &Default::default()).to_vec();
     assert_eq!(doc, serde_json::from_slice::<Value>(&encoded).unwrap());

@@ -167,11 +167,11 @@ fn run(source: &Source, rect: Rect, params: &Params) {
     for (budget, tolerance) in cases {
         // The run's own tolerance still stops a smaller request where it stopped the run.
         let tolerance = tolerance.or(params.tolerance());
-        let mut p = Params::new(budget).expect("budget >= 4").with_method(params.method());
-        p = p.with_criterion(params.criterion());
+        let mut p = Params::builder(budget).method(params.method()).criterion(params.criterion());
         if let Some(t) = tolerance {
-            p = p.with_tolerance(t).expect("finite tolerance");
+            p = p.tolerance(t);
         }
+        let p = p.build().expect("a budget >= 4 and a finite tolerance");
         let replayed = replay(&trace, &vertices, budget, tolerance)
             .unwrap_or_else(|| panic!("({budget}, {tolerance:?}) of a run of {n} vertices is not replayed"));
         let fresh = refine(source, rect, &p, &mut ()).expect("a prefix of a run that succeeded");
@@ -191,9 +191,9 @@ fuzz_target!(|input: Input| {
         .unwrap_or_else(|| source.default_domain());
     let source = source.with_domain(rect);
     let budget = 4 + usize::from(input.budget % 297);
-    let mut base = Params::new(budget).expect("budget in 4..=300");
+    let mut base = Params::builder(budget);
     if let Some(t) = input.tolerance.filter(|t| t.is_finite() && *t >= 0.0) {
-        base = base.with_tolerance(t).expect("finite tolerance");
+        base = base.tolerance(t);
     }
     let method = if input.method { Method::Recursive } else { Method::SemiRecursive };
     let criterion = if input.criterion { Criterion::Variation } else { Criterion::Error };
@@ -203,6 +203,7 @@ fuzz_target!(|input: Input| {
         [(Method::SemiRecursive, criterion), (Method::Recursive, criterion)]
     };
     for (method, criterion) in runs {
-        run(&source, rect, &base.clone().with_method(method).with_criterion(criterion));
+        let params = base.clone().method(method).criterion(criterion).build().expect("budget in 4..=300");
+        run(&source, rect, &params);
     }
 });

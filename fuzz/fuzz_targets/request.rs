@@ -101,7 +101,7 @@ fn settle(spec: Result<JobSpec, ApiError>) {
                 panic!("accepted boundary value problem gave a broken mesh: {e}");
             }
             assert!(adapted.mesh.num_vertices() <= solve.settings.max_vertices);
-            let _ = MeshResult::solution(adapted, solve.physics);
+            let _ = adapted.into_result(solve.physics);
         }
     }
 }

@@ -228,7 +228,11 @@ mod tests {
         let recursive = refine(
             &f,
             Rect::unit(),
-            &params.clone().with_method(Method::Recursive).with_criterion(Criterion::Variation),
+            &Params::builder(50_000)
+                .method(Method::Recursive)
+                .criterion(Criterion::Variation)
+                .build()
+                .unwrap(),
             &mut (),
         )
         .unwrap()

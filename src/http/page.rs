@@ -124,7 +124,7 @@ mod tests {
         // The page steps 24 bytes a vertex: three doubles.
         assert_eq!(vertex.matches("property double ").count(), 3);
         let result = Arc::new(sample(200, Criterion::Error));
-        assert!(result.triangle_errors.is_some());
+        assert!(result.indicator().is_some());
         let mut bytes = Vec::new();
         encode(&result, Format::Ply, &Options::default()).write_to(&mut bytes).unwrap();
         let end = bytes.windows(11).position(|w| w == b"end_header\n").unwrap();
@@ -136,6 +136,6 @@ mod tests {
         let data = &bytes[end + 11..];
         let first_face = &data[24 * result.vertices.len()..];
         let error = f64::from_le_bytes(first_face[13..21].try_into().unwrap());
-        assert_eq!((first_face[0], error), (3, result.triangle_errors.as_ref().unwrap()[0]));
+        assert_eq!((first_face[0], error), (3, result.indicator().unwrap()[0]));
     }
 }

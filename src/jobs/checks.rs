@@ -3,7 +3,7 @@
 
 use crate::api::DomainInput;
 use crate::geom::Rect;
-use crate::refine::{Params, ParamsError};
+use crate::refine::{MAX_VERTICES, Params, ParamsBuilder, ParamsError};
 use crate::source::{ExprError, GridFileError};
 use std::time::Duration;
 
@@ -18,6 +18,16 @@ pub struct Limits {
     pub max_expression_len: usize,
     /// Longest run; also the default time limit.
     pub job_time_limit: Duration,
+}
+
+impl Limits {
+    /// No limits but the engine's own: what the command line checks a request against.
+    pub const NONE: Limits = Limits {
+        max_vertices: MAX_VERTICES,
+        max_grid_points: usize::MAX,
+        max_expression_len: usize::MAX,
+        job_time_limit: Duration::MAX,
+    };
 }
 
 /// The budget a request gets when it names none.
@@ -115,10 +125,16 @@ impl SpecError {
 
 /// The engine's parameters for a request's vertex budget (the default when it names none),
 /// checked against this server's limit rather than the engine's.
-pub(super) fn budget(max_vertices: Option<u64>, limits: &Limits) -> Result<Params, SpecError> {
+pub(super) fn budget(max_vertices: Option<u64>, limits: &Limits) -> Result<ParamsBuilder, SpecError> {
     let max_vertices = max_vertices.unwrap_or(DEFAULT_MAX_VERTICES);
     at_most(("max_vertices", ""), "MESHFIT_MAX_VERTICES", limits.max_vertices, max_vertices)?;
-    Params::new(max_vertices as usize).map_err(|e| match e {
+    Ok(Params::builder(max_vertices as usize))
+}
+
+/// The engine's checks of `params`, with a budget below 4 told against this server's limit
+/// rather than the engine's.
+pub(super) fn build(params: ParamsBuilder, limits: &Limits) -> Result<Params, SpecError> {
+    params.build().map_err(|e| match e {
         ParamsError::MaxVertices { got, .. } => {
             SpecError::Parameter(ParamsError::MaxVertices { got, max: limits.max_vertices as u64 })
         }

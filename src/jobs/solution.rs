@@ -1,6 +1,6 @@
 //! SolveSpec: a boundary value problem request, validated and in canonical form.
 
-use super::checks::{Limits, SpecError, at_most, budget, domain_of};
+use super::checks::{Limits, SpecError, at_most, budget, build, domain_of};
 use crate::api::{BoundaryInput, Coefficient, RegionInput, SolveRequest};
 use crate::geom::{Point, Rect};
 use crate::refine::{Method, Observer};
@@ -383,8 +383,9 @@ impl SolveSpec {
         // The checks of the budget and the tolerance, as for a mesh.
         let mut params = budget(request.max_vertices, limits)?;
         if let Some(t) = request.tolerance {
-            params = params.with_tolerance(t + 0.0).map_err(SpecError::Parameter)?;
+            params = params.tolerance(t + 0.0);
         }
+        let params = build(params, limits)?;
         let method = request.method.unwrap_or_default();
         if method == Method::DataDependent {
             let detail = "data-dependent is for meshes of a grid; use semi-recursive or recursive";

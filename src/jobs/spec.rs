@@ -1,10 +1,10 @@
 //! JobSpec: a request validated against the server's limits, in canonical form.
 
-use super::checks::{Limits, SpecError, at_most, budget, domain_of, grid_error};
+use super::checks::{Limits, SpecError, at_most, budget, build, domain_of, grid_error};
 use super::solution::SolveSpec;
 use crate::api::{JobRequest, SolveRequest};
 use crate::geom::Rect;
-use crate::refine::{Criterion, Params, ParamsError, Refinement, estimate_error};
+use crate::refine::{Params, Refinement, estimate_error};
 use crate::source::{Expression, GridHints, Source, decode_grid, decode_values};
 use std::sync::Arc;
 use std::time::Duration;
@@ -167,19 +167,18 @@ impl JobSpec {
         let requested_time_limit = request.time_limit_ms.map(Duration::from_millis);
         let time_limit = requested_time_limit.map_or(limits.job_time_limit, |t| t.min(limits.job_time_limit));
         let mut params = budget(request.max_vertices, limits)?
-            .with_method(request.method.unwrap_or_default())
-            .with_criterion(request.criterion.unwrap_or_default())
-            .with_time_limit(time_limit);
+            .method(request.method.unwrap_or_default())
+            .criterion(request.criterion.unwrap_or_default())
+            .time_limit(time_limit)
+            .on_grid(matches!(source, Source::Grid(_)));
+        // + 0.0: -0.0 is 0.0, one value and one cache key.
         if let Some(t) = request.tolerance {
-            params = params.with_tolerance(t + 0.0).map_err(SpecError::Parameter)?;
+            params = params.tolerance(t + 0.0);
         }
         if let Some(degrees) = request.min_angle {
-            if params.criterion() == Criterion::Variation {
-                return Err(SpecError::Parameter(ParamsError::MinAngleCriterion));
-            }
-            params = params.with_min_angle(degrees + 0.0).map_err(SpecError::Parameter)?;
+            params = params.min_angle(degrees + 0.0);
         }
-        params.check_source(matches!(source, Source::Grid(_))).map_err(SpecError::Parameter)?;
+        let params = build(params, limits)?;
         let quality = request.quality.unwrap_or(false);
         let mesh = MeshSpec { source: Arc::new(source), domain, params, quality };
         Ok(Self { work: Work::Mesh(mesh), requested_time_limit })

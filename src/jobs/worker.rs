@@ -133,7 +133,7 @@ fn compute(job: &Job, spec: &JobSpec, inner: &Inner) -> (Outcome, Option<Duratio
                 Err(e) => return (Outcome::Failed(JobError::Solve(e)), None),
             };
             let elapsed = adapted.times.last().copied().unwrap_or_default();
-            (MeshResult::solution(adapted, solve.physics), None, elapsed)
+            (adapted.into_result(solve.physics), None, elapsed)
         }
     };
     let elapsed = Some(elapsed);

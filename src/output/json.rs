@@ -1,6 +1,6 @@
 //! The mesh document: `{"id": ..., "vertices": [[x, y, z], ...], "triangles": [[i, j, k], ...],
-//! "stats": {...}}`, with `"flux_density": [[Bx, By], ...]` per triangle before the stats for a
-//! magnetostatic solution.
+//! "stats": {...}}`, with the result's main field under its key before the stats (a
+//! magnetostatic solution's `"flux_density": [[Bx, By], ...]` per triangle).
 //!
 //! Numbers are written by serde_json's shortest round-trip formatting, so a reader gets back
 //! the exact f64 values. Vertices are in insertion order, triangles counter-clockwise. The
@@ -8,7 +8,7 @@
 
 use super::{Encoded, Options, Part};
 use crate::refine::{ErrorEstimate, Stats};
-use crate::result::MeshResult;
+use crate::result::{MeshResult, Role};
 use serde::Serialize;
 use std::io::{self, Write};
 use std::sync::Arc;
@@ -44,13 +44,23 @@ pub fn encode(result: &Arc<MeshResult>, options: &Options) -> Encoded {
         }),
         Part::Bytes(b"]".to_vec()),
     ];
-    if let Some(flux) = result.flux_density() {
-        parts.push(Part::Bytes(b",\"flux_density\":[".to_vec()));
-        parts.push(Part::rows(flux.len(), move |i, out| {
+    // The document stays small: of the fields, it carries the one the run is about.
+    if let Some(f) = result.fields.iter().position(|f| f.role == Role::Main) {
+        let field = &result.fields[f];
+        let mut key = b",".to_vec();
+        serde_json::to_writer(&mut key, &field.key).expect("a string serializes");
+        key.extend_from_slice(b":[");
+        parts.push(Part::Bytes(key));
+        let r = result.clone();
+        parts.push(Part::rows(field.len(), move |i, out| {
             if i > 0 {
                 out.push(b',');
             }
-            serde_json::to_writer(out, &flux[i]).expect("finite numbers serialize");
+            match r.fields[f].value(i) {
+                [v] => serde_json::to_writer(out, v),
+                value => serde_json::to_writer(out, value),
+            }
+            .expect("finite numbers serialize");
         }));
         parts.push(Part::Bytes(b"]".to_vec()));
     }

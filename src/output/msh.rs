@@ -1,15 +1,16 @@
 //! Gmsh MSH 4.1, ASCII: the triangles as a 2-D mesh of the rectangle (nodes at `x y 0`), with
-//! F as the node view "z" and, when known, the triangle errors as the element view "error" and
-//! a magnetostatic solution's flux density as the element vector view "B" (Bx, By, 0), its
-//! field strength as "H" and its relative permeability as the scalar view "mu_r".
+//! F as the node view "z" and every field of the result as a node or element view of its name
+//! (the triangle errors as "error", a magnetostatic solution's flux density as the vector view
+//! "B" (Bx, By, 0), …).
 //!
 //! The plane mesh and F apart is how a finite-element tool wants it: the domain is the
 //! geometry, F a field on it. There is one surface entity (tag 1) holding every node and
 //! element; node and element tags are the result's ids plus one (Gmsh counts from 1).
 //! Numbers are the shortest text that reads back as the same f64.
 
-use super::{Encoded, Options, Part, push_f64};
-use crate::result::MeshResult;
+use super::encoded::push_f64;
+use super::{Encoded, Options, Part};
+use crate::result::{Location, MeshResult};
 use std::io::Write;
 use std::sync::Arc;
 
@@ -54,52 +55,32 @@ pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoded {
         }),
     ];
     let mut tail = b"$EndNodeData\n".to_vec();
-    if result.triangle_errors.is_some() {
-        tail.extend_from_slice(format!("$ElementData\n1\n\"error\"\n1\n0\n3\n0\n1\n{m}\n").as_bytes());
-        let e = result.clone();
-        parts.push(Part::Bytes(std::mem::take(&mut tail)));
-        parts.push(Part::rows(m, move |i, out| {
-            let errors = e.triangle_errors.as_ref().expect("checked above");
-            write!(out, "{} ", i + 1).expect("a Vec");
-            push_f64(out, errors[i]);
-            out.push(b'\n');
-        }));
-        tail.extend_from_slice(b"$EndElementData\n");
-    }
-    if let Some(flux) = result.flux_density() {
-        tail.extend_from_slice(format!("$ElementData\n1\n\"B\"\n1\n0\n3\n0\n3\n{m}\n").as_bytes());
-        parts.push(Part::Bytes(std::mem::take(&mut tail)));
-        parts.push(Part::rows(m, move |i, out| {
-            write!(out, "{} ", i + 1).expect("a Vec");
-            push_f64(out, flux[i][0]);
-            out.push(b' ');
-            push_f64(out, flux[i][1]);
-            out.extend_from_slice(b" 0\n");
-        }));
-        tail.extend_from_slice(b"$EndElementData\n");
-    }
-    if result.magnetic_field.is_some() {
-        tail.extend_from_slice(format!("$ElementData\n1\n\"H\"\n1\n0\n3\n0\n3\n{m}\n").as_bytes());
-        let h = result.clone();
-        parts.push(Part::Bytes(std::mem::take(&mut tail)));
-        parts.push(Part::rows(m, move |i, out| {
-            let v = h.magnetic_field.as_ref().expect("checked above")[i];
-            write!(out, "{} ", i + 1).expect("a Vec");
-            push_f64(out, v[0]);
-            out.push(b' ');
-            push_f64(out, v[1]);
-            out.extend_from_slice(b" 0\n");
-        }));
-        tail.extend_from_slice(b"$EndElementData\n");
-        tail.extend_from_slice(format!("$ElementData\n1\n\"mu_r\"\n1\n0\n3\n0\n1\n{m}\n").as_bytes());
-        let mu = result.clone();
-        parts.push(Part::Bytes(std::mem::take(&mut tail)));
-        parts.push(Part::rows(m, move |i, out| {
-            write!(out, "{} ", i + 1).expect("a Vec");
-            push_f64(out, mu.magnetic_field.as_ref().expect("checked above")[i][2]);
-            out.push(b'\n');
-        }));
-        tail.extend_from_slice(b"$EndElementData\n");
+    // Each field is a view of its own after z's: per node, then per element.
+    for location in [Location::Point, Location::Cell] {
+        let (section, count) = match location {
+            Location::Point => ("NodeData", n),
+            Location::Cell => ("ElementData", m),
+        };
+        for f in (0..result.fields.len()).filter(|&f| result.fields[f].location == location) {
+            let field = &result.fields[f];
+            // A vector in the plane is a 3-component view (x, y, 0), as Gmsh draws vectors.
+            let vector = field.components > 1;
+            let components = if vector { 3 } else { 1 };
+            tail.extend_from_slice(
+                format!("${section}\n1\n\"{}\"\n1\n0\n3\n0\n{components}\n{count}\n", field.name).as_bytes(),
+            );
+            parts.push(Part::Bytes(std::mem::take(&mut tail)));
+            let r = result.clone();
+            parts.push(Part::rows(count, move |i, out| {
+                write!(out, "{}", i + 1).expect("a Vec");
+                for &c in r.fields[f].value(i) {
+                    out.push(b' ');
+                    push_f64(out, c);
+                }
+                out.extend_from_slice(if vector { b" 0\n" } else { b"\n" });
+            }));
+            tail.extend_from_slice(format!("$End{section}\n").as_bytes());
+        }
     }
     parts.push(Part::Bytes(tail));
     Encoded::new(parts)
@@ -167,7 +148,7 @@ mod tests {
         let z: Vec<(u64, f64)> =
             result.vertices.iter().enumerate().map(|(i, v)| (i as u64 + 1, v.z)).collect();
         assert_eq!(view(&text, "NodeData", "z"), z);
-        let errors = result.triangle_errors.as_ref().unwrap();
+        let errors = result.indicator().unwrap();
         let e: Vec<(u64, f64)> = errors.iter().enumerate().map(|(i, &e)| (i as u64 + 1, e)).collect();
         assert_eq!(view(&text, "ElementData", "error"), e);
     }

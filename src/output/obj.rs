@@ -4,7 +4,8 @@
 //! Numbers are the shortest text that reads back as the same f64. OBJ has no place for the
 //! triangle errors, so they are left out.
 
-use super::{Encoded, Options, Part, push_f64};
+use super::encoded::push_f64;
+use super::{Encoded, Options, Part};
 use crate::result::MeshResult;
 use std::io::Write;
 use std::sync::Arc;

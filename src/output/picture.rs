@@ -1,8 +1,10 @@
 //! What the two pictures (svg, png) share: where the plot, the colour bar and the text go,
 //! the text itself, each triangle's colour, the field lines and which triangle draws which edge.
 //!
-//! A mesh, or a Poisson solution, is coloured by z. A magnetostatic solution is coloured by
-//! |B| per triangle, with the contours of A drawn over it as field lines, as FEMM draws one.
+//! A result is coloured by the magnitude of its main field per triangle, with the contours of z
+//! drawn over it when that field's lines follow them: a magnetostatic solution by |B|, with
+//! A's contours as field lines, as FEMM draws one. A mesh, or a Poisson solution, has no main
+//! field and is coloured by z.
 //!
 //! ```text
 //!  ┌──────────────────────────────────────────┐
@@ -19,7 +21,7 @@
 
 use super::{colour, contour};
 use crate::geom::predicates::signed_area_x2;
-use crate::result::{MeshResult, Summary};
+use crate::result::{Lines, Location, MeshResult, Summary};
 
 /// A rectangle on the picture, y downward.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -100,26 +102,29 @@ const SCALE_AREA: f64 = 0.99;
 /// What a picture colours its triangles by, and which contours of z it draws.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Shading {
-    /// Each triangle's |B| in tesla, for a magnetostatic solution; without it a triangle takes
-    /// the mean of its corners' z.
-    flux_density: Option<Vec<f64>>,
-    /// The ends of the colour scale: the smallest coloured value, and the largest (for |B|,
+    /// Each triangle's magnitude of the result's main field (|B| in tesla for a magnetostatic
+    /// solution), with the legend's words for it; without one a triangle takes the mean of its
+    /// corners' z.
+    coloured: Option<(Vec<f64>, String)>,
+    /// The ends of the colour scale: the smallest coloured value, and the largest (for a field,
     /// the value `SCALE_AREA` of the area lies under).
     pub range: (f64, f64),
     /// The largest coloured value: above the scale when the scale stops short of it.
     max: f64,
-    /// The values of z = A whose contours are the field lines (none but in magnetostatics).
+    /// The values of z whose contours are the main field's lines (none unless it has lines).
     pub levels: Vec<f64>,
+    /// The legend's words for the lines' spacing: their name, z's unit and z's name.
+    lines: Option<Lines>,
 }
 
 impl Shading {
     /// How `result` is coloured.
     pub fn of(result: &MeshResult) -> Self {
-        let Some(b) = result.flux_density() else {
+        let Some(field) = result.main_field().filter(|f| f.location == Location::Cell) else {
             let range = result.z_range();
-            return Self { flux_density: None, range, max: range.1, levels: Vec::new() };
+            return Self { coloured: None, range, max: range.1, levels: Vec::new(), lines: None };
         };
-        let b: Vec<f64> = b.iter().map(|&[bx, by]| bx.hypot(by)).collect();
+        let b: Vec<f64> = (0..field.len()).map(|t| field.magnitude(t)).collect();
         let areas: Vec<f64> = result.triangles.iter().map(|&t| area(result, t)).collect();
         let low = b.iter().copied().fold(f64::INFINITY, f64::min);
         let max = b.iter().copied().fold(0.0, f64::max);
@@ -130,13 +135,18 @@ impl Shading {
             range.0 = range.1;
         }
         let (lo, hi) = result.z_range();
-        Self { flux_density: Some(b), range, max, levels: contour::levels(lo, hi, FIELD_LINES) }
+        let levels = match field.lines {
+            Some(_) => contour::levels(lo, hi, FIELD_LINES),
+            None => Vec::new(),
+        };
+        let legend = format!("colour |{}| in {}", field.name, field.unit);
+        Self { coloured: Some((b, legend)), range, max, levels, lines: field.lines.clone() }
     }
 
     /// The colour of triangle `t` of `result`.
     pub fn colour(&self, result: &MeshResult, t: usize) -> [u8; 3] {
-        let value = match &self.flux_density {
-            Some(b) => b[t],
+        let value = match &self.coloured {
+            Some((b, _)) => b[t],
             None => result.triangles[t].iter().map(|&v| result.vertices[v as usize].z).sum::<f64>() / 3.0,
         };
         colour::of(value, self.range.0, self.range.1)
@@ -145,14 +155,20 @@ impl Shading {
     /// What the colours and lines stand for, for the stats line (nothing for z).
     fn legend(&self) -> Vec<String> {
         let mut legend = Vec::new();
-        if self.flux_density.is_some() {
-            legend.push("colour |B| in T".to_owned());
+        if let Some((_, words)) = &self.coloured {
+            legend.push(words.clone());
         }
         if self.max > self.range.1 {
             legend.push(format!("max {} above the bar", short(self.max)));
         }
-        if let [first, second, ..] = self.levels[..] {
-            legend.push(format!("field lines every {} Wb/m of A", short(second - first)));
+        if let (Some(lines), [first, second, ..]) = (&self.lines, &self.levels[..]) {
+            legend.push(format!(
+                "{} every {} {} of {}",
+                lines.name,
+                short(second - first),
+                lines.z_unit,
+                lines.z
+            ));
         }
         legend
     }
@@ -421,7 +437,7 @@ pub(crate) fn short(v: f64) -> String {
 mod tests {
     use super::*;
     use crate::refine::Criterion;
-    use crate::result::testing::{magnetic, sample};
+    use crate::result::testing::{magnetic, sample, with_potential};
 
     const TEXT: TextMetrics = TextMetrics { char_width: 10.0, char_height: 20.0, line_height: 24.0 };
 
@@ -506,14 +522,17 @@ mod tests {
     fn a_magnetostatic_solution_is_shaded_by_b_a_mesh_by_z_and_a_uniform_field_in_one_colour() {
         let mesh = sample(300, Criterion::Error);
         let range = mesh.z_range();
-        assert_eq!(Shading::of(&mesh), Shading { flux_density: None, range, max: range.1, levels: vec![] });
-        let mut result = magnetic(500);
+        assert_eq!(
+            Shading::of(&mesh),
+            Shading { coloured: None, range, max: range.1, levels: vec![], lines: None }
+        );
+        let result = magnetic(500);
         let shading = Shading::of(&result);
         assert!(shading.range.0 < 0.1 * shading.range.1 && shading.levels.len() == FIELD_LINES);
         let text = Layout::new(&result, 1024.0, TEXT).lines.join(" ");
         assert!(text.contains("colour |B| in T") && text.contains("field lines every "), "{text}");
         // A = 3x − y: |B| = √10 on every triangle, to rounding.
-        result.vertices.iter_mut().for_each(|v| v.z = 3.0 * v.x - v.y);
+        let result = with_potential(result, |x, y| 3.0 * x - y);
         let shading = Shading::of(&result);
         assert_eq!(shading.range.0, shading.range.1);
         assert!((shading.range.0 - 10f64.sqrt()).abs() < 1e-12, "{:?}", shading.range);
@@ -528,15 +547,17 @@ mod tests {
         assert_eq!(weighted_quantile(&[5.0, 1.0, 2.0, 3.0], &[1.0, 1.0, 1.0, 96.0], 0.99), 5.0);
         assert_eq!(weighted_quantile(&[], &[], 0.99), 0.0);
         // One tiny triangle with a huge field does not set the scale; the legend says so.
-        let mut result = magnetic(500);
-        result.vertices.iter_mut().for_each(|v| v.z = v.x);
+        let result = with_potential(magnetic(500), |x, _| x);
         let t = (0..result.triangles.len())
             .min_by(|&s, &t| {
                 area(&result, result.triangles[s]).total_cmp(&area(&result, result.triangles[t]))
             })
             .unwrap();
-        let lift = result.triangles[t][0] as usize;
-        result.vertices[lift].z += 1.0;
+        let lift = result.triangles[t][0];
+        let result = with_potential(result.clone(), |x, y| {
+            let v = result.vertices[lift as usize];
+            x + if (x, y) == (v.x, v.y) { 1.0 } else { 0.0 }
+        });
         let shading = Shading::of(&result);
         assert!((shading.range.1 - 1.0).abs() < 1e-9, "{:?}", shading.range);
         assert!(shading.max > 10.0, "{}", shading.max);

@@ -1,15 +1,16 @@
 //! PLY 1.0, binary little-endian: f64 vertices, then faces of three `int` indices, each with
-//! its `double error` when the result knows the triangle errors.
+//! the result's indicator field (`double error`) when it has one.
 //!
 //! Binary keeps every f64 exact at 24 bytes a vertex. Faces are counter-clockwise, 0-based.
 
 use super::{Encoded, Options, Part};
-use crate::result::MeshResult;
+use crate::result::{MeshResult, Role};
 use std::sync::Arc;
 
 /// The PLY file of `result`.
 pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoded {
-    let errors = result.triangle_errors.is_some();
+    // A face has room for one number: the refinement's indicator, under its field's name.
+    let indicator = result.fields.iter().position(|f| f.role == Role::Indicator);
     let mut head = format!(
         "ply\nformat binary_little_endian 1.0\ncomment meshfit\n\
          element vertex {}\nproperty double x\nproperty double y\nproperty double z\n\
@@ -17,8 +18,8 @@ pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoded {
         result.vertices.len(),
         result.triangles.len()
     );
-    if errors {
-        head.push_str("property double error\n");
+    if let Some(f) = indicator {
+        head.push_str(&format!("property double {}\n", result.fields[f].name));
     }
     head.push_str("end_header\n");
     let (r, s) = (result.clone(), result.clone());
@@ -37,8 +38,8 @@ pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoded {
                 let v = i32::try_from(v).expect("vertex ids fit an int");
                 out.extend_from_slice(&v.to_le_bytes());
             }
-            if let Some(e) = &s.triangle_errors {
-                out.extend_from_slice(&e[i].to_le_bytes());
+            if let Some(f) = indicator {
+                out.extend_from_slice(&s.fields[f].values[i].to_le_bytes());
             }
         }),
     ])
@@ -74,7 +75,7 @@ mod tests {
             assert_eq!([double(got, "x"), double(got, "y"), double(got, "z")], [v.x, v.y, v.z]);
         }
         let faces = &ply.payload["face"];
-        let errors = result.triangle_errors.as_ref().unwrap();
+        let errors = result.indicator().unwrap();
         assert_eq!(faces.len(), result.triangles.len());
         for ((got, t), &e) in faces.iter().zip(&result.triangles).zip(errors) {
             let expected: Vec<i32> = t.iter().map(|&v| v as i32).collect();

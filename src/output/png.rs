@@ -287,7 +287,7 @@ mod tests {
     use super::*;
     use crate::output::colour;
     use crate::refine::Criterion;
-    use crate::result::testing::{magnetic, sample};
+    use crate::result::testing::{magnetic, sample, with_potential};
 
     /// A decoded picture: width, height and RGB bytes.
     struct Decoded {
@@ -426,8 +426,7 @@ mod tests {
     #[test]
     fn field_lines_are_dark_lines_where_a_takes_their_levels() {
         // A = x on a solved mesh: the field lines are the verticals x = level.
-        let mut result = magnetic(3000);
-        result.vertices.iter_mut().for_each(|v| v.z = v.x);
+        let result = with_potential(magnetic(3000), |x, _| x);
         let (image, layout) = picture(&result, 300);
         // The same picture without field lines, to compare with.
         let mut plain = Pixmap::new(image.width, image.height).unwrap();

@@ -317,7 +317,8 @@ mod tests {
         let result = Arc::new(magnetic(600));
         let text = svg(&result);
         let doc = roxmltree::Document::parse(&text).unwrap();
-        let b: Vec<f64> = result.flux_density().unwrap().iter().map(|&[bx, by]| bx.hypot(by)).collect();
+        let field = result.field("B").unwrap();
+        let b: Vec<f64> = (0..field.len()).map(|t| field.magnitude(t)).collect();
         let layout = Layout::new(&result, VIEW_WIDTH, TEXT);
         // The scale runs from the least |B| to below the greatest (picture's tests say where).
         let (lo, hi) = layout.shading.range;

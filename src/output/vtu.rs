@@ -1,7 +1,7 @@
 //! VTK XML unstructured grid (`.vtu`), as ParaView opens it: f64 points `x y z`, the triangles
-//! as cells of type 5, F as the point array "z" and, when known, the triangle errors as the
-//! cell array "error" and a magnetostatic solution's flux density as the cell vector "B", its
-//! field strength as "H" and its relative permeability as "mu_r".
+//! as cells of type 5, F as the point array "z", and every field of the result as a point or
+//! cell array of its name (the triangle errors as "error", a magnetostatic solution's flux
+//! density as the vector "B", …).
 //!
 //! Arrays are inline `format="binary"`: base64 of a UInt64 byte count followed by the
 //! little-endian values, one base64 stream per array. Raw appended data would be a quarter
@@ -9,7 +9,7 @@
 //! reads the raw bytes as XML text and fails at the first byte 0x3C, `<` (0.6).
 
 use super::{Encoded, Options, Part};
-use crate::result::MeshResult;
+use crate::result::{Location, MeshResult};
 use base64::Engine;
 use base64::engine::general_purpose::STANDARD;
 use std::sync::Arc;
@@ -35,50 +35,19 @@ pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoded {
             let r = result.clone();
             binary_array(n, 8, move |i, out| out.extend_from_slice(&r.vertices[i].z.to_le_bytes()))
         },
-        Part::Bytes(b"</DataArray>\n</PointData>\n".to_vec()),
+        Part::Bytes(b"</DataArray>\n".to_vec()),
     ];
-    let flux = result.flux_density().map(Arc::new);
-    let cell_data = result.triangle_errors.is_some() || flux.is_some();
-    if cell_data {
+    // Fields per vertex join z; fields per triangle are the cell data.
+    for f in indices(result, Location::Point) {
+        parts.extend(data_array(result, f, n));
+    }
+    parts.push(Part::Bytes(b"</PointData>\n".to_vec()));
+    let cell_fields = indices(result, Location::Cell);
+    if !cell_fields.is_empty() {
         parts.push(Part::Bytes(b"<CellData>\n".to_vec()));
-    }
-    if result.triangle_errors.is_some() {
-        let e = result.clone();
-        parts.push(Part::Bytes(array("type=\"Float64\" Name=\"error\"")));
-        parts.push(binary_array(m, 8, move |i, out| {
-            let errors = e.triangle_errors.as_ref().expect("checked above");
-            out.extend_from_slice(&errors[i].to_le_bytes());
-        }));
-        parts.push(Part::Bytes(b"</DataArray>\n".to_vec()));
-    }
-    if let Some(flux) = flux {
-        // ParaView draws vectors of three components: (Bx, By, 0).
-        parts.push(Part::Bytes(array("type=\"Float64\" Name=\"B\" NumberOfComponents=\"3\"")));
-        parts.push(binary_array(m, 24, move |i, out| {
-            for c in [flux[i][0], flux[i][1], 0.0] {
-                out.extend_from_slice(&c.to_le_bytes());
-            }
-        }));
-        parts.push(Part::Bytes(b"</DataArray>\n".to_vec()));
-    }
-    if result.magnetic_field.is_some() {
-        let (h, mu) = (result.clone(), result.clone());
-        parts.push(Part::Bytes(array("type=\"Float64\" Name=\"H\" NumberOfComponents=\"3\"")));
-        parts.push(binary_array(m, 24, move |i, out| {
-            let h = h.magnetic_field.as_ref().expect("checked above")[i];
-            for c in [h[0], h[1], 0.0] {
-                out.extend_from_slice(&c.to_le_bytes());
-            }
-        }));
-        parts.push(Part::Bytes(b"</DataArray>\n".to_vec()));
-        parts.push(Part::Bytes(array("type=\"Float64\" Name=\"mu_r\"")));
-        parts.push(binary_array(m, 8, move |i, out| {
-            let h = mu.magnetic_field.as_ref().expect("checked above")[i];
-            out.extend_from_slice(&h[2].to_le_bytes());
-        }));
-        parts.push(Part::Bytes(b"</DataArray>\n".to_vec()));
-    }
-    if cell_data {
+        for f in cell_fields {
+            parts.extend(data_array(result, f, m));
+        }
         parts.push(Part::Bytes(b"</CellData>\n".to_vec()));
     }
     let (r, s) = (result.clone(), result.clone());
@@ -108,6 +77,36 @@ pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoded {
         Part::Bytes(b"</DataArray>\n</Cells>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n".to_vec()),
     ]);
     Encoded::new(parts)
+}
+
+/// The positions in `result.fields` of the fields at `location`.
+fn indices(result: &MeshResult, location: Location) -> Vec<usize> {
+    (result.fields.iter().enumerate()).filter(|(_, f)| f.location == location).map(|(i, _)| i).collect()
+}
+
+/// Field `f` of `result` as a data array of `count` values: a scalar as is, a vector in the
+/// plane as three components (x, y, 0), which is what ParaView draws as vectors.
+fn data_array(result: &Arc<MeshResult>, f: usize, count: usize) -> [Part; 3] {
+    let field = &result.fields[f];
+    let vector = field.components > 1;
+    let attributes = match vector {
+        true => format!("type=\"Float64\" Name=\"{}\" NumberOfComponents=\"3\"", field.name),
+        false => format!("type=\"Float64\" Name=\"{}\"", field.name),
+    };
+    let r = result.clone();
+    [
+        Part::Bytes(format!("<DataArray {attributes} format=\"binary\">").into_bytes()),
+        binary_array(count, if vector { 24 } else { 8 }, move |i, out| {
+            let value = r.fields[f].value(i);
+            for c in value {
+                out.extend_from_slice(&c.to_le_bytes());
+            }
+            if vector {
+                out.extend_from_slice(&0.0f64.to_le_bytes());
+            }
+        }),
+        Part::Bytes(b"</DataArray>\n".to_vec()),
+    ]
 }
 
 /// Items per row of a [`binary_array`]: a row's scratch buffer and the two bytes it reads
@@ -196,7 +195,7 @@ mod tests {
         assert_eq!(piece.cells.types.len(), result.triangles.len());
         let z: Vec<f64> = result.vertices.iter().map(|v| v.z).collect();
         assert_eq!(values(&piece.data.point, "z"), z);
-        assert_eq!(&values(&piece.data.cell, "error"), result.triangle_errors.as_ref().unwrap());
+        assert_eq!(&values(&piece.data.cell, "error"), result.indicator().unwrap());
     }
 
     #[test]
@@ -218,7 +217,7 @@ mod tests {
                 // Rows written last to first, so a row that leaned on its predecessor would show.
                 let part = binary_array(count, size, item);
                 assert!(matches!(part, Part::Rows { .. }), "a binary array streams as rows");
-                let pieces = crate::output::tests::part_backwards(part);
+                let pieces = crate::output::encoded::tests::part_backwards(part);
                 assert_eq!(pieces, STANDARD.encode(&raw).into_bytes(), "{count} items of {size}");
             }
         }

@@ -10,12 +10,16 @@
 //! [`super::nodes`].)
 
 use super::angles::{Encroachment, Repair, Repairs, longest_edge, terminal_edge};
-use super::metrics::{LATTICE, lattice_point};
+use super::estimator::{Estimator, lend, lender};
+use super::measures::{LATTICE, lattice_point};
 use super::nodes::worst_node;
+use super::observer::Observer;
+use super::outcome::{RefineError, StopReason};
+use super::params::Method;
+use super::run::Run;
+use super::sampler::{Batch, Sampler};
 use super::worst_triangle::{Entry, WorstTriangleQueue};
-use super::{Estimator, Observer, RefineError, Run, Sampler, StopReason};
 use crate::geom::{Mesh, NONE, Point, Vertex};
-use crate::refine::Method;
 use crate::source::Surface;
 
 /// What is known of one triangle slot: 32 bytes, aligned, so one cache line holds it whole.
@@ -250,47 +254,6 @@ impl<S: Surface + ?Sized> Estimator for Sampler<'_, S> {
     ) -> Result<(), RefineError> {
         triangles_error(mesh, ts, known, self, out)
     }
-}
-
-/// The earlier triangle of `ts` (sorted) on the other side of edge `k` of `ts[i]`: its index
-/// in `ts` and the edge's position in it.
-fn lender(mesh: &Mesh, ts: &[u32], i: usize, k: usize) -> Option<(usize, usize)> {
-    let f = mesh.twin(3 * ts[i] + k as u32);
-    if f == NONE {
-        return None;
-    }
-    ts[..i].binary_search(&(f / 3)).ok().map(|j| (j, (f % 3) as usize))
-}
-
-/// `known` for `ts[i]`, with the edges earlier triangles of `ts` measured (their estimates in
-/// `out`) lent to it.
-pub(super) fn lend(
-    mesh: &Mesh,
-    ts: &[u32],
-    i: usize,
-    mut known: [Option<f64>; 3],
-    out: &[(f64, [f64; 3])],
-) -> [Option<f64>; 3] {
-    for (k, known) in known.iter_mut().enumerate() {
-        if known.is_none() {
-            *known = lender(mesh, ts, i, k).map(|(j, p)| out[j].1[p]);
-        }
-    }
-    known
-}
-
-/// A step's lattice points, sampled as one batch: a compiled expression runs a full batch at
-/// about half the cost a point of one triangle's six (`benches/expression.rs`).
-#[derive(Debug, Default)]
-pub(super) struct Batch {
-    points: Vec<Point>,
-    /// The interpolant at each point.
-    linear: Vec<f64>,
-    /// Where each point's error goes: 0..3 for an edge (half-edge position), 3 inside.
-    owner: Vec<u8>,
-    values: Vec<f64>,
-    /// How many points each triangle has, in order.
-    counts: Vec<u8>,
 }
 
 /// The lattice points of a triangle that are still to sample: a triangle's points, the

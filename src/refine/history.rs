@@ -5,8 +5,8 @@
 //! [`replay`](super::trace::replay) sample the same meshes, and a smaller budget's history is
 //! the larger one's cut at its count plus its own final sample.
 
-use super::metrics::variation;
-use super::{Criterion, Method};
+use super::measures::variation;
+use super::params::{Criterion, Method};
 use crate::geom::Mesh;
 use serde::{Deserialize, Serialize};
 

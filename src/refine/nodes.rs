@@ -17,8 +17,11 @@
 //! `recursive` keeps midpoints: Rivara's bisection needs them for its bound on the angles.
 
 use super::angles::{self, Encroachment, Repair, Repairs, terminal_edge};
+use super::observer::Observer;
+use super::outcome::StopReason;
+use super::params::Method;
+use super::run::Run;
 use super::worst_triangle::{Entry, WorstTriangleQueue};
-use super::{Method, Observer, Run, StopReason};
 use crate::geom::predicates::{is_ccw, signed_area_x2};
 use crate::geom::{Mesh, NONE, Point, Vertex, raster};
 use crate::source::{BLOCK, Grid, Surface};
@@ -372,6 +375,7 @@ pub(super) fn worst_node(grid: &Grid, in_grid: [Point; 3], z: [f64; 3], floor: f
 mod tests {
     use super::*;
     use crate::geom::Rect;
+    use crate::refine::ParamsBuilder;
     use crate::refine::{Method, Params, refine};
     use proptest::prelude::*;
 
@@ -512,9 +516,13 @@ mod tests {
         let grid = terrain();
         let params = Params::new(300).unwrap();
         let on_nodes = refine(&grid, grid.rect(), &params, &mut ()).unwrap();
-        let midpoints =
-            refine(&grid, grid.rect(), &params.with_method(crate::refine::Method::Recursive), &mut ())
-                .unwrap();
+        let midpoints = refine(
+            &grid,
+            grid.rect(),
+            &Params::builder(300).method(Method::Recursive).build().unwrap(),
+            &mut (),
+        )
+        .unwrap();
         let error = |r: &crate::refine::Refinement| crate::refine::estimate_error(&r.mesh, &grid).max_error;
         assert!(error(&on_nodes) < 0.5 * error(&midpoints), "{} vs {}", error(&on_nodes), error(&midpoints));
     }
@@ -525,15 +533,18 @@ mod tests {
     }
 
     /// The same request with `semi-recursive` and with `data-dependent`.
-    fn both(grid: &Grid, params: &Params) -> (crate::refine::Refinement, crate::refine::Refinement) {
-        let run = |method| refine(grid, grid.rect(), &params.clone().with_method(method), &mut ()).unwrap();
+    fn both(grid: &Grid, params: &ParamsBuilder) -> (crate::refine::Refinement, crate::refine::Refinement) {
+        let run = |method| {
+            let params = params.clone().method(method).on_grid(true).build().unwrap();
+            refine(grid, grid.rect(), &params, &mut ()).unwrap()
+        };
         (run(Method::SemiRecursive), run(Method::DataDependent))
     }
 
     #[test]
     fn data_dependent_flips_lower_an_isolated_worst_triangle_on_the_same_vertices() {
         let grid = terrain();
-        let (delaunay, flipped) = both(&grid, &Params::new(200).unwrap());
+        let (delaunay, flipped) = both(&grid, &Params::builder(200));
         assert_eq!(flipped.mesh.vertices(), delaunay.mesh.vertices());
         flipped.mesh.check_invariants().unwrap();
         let (before, after) =
@@ -552,7 +563,7 @@ mod tests {
         // At 190 vertices one flip helps a worst triangle, and another at the same error is
         // stuck: the maximum stays, and so does the Delaunay mesh.
         let grid = terrain();
-        let (delaunay, flipped) = both(&grid, &Params::new(190).unwrap());
+        let (delaunay, flipped) = both(&grid, &Params::builder(190));
         assert_eq!(flipped.stats.max_triangle_error, delaunay.stats.max_triangle_error);
         assert_eq!(flipped.stats.flips, delaunay.stats.flips);
         assert!(flipped.stats.delaunay && flipped.mesh.is_delaunay());
@@ -566,8 +577,7 @@ mod tests {
     #[test]
     fn data_dependent_flips_make_no_triangle_below_min_angle() {
         let grid = terrain();
-        let params = Params::new(200).unwrap().with_min_angle(20.0).unwrap();
-        let (delaunay, flipped) = both(&grid, &params);
+        let (delaunay, flipped) = both(&grid, &Params::builder(200).min_angle(20.0));
         let below = |r: &crate::refine::Refinement| r.stats.below_min_angle.unwrap();
         assert!(below(&flipped) <= below(&delaunay), "{} vs {}", below(&flipped), below(&delaunay));
         assert!(flipped.stats.max_triangle_error <= delaunay.stats.max_triangle_error);
@@ -581,7 +591,7 @@ mod tests {
         #[test]
         fn data_dependent_never_raises_the_largest_error(seed in 0u64..1000, n in 20usize..400) {
             let grid = spiky(61, 45, seed);
-            let (delaunay, flipped) = both(&grid, &Params::new(n).unwrap());
+            let (delaunay, flipped) = both(&grid, &Params::builder(n));
             prop_assert_eq!(flipped.mesh.vertices(), delaunay.mesh.vertices());
             flipped.mesh.check_invariants().unwrap();
             let (before, after) =

@@ -41,13 +41,8 @@ pub enum Criterion {
 /// mesh of n vertices has up to 6n half-edges.
 pub const MAX_VERTICES: usize = 400_000_000;
 
-/// Refinement parameters, validated by [`Params::new`] and the `with_*` setters.
-///
-/// ```
-/// use meshfit::refine::{Method, Params};
-/// let params = Params::new(10_000).unwrap().with_method(Method::Recursive).with_tolerance(1e-3).unwrap();
-/// assert_eq!(params.max_vertices(), 10_000);
-/// ```
+/// Refinement parameters, checked where they are made: by [`Params::new`] for the defaults,
+/// or by [`Params::builder`]'s [`build`](ParamsBuilder::build).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Params {
     method: Method,
@@ -95,71 +90,20 @@ impl Params {
     /// # Errors
     /// When `max_vertices` is below 4 or above [`MAX_VERTICES`].
     pub fn new(max_vertices: usize) -> Result<Self, ParamsError> {
-        if !(4..=MAX_VERTICES).contains(&max_vertices) {
-            return Err(ParamsError::MaxVertices { got: max_vertices as u64, max: MAX_VERTICES as u64 });
-        }
-        Ok(Self {
+        Self::builder(max_vertices).build()
+    }
+
+    /// Parameters to set one by one, checked together by [`ParamsBuilder::build`].
+    pub fn builder(max_vertices: usize) -> ParamsBuilder {
+        ParamsBuilder {
+            max_vertices,
             method: Method::default(),
             criterion: Criterion::default(),
-            max_vertices,
             tolerance: None,
             time_limit: None,
             min_angle: None,
-        })
-    }
-
-    /// Sets the method.
-    pub fn with_method(mut self, method: Method) -> Self {
-        self.method = method;
-        self
-    }
-
-    /// Sets the criterion.
-    pub fn with_criterion(mut self, criterion: Criterion) -> Self {
-        self.criterion = criterion;
-        self
-    }
-
-    /// Stops once the worst criterion value (the largest e(T) for `error`, the largest
-    /// |zᵢ − zⱼ| for `variation`) is at most `tolerance`.
-    ///
-    /// # Errors
-    /// When `tolerance` is negative, NaN or infinite.
-    pub fn with_tolerance(mut self, tolerance: f64) -> Result<Self, ParamsError> {
-        if !(tolerance.is_finite() && tolerance >= 0.0) {
-            return Err(ParamsError::Tolerance(tolerance));
+            on_grid: false,
         }
-        self.tolerance = Some(tolerance);
-        Ok(self)
-    }
-
-    /// With criterion `error`, repairs every triangle whose smallest angle is below `degrees`
-    /// before any error-driven split (see the refinement's docs).
-    ///
-    /// # Errors
-    /// When `degrees` is not above 0 and at most [`MAX_MIN_ANGLE`].
-    pub fn with_min_angle(mut self, degrees: f64) -> Result<Self, ParamsError> {
-        if !(degrees > 0.0 && degrees <= MAX_MIN_ANGLE) {
-            return Err(ParamsError::MinAngle(degrees));
-        }
-        self.min_angle = Some(degrees);
-        Ok(self)
-    }
-
-    /// Checks the method against the source: `data-dependent` needs a grid (`grid` true) and
-    /// criterion `error`. (Elsewhere [`refine`](super::refine) would run it as `semi-recursive`.)
-    ///
-    /// # Errors
-    /// [`ParamsError::DataDependentSource`] when it does not fit.
-    pub fn check_source(&self, grid: bool) -> Result<(), ParamsError> {
-        let fits = self.method != Method::DataDependent || (grid && self.criterion == Criterion::Error);
-        if fits { Ok(()) } else { Err(ParamsError::DataDependentSource) }
-    }
-
-    /// Stops once this much time has passed.
-    pub fn with_time_limit(mut self, limit: Duration) -> Self {
-        self.time_limit = Some(limit);
-        self
     }
 
     /// The method.
@@ -185,6 +129,100 @@ impl Params {
     /// The smallest angle in degrees that criterion `error` repairs up to, if any.
     pub fn min_angle(&self) -> Option<f64> {
         self.min_angle
+    }
+}
+
+/// [`Params`] set one by one; [`ParamsBuilder::build`] checks each value and how they fit
+/// together, so every caller (the API, the command line, a library user) gets the same rules.
+///
+/// ```
+/// use meshfit::refine::{Criterion, Method, Params, ParamsError};
+/// let params = Params::builder(10_000).method(Method::Recursive).tolerance(1e-3).build().unwrap();
+/// assert_eq!((params.max_vertices(), params.tolerance()), (10_000, Some(1e-3)));
+/// let paper = Params::builder(100).criterion(Criterion::Variation).min_angle(20.0).build();
+/// assert_eq!(paper, Err(ParamsError::MinAngleCriterion));
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+#[must_use = "a builder does nothing until it is built"]
+pub struct ParamsBuilder {
+    max_vertices: usize,
+    method: Method,
+    criterion: Criterion,
+    tolerance: Option<f64>,
+    time_limit: Option<Duration>,
+    min_angle: Option<f64>,
+    on_grid: bool,
+}
+
+impl ParamsBuilder {
+    /// The method (default `semi-recursive`).
+    pub fn method(mut self, method: Method) -> Self {
+        self.method = method;
+        self
+    }
+
+    /// The criterion (default `error`).
+    pub fn criterion(mut self, criterion: Criterion) -> Self {
+        self.criterion = criterion;
+        self
+    }
+
+    /// Stops once the worst criterion value (the largest e(T) for `error`, the largest
+    /// |zᵢ − zⱼ| for `variation`) is at most `tolerance`: finite and ≥ 0.
+    pub fn tolerance(mut self, tolerance: f64) -> Self {
+        self.tolerance = Some(tolerance);
+        self
+    }
+
+    /// With criterion `error`, repairs every triangle whose smallest angle is below `degrees`
+    /// (above 0, at most [`MAX_MIN_ANGLE`]) before any error-driven split (see the
+    /// refinement's docs).
+    pub fn min_angle(mut self, degrees: f64) -> Self {
+        self.min_angle = Some(degrees);
+        self
+    }
+
+    /// Stops once this much time has passed.
+    pub fn time_limit(mut self, limit: Duration) -> Self {
+        self.time_limit = Some(limit);
+        self
+    }
+
+    /// Whether F is a sampled grid, which method `data-dependent` needs (elsewhere
+    /// [`refine`](super::refine) would run it as `semi-recursive`).
+    pub fn on_grid(mut self, on_grid: bool) -> Self {
+        self.on_grid = on_grid;
+        self
+    }
+
+    /// The parameters, once each is in range and they fit together.
+    ///
+    /// # Errors
+    /// The first of, in this order: [`ParamsError::MaxVertices`] for a budget below 4 or
+    /// above [`MAX_VERTICES`], [`ParamsError::Tolerance`], [`ParamsError::MinAngleCriterion`]
+    /// for `min_angle` with criterion `variation`, [`ParamsError::MinAngle`], and
+    /// [`ParamsError::DataDependentSource`] for `data-dependent` off a grid or without
+    /// criterion `error`.
+    pub fn build(self) -> Result<Params, ParamsError> {
+        let Self { max_vertices, method, criterion, tolerance, time_limit, min_angle, on_grid } = self;
+        if !(4..=MAX_VERTICES).contains(&max_vertices) {
+            return Err(ParamsError::MaxVertices { got: max_vertices as u64, max: MAX_VERTICES as u64 });
+        }
+        if let Some(t) = tolerance.filter(|t| !(t.is_finite() && *t >= 0.0)) {
+            return Err(ParamsError::Tolerance(t));
+        }
+        if let Some(degrees) = min_angle {
+            if criterion == Criterion::Variation {
+                return Err(ParamsError::MinAngleCriterion);
+            }
+            if !(degrees > 0.0 && degrees <= MAX_MIN_ANGLE) {
+                return Err(ParamsError::MinAngle(degrees));
+            }
+        }
+        if method == Method::DataDependent && !(on_grid && criterion == Criterion::Error) {
+            return Err(ParamsError::DataDependentSource);
+        }
+        Ok(Params { method, criterion, max_vertices, tolerance, time_limit, min_angle })
     }
 }
 
@@ -227,20 +265,33 @@ mod tests {
         assert_eq!(Params::new(3), Err(ParamsError::MaxVertices { got: 3, max: MAX_VERTICES as u64 }));
         assert!(Params::new(4).is_ok());
         assert!(Params::new(MAX_VERTICES + 1).is_err());
-        let p = Params::new(10).unwrap();
-        assert!(p.clone().with_tolerance(-1.0).is_err());
-        assert!(p.clone().with_tolerance(f64::NAN).is_err());
-        assert_eq!(p.clone().with_tolerance(0.0).unwrap().tolerance(), Some(0.0));
+        let p = Params::builder(10);
+        assert_eq!(p.clone().tolerance(-1.0).build(), Err(ParamsError::Tolerance(-1.0)));
+        assert!(p.clone().tolerance(f64::NAN).build().is_err());
+        assert_eq!(p.clone().tolerance(0.0).build().unwrap().tolerance(), Some(0.0));
         for bad in [0.0, -1.0, 30.5, f64::NAN, f64::INFINITY] {
-            assert!(matches!(p.clone().with_min_angle(bad), Err(ParamsError::MinAngle(_))), "{bad}");
+            assert!(matches!(p.clone().min_angle(bad).build(), Err(ParamsError::MinAngle(_))), "{bad}");
         }
-        assert_eq!(p.clone().with_min_angle(30.0).unwrap().min_angle(), Some(30.0));
-        let dd = p.with_method(Method::DataDependent);
-        assert_eq!(dd.check_source(true), Ok(()));
-        assert_eq!(dd.check_source(false), Err(ParamsError::DataDependentSource));
-        let variation = dd.with_criterion(Criterion::Variation);
-        assert_eq!(variation.check_source(true), Err(ParamsError::DataDependentSource));
-        assert_eq!(variation.with_method(Method::SemiRecursive).check_source(false), Ok(()));
+        assert_eq!(p.clone().min_angle(30.0).build().unwrap().min_angle(), Some(30.0));
+    }
+
+    #[test]
+    fn parameters_that_do_not_fit_together_are_refused_whatever_the_order_they_were_set_in() {
+        let p = Params::builder(10);
+        // min_angle repairs triangles, which the paper's variation does not rank.
+        let paper = p.clone().min_angle(20.0).criterion(Criterion::Variation);
+        assert_eq!(paper.build(), Err(ParamsError::MinAngleCriterion));
+        assert_eq!(
+            p.clone().criterion(Criterion::Variation).min_angle(99.0).build(),
+            Err(ParamsError::MinAngleCriterion),
+            "the combination is named before the range"
+        );
+        let dd = p.method(Method::DataDependent);
+        assert_eq!(dd.clone().on_grid(true).build().map(|p| p.method()), Ok(Method::DataDependent));
+        assert_eq!(dd.clone().build(), Err(ParamsError::DataDependentSource));
+        let variation = dd.on_grid(true).criterion(Criterion::Variation);
+        assert_eq!(variation.clone().build(), Err(ParamsError::DataDependentSource));
+        assert!(variation.method(Method::SemiRecursive).on_grid(false).build().is_ok());
     }
 
     #[test]

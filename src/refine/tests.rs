@@ -1,17 +1,20 @@
 //! Tests of the refinement loop: the paper's figures, invariants after every insertion,
 //! oracles for the queue and V_n, stop rules and determinism.
 
-use super::metrics::min_angle_deg;
-use super::variation::candidate;
+use super::measures::min_angle_deg;
+use super::run::CLOCK_EVERY;
+use super::variation_criterion::candidate;
 use super::*;
-use crate::geom::{NONE, Point, Rect, predicates::is_ccw};
+use crate::geom::{Mesh, NONE, Point, Rect, predicates::is_ccw};
+use crate::source::Surface;
 use crate::source::{Expression, Grid, Source};
 use proptest::prelude::*;
 use std::collections::BTreeSet;
+use std::time::Duration;
 
 /// The paper's algorithm: `variation` with `method`.
 fn params(n: usize, method: Method) -> Params {
-    Params::new(n).unwrap().with_method(method).with_criterion(Criterion::Variation)
+    Params::builder(n).method(method).criterion(Criterion::Variation).build().unwrap()
 }
 
 fn edge_set(mesh: &Mesh) -> BTreeSet<(u32, u32)> {
@@ -94,7 +97,7 @@ fn constant_f_refines_uniformly_into_the_dyadic_grid() {
 #[test]
 fn constant_f_with_zero_tolerance_stops_at_once() {
     let f = |_: f64, _: f64| 1.0;
-    let p = Params::new(1_000).unwrap().with_tolerance(0.0).unwrap();
+    let p = Params::builder(1_000).tolerance(0.0).build().unwrap();
     let r = refine(&f, Rect::unit(), &p, &mut ()).unwrap();
     assert_eq!((r.stats.stop, r.stats.vertices), (StopReason::Tolerance, 4));
 }
@@ -103,7 +106,12 @@ fn constant_f_with_zero_tolerance_stops_at_once() {
 fn tolerance_stops_once_every_edge_varies_by_at_most_the_tolerance() {
     let f = |x: f64, y: f64| x * x + y.sin();
     for method in [Method::Recursive, Method::SemiRecursive] {
-        let p = params(1_000_000, method).with_tolerance(0.01).unwrap();
+        let p = Params::builder(1_000_000)
+            .method(method)
+            .criterion(Criterion::Variation)
+            .tolerance(0.01)
+            .build()
+            .unwrap();
         let r = refine(&f, Rect::unit(), &p, &mut ()).unwrap();
         assert_eq!(r.stats.stop, StopReason::Tolerance);
         assert_eq!(r.stats.retired_edges, 0);
@@ -135,7 +143,7 @@ fn cancellation_stops_before_the_next_insertion() {
 #[test]
 fn a_zero_time_limit_stops_at_the_first_look_at_the_clock() {
     let f = |x: f64, y: f64| x * y;
-    let p = Params::new(1_000_000).unwrap().with_time_limit(Duration::ZERO);
+    let p = Params::builder(1_000_000).time_limit(Duration::ZERO).build().unwrap();
     let r = refine(&f, Rect::unit(), &p, &mut ()).unwrap();
     assert_eq!(r.stats.stop, StopReason::TimeLimit);
     assert!(r.stats.vertices < 4 + CLOCK_EVERY as usize);
@@ -218,7 +226,7 @@ fn the_history_samples_each_mark_once_and_ends_with_the_final_mesh() {
     let f = |x: f64, y: f64| (5.0 * x).sin() * y + x * x;
     for criterion in [Criterion::Variation, Criterion::Error] {
         for method in [Method::Recursive, Method::SemiRecursive] {
-            let p = Params::new(1000).unwrap().with_method(method).with_criterion(criterion);
+            let p = Params::builder(1000).method(method).criterion(criterion).build().unwrap();
             let r = refine(&f, Rect::unit(), &p, &mut ()).unwrap();
             let h = &r.stats.history;
             let counts: Vec<usize> = h.iter().map(|s| s.vertices).collect();
@@ -237,7 +245,7 @@ fn the_history_samples_each_mark_once_and_ends_with_the_final_mesh() {
             let small = refine(
                 &f,
                 Rect::unit(),
-                &Params::new(100).unwrap().with_method(method).with_criterion(criterion),
+                &Params::builder(100).method(method).criterion(criterion).build().unwrap(),
                 &mut (),
             )
             .unwrap();
@@ -268,7 +276,7 @@ fn the_history_knows_v_n_past_retired_edges_and_matches_a_walk() {
 fn v_n_swept_over_the_triangles_is_the_largest_gap_over_the_edges() {
     let wave = |x: f64, y: f64| (5.0 * x).sin() * (3.0 * y).cos();
     for method in [Method::Recursive, Method::SemiRecursive] {
-        let params = params(3_000, method).with_criterion(Criterion::Error);
+        let params = Params::builder(3_000).method(method).criterion(Criterion::Error).build().unwrap();
         let mesh = refine(&wave, Rect::unit(), &params, &mut ()).unwrap().mesh;
         let gap = |e: crate::geom::Edge| (mesh.vertex(e.a).z - mesh.vertex(e.b).z).abs();
         let walk = mesh.edges().map(gap).fold(0.0, f64::max);
@@ -280,7 +288,7 @@ fn v_n_swept_over_the_triangles_is_the_largest_gap_over_the_edges() {
 #[test]
 fn a_run_stopped_by_its_tolerance_ends_its_history_with_the_check_that_stopped_it() {
     let f = |x: f64, y: f64| x * x + y;
-    let p = Params::new(100_000).unwrap().with_criterion(Criterion::Variation).with_tolerance(0.05).unwrap();
+    let p = Params::builder(100_000).criterion(Criterion::Variation).tolerance(0.05).build().unwrap();
     let r = refine(&f, Rect::unit(), &p, &mut ()).unwrap();
     assert_eq!(r.stats.stop, StopReason::Tolerance);
     let last = r.stats.history.last().unwrap();
@@ -506,7 +514,7 @@ proptest! {
         let (w, h) = (rect.x1() - rect.x0(), rect.y1() - rect.y0());
         let bound = (w.min(h) / w.max(h)).atan().to_degrees() / 2.0 - 1e-9;
         let mut checker = ErrorChecker { method, min_angle_bound: bound, failure: None };
-        let p = params(n, method).with_criterion(Criterion::Error);
+        let p = Params::builder(n).method(method).criterion(Criterion::Error).build().unwrap();
         let r = refine(&source, rect, &p, &mut checker).unwrap();
         prop_assert!(checker.failure.is_none(), "{}", checker.failure.unwrap());
         // A grid's nodes run out: semi-recursive stops once F_n matches every one of them.
@@ -543,7 +551,7 @@ const QUALITY: &[(&str, &str, [f64; 4])] = &[
 fn max_error(text: &str, [a, b, c, d]: [f64; 4], n: usize, criterion: Criterion) -> f64 {
     let f = Expression::parse(text).unwrap();
     let rect = Rect::new(a, b, c, d).unwrap();
-    let r = refine(&f, rect, &Params::new(n).unwrap().with_criterion(criterion), &mut ()).unwrap();
+    let r = refine(&f, rect, &Params::builder(n).criterion(criterion).build().unwrap(), &mut ()).unwrap();
     // The measure: a 1001 × 1001 grid plus every vertex, edge midpoint and centroid.
     dense_max_error(&r.mesh, &f, 1001)
 }
@@ -602,7 +610,7 @@ fn dense_max_error_sees_what_the_vertices_miss() {
 #[test]
 fn error_criterion_reports_the_final_max_triangle_error_and_honours_the_tolerance() {
     let f = Expression::parse("exp(-100*((x-0.4)^2+(y-0.6)^2))").unwrap();
-    let p = Params::new(1_000_000).unwrap().with_criterion(Criterion::Error).with_tolerance(1e-3).unwrap();
+    let p = Params::builder(1_000_000).criterion(Criterion::Error).tolerance(1e-3).build().unwrap();
     let r = refine(&f, Rect::unit(), &p, &mut ()).unwrap();
     assert_eq!(r.stats.stop, StopReason::Tolerance);
     let worst = r.stats.max_triangle_error.expect("reported for the error criterion");

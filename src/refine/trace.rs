@@ -11,8 +11,12 @@
 //! Cost: for `variation`, 24 bytes a step; for `error`, 24 bytes a step plus 12 bytes for
 //! each estimate (about five a step).
 
+use super::floors::Floors;
 use super::history::History;
-use super::{Criterion, Floors, Method, Observer, Progress, Refinement, Stats, StopReason, insert, place};
+use super::observer::{Observer, Progress};
+use super::outcome::{Refinement, Stats, StopReason};
+use super::params::{Criterion, Method};
+use super::run::{insert, place};
 use crate::geom::{Mesh, NONE, Rect, Vertex};
 
 /// What a traced run did, step by step.
@@ -305,7 +309,7 @@ mod tests {
         for (name, source, rect) in sources() {
             for method in [Method::SemiRecursive, Method::Recursive] {
                 for criterion in [Criterion::Error, Criterion::Variation] {
-                    let params = Params::new(1500).unwrap().with_method(method).with_criterion(criterion);
+                    let params = Params::builder(1500).method(method).criterion(criterion).build().unwrap();
                     let (full, trace) = traced(&source, rect, &params);
                     let worst = trace.worst.clone();
                     let tolerances = [worst[200], worst[700] * 1.0001, worst[1200]];
@@ -318,10 +322,11 @@ mod tests {
                         (1500, Some(tolerances[1])),
                         (900, Some(tolerances[2])),
                     ] {
-                        let mut p = Params::new(m).unwrap().with_method(method).with_criterion(criterion);
+                        let mut p = Params::builder(m).method(method).criterion(criterion);
                         if let Some(t) = t {
-                            p = p.with_tolerance(t).unwrap();
+                            p = p.tolerance(t);
                         }
+                        let p = p.build().unwrap();
                         let fresh = refine(&source, rect, &p, &mut ()).unwrap();
                         let replayed = replay(&trace, full.mesh.vertices(), m, t).unwrap_or_else(|| {
                             panic!("{name} {method} {criterion} ({m}, {t:?}) not replayed")
@@ -343,7 +348,8 @@ mod tests {
         let lowest = trace.worst.iter().copied().fold(f64::INFINITY, f64::min);
         assert!(replay(&trace, full.mesh.vertices(), 10_000, Some(lowest / 2.0)).is_none());
         // Another run's vertices do not fit this trace.
-        let (other, _) = traced(&source, rect, &Params::new(300).unwrap().with_method(Method::Recursive));
+        let (other, _) =
+            traced(&source, rect, &Params::builder(300).method(Method::Recursive).build().unwrap());
         assert!(replay(&trace, other.mesh.vertices(), 300, None).is_none());
         // The cheap test agrees.
         assert!(!trace.covers(300, 301, None));
@@ -354,13 +360,13 @@ mod tests {
     #[test]
     fn a_data_dependent_run_is_never_replayed_as_its_last_flips_depend_on_where_it_stops() {
         let (_, source, rect) = sources().remove(1);
-        let params = Params::new(300).unwrap().with_method(Method::DataDependent);
+        let params = Params::builder(300).method(Method::DataDependent).on_grid(true).build().unwrap();
         // Its recorder keeps nothing; a trace that says the method anyway is refused.
         let mut quiet = ();
         let mut recorder = Recorder::new(&mut quiet, &params);
         let full = refine(&source, rect, &params, &mut recorder).unwrap();
         assert!(recorder.finish(full.stats.stop).is_none());
-        let (_, mut trace) = traced(&source, rect, &params.clone().with_method(Method::SemiRecursive));
+        let (_, mut trace) = traced(&source, rect, &Params::new(300).unwrap());
         trace.method = Method::DataDependent;
         assert!(!trace.covers(300, 300, None) && !trace.covers(300, 200, None));
         assert!(replay(&trace, full.mesh.vertices(), 200, None).is_none());

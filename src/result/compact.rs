@@ -2,10 +2,11 @@
 //! short header, and a SHA-256 of everything before it at the end.
 //!
 //! ```text
-//! magic "MESHFIT\0" · u32 version · u32 flags (bit 0: triangle errors, bit 2: magnetic field)
-//! u64 vertices · u64 triangles · u32 id length · id · u32 stats length · stats (JSON)
-//! vertices (x, y, z as f64) · triangles (3 × u32) · [triangle errors (f64)] ·
-//! [magnetic field (Hx, Hy, μr as f64 per triangle)]
+//! magic "MESHFIT\0" · u32 version · u32 flags (bit 1: trace)
+//! u64 vertices · u64 triangles · u32 id length · id · u32 stats length · stats (JSON) ·
+//! u32 fields length · fields (JSON: each field's name, unit, location, … without values)
+//! vertices (x, y, z as f64) · triangles (3 × u32) ·
+//! each field's values in order (f64, components per vertex or per triangle)
 //! [trace (flag bit 1): u8 method · u8 criterion · u8 stop · u8 on nodes · u8 has min angle ·
 //!  f64 min angle (0 without one) · u64 base evaluations ·
 //!  u64 checks · u64 steps · u64 estimates · worst (f64 per check) · split half-edges (u32 per
@@ -16,7 +17,8 @@
 //! The checksum covers the header, the id and the stats too, so a file renamed to another id
 //! or with edited stats is refused like one with a flipped bit in the arrays.
 
-use super::MeshResult;
+use super::field::{Field, Location};
+use super::finished::MeshResult;
 use crate::geom::Vertex;
 use crate::refine::trace::Trace;
 use crate::refine::{Criterion, Method, StopReason};
@@ -25,10 +27,8 @@ use std::io::{self, Write};
 use std::sync::Arc;
 
 const MAGIC: &[u8; 8] = b"MESHFIT\0";
-const VERSION: u32 = 4;
-const HAS_ERRORS: u32 = 1;
+const VERSION: u32 = 5;
 const HAS_TRACE: u32 = 2;
-const HAS_FIELD: u32 = 4;
 const CHECKSUM_LEN: usize = 32;
 
 /// Why bytes are not the compact form of a result with the expected id.
@@ -49,6 +49,9 @@ pub enum CompactError {
     /// The stats are not valid.
     #[error("stats: {0}")]
     Stats(String),
+    /// The fields' descriptions are not valid.
+    #[error("fields: {0}")]
+    Fields(String),
     /// A triangle names a vertex that is not there.
     #[error("triangle {0} names a vertex out of range")]
     Triangle(usize),
@@ -77,16 +80,16 @@ impl<W: Write> Write for Hashing<W> {
 /// The number of bytes [`write()`] writes for `result` under `id`, found without writing them.
 pub fn size(result: &MeshResult, id: &str) -> u64 {
     let stats = serde_json::to_vec(&result.stats).map_or(0, |s| s.len()) as u64;
+    let fields = serde_json::to_vec(&result.fields).map_or(0, |s| s.len()) as u64;
     let (nv, nt) = (result.vertices.len() as u64, result.triangles.len() as u64);
-    let errors = if result.triangle_errors.is_some() { 8 * nt } else { 0 };
-    let field = if result.magnetic_field.is_some() { 24 * nt } else { 0 };
+    let values = result.fields.iter().map(|f| 8 * f.values.len() as u64).sum::<u64>();
     let trace = result.trace.as_ref().map_or(0, |t| {
         let (checks, steps, estimates) =
             (t.worst.len() as u64, t.splits.len() as u64, t.estimates.len() as u64);
         3 + 1 + 1 + 8 + 4 * 8 + 8 * checks + 12 * steps + 12 * estimates + 4 * (steps + 1)
     });
-    let header = MAGIC.len() as u64 + 4 + 4 + 8 + 8 + 4 + id.len() as u64 + 4 + stats;
-    header + 24 * nv + 12 * nt + errors + field + trace + CHECKSUM_LEN as u64
+    let header = MAGIC.len() as u64 + 4 + 4 + 8 + 8 + 4 + id.len() as u64 + 4 + stats + 4 + fields;
+    header + 24 * nv + 12 * nt + values + trace + CHECKSUM_LEN as u64
 }
 
 /// Writes `result`, stored under `id`, to `out` and returns the bytes written.
@@ -95,16 +98,15 @@ pub fn size(result: &MeshResult, id: &str) -> u64 {
 /// Whatever writing to `out` returns.
 pub fn write(result: &MeshResult, id: &str, out: impl Write) -> io::Result<u64> {
     let stats = serde_json::to_vec(&result.stats).map_err(io::Error::other)?;
+    let fields = serde_json::to_vec(&result.fields).map_err(io::Error::other)?;
     let mut w = Hashing { out, hash: Sha256::new(), written: 0 };
-    let flags = if result.triangle_errors.is_some() { HAS_ERRORS } else { 0 }
-        | if result.trace.is_some() { HAS_TRACE } else { 0 }
-        | if result.magnetic_field.is_some() { HAS_FIELD } else { 0 };
+    let flags = if result.trace.is_some() { HAS_TRACE } else { 0 };
     w.write_all(MAGIC)?;
     w.write_all(&VERSION.to_le_bytes())?;
     w.write_all(&flags.to_le_bytes())?;
     w.write_all(&(result.vertices.len() as u64).to_le_bytes())?;
     w.write_all(&(result.triangles.len() as u64).to_le_bytes())?;
-    for part in [id.as_bytes(), &stats] {
+    for part in [id.as_bytes(), &stats, &fields] {
         w.write_all(&(part.len() as u32).to_le_bytes())?;
         w.write_all(part)?;
     }
@@ -128,14 +130,8 @@ pub fn write(result: &MeshResult, id: &str, out: impl Write) -> io::Result<u64> 
         }
         flush(&mut w, &mut buf, false)?;
     }
-    for e in result.triangle_errors.iter().flatten() {
-        buf.extend_from_slice(&e.to_le_bytes());
-        flush(&mut w, &mut buf, false)?;
-    }
-    for h in result.magnetic_field.iter().flatten() {
-        for c in h {
-            buf.extend_from_slice(&c.to_le_bytes());
-        }
+    for value in result.fields.iter().flat_map(|f| &f.values) {
+        buf.extend_from_slice(&value.to_le_bytes());
         flush(&mut w, &mut buf, false)?;
     }
     if let Some(trace) = &result.trace {
@@ -294,9 +290,19 @@ pub fn read(bytes: &[u8], id: &str) -> Result<MeshResult, CompactError> {
     }
     let stats = r.u32().and_then(|n| r.take(n as usize))?;
     let stats = serde_json::from_slice(stats).map_err(|e| CompactError::Stats(e.to_string()))?;
-    let (has_errors, has_field) = (flags & HAS_ERRORS != 0, flags & HAS_FIELD != 0);
-    let per_triangle = 12 + if has_errors { 8 } else { 0 } + if has_field { 24 } else { 0 };
-    let expected = u128::from(nv) * 24 + u128::from(nt) * per_triangle;
+    let fields = r.u32().and_then(|n| r.take(n as usize))?;
+    let mut fields: Vec<Field> =
+        serde_json::from_slice(fields).map_err(|e| CompactError::Fields(e.to_string()))?;
+    if let Some(f) = fields.iter().find(|f| f.components == 0) {
+        return Err(CompactError::Fields(format!("{} has no components", f.name)));
+    }
+    // The numbers each field holds: its components per vertex or per triangle.
+    let count = |f: &Field| match f.location {
+        Location::Point => u128::from(nv) * u128::from(f.components),
+        Location::Cell => u128::from(nt) * u128::from(f.components),
+    };
+    let values = fields.iter().map(count).sum::<u128>();
+    let expected = u128::from(nv) * 24 + u128::from(nt) * 12 + values * 8;
     let fits = match flags & HAS_TRACE {
         0 => expected == r.0.len() as u128,
         _ => expected <= r.0.len() as u128,
@@ -321,25 +327,23 @@ pub fn read(bytes: &[u8], id: &str) -> Result<MeshResult, CompactError> {
     if let Some(t) = triangles.iter().position(|t| t.iter().any(|&v| v as usize >= nv)) {
         return Err(CompactError::Triangle(t));
     }
-    let triangle_errors = match has_errors {
-        true => Some(r.take(8 * nt)?.chunks_exact(8).map(|c| f64_at(c, 0)).collect()),
-        false => None,
-    };
-    let magnetic_field = match has_field {
-        true => Some(r.take(24 * nt)?.chunks_exact(24).map(|c| [0, 8, 16].map(|k| f64_at(c, k))).collect()),
-        false => None,
-    };
+    for field in &mut fields {
+        // Fits: the sum of every count was checked against the bytes there.
+        let n = count(field) as usize;
+        field.values = r.take(8 * n)?.chunks_exact(8).map(|c| f64_at(c, 0)).collect();
+    }
     let trace = match flags & HAS_TRACE {
         0 => None,
         _ => Some(Arc::new(read_trace(&mut r)?)),
     };
-    Ok(MeshResult { vertices, triangles, triangle_errors, stats, trace, magnetic_field })
+    Ok(MeshResult { vertices, triangles, fields, stats, trace })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::refine::Criterion;
+    use crate::result::Role;
     use crate::result::testing::sample;
 
     const ID: &str = "ab12";
@@ -353,14 +357,26 @@ mod tests {
     }
 
     #[test]
-    fn a_magnetic_field_reads_back_equal_and_a_cut_one_is_refused() {
+    fn every_field_reads_back_equal_and_a_cut_one_is_refused() {
         let mut result = sample(300, Criterion::Error);
-        let n = result.triangles.len();
-        result.magnetic_field = Some((0..n).map(|t| [t as f64, -(t as f64), 1000.0]).collect());
+        let (nv, nt) = (result.vertices.len(), result.triangles.len());
+        result.fields.push(Field::cell_vector(
+            "H",
+            "magnetic_field",
+            "A/m",
+            Role::Extra,
+            (0..nt).map(|t| [t as f64, -(t as f64)]),
+        ));
+        result.fields.push(Field {
+            location: Location::Point,
+            ..Field::cell_scalar("s", "s", "", Role::Extra, (0..nv).map(|v| v as f64 / 7.0).collect())
+        });
         let data = bytes(&result);
         assert_eq!(read(&data, ID).unwrap(), result);
-        // Without the field's last triangle, the lengths no longer agree.
-        let mut short = data[..data.len() - CHECKSUM_LEN - 24].to_vec();
+        let solution = crate::result::testing::magnetic(200);
+        assert_eq!(read(&bytes(&solution), ID).unwrap(), solution);
+        // Without the last field's last vertex, the lengths no longer agree.
+        let mut short = data[..data.len() - CHECKSUM_LEN - 8].to_vec();
         short.extend_from_slice(&Sha256::digest(&short));
         assert!(matches!(read(&short, ID), Err(CompactError::Length(_))));
     }
@@ -369,7 +385,7 @@ mod tests {
     fn a_result_reads_back_equal_with_and_without_triangle_errors() {
         for criterion in [Criterion::Error, Criterion::Variation] {
             let result = sample(300, criterion);
-            assert_eq!(result.triangle_errors.is_some(), criterion == Criterion::Error);
+            assert_eq!(result.indicator().is_some(), criterion == Criterion::Error);
             assert_eq!(read(&bytes(&result), ID).unwrap(), result);
         }
     }

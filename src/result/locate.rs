@@ -290,7 +290,7 @@ mod tests {
     fn recursive_sample(n: usize) -> MeshResult {
         let f = |x: f64, y: f64| (12.0 * x).sin() * (9.0 * y).cos();
         let params =
-            Params::new(n).unwrap().with_method(Method::Recursive).with_criterion(Criterion::Variation);
+            Params::builder(n).method(Method::Recursive).criterion(Criterion::Variation).build().unwrap();
         refine(&f, crate::geom::Rect::unit(), &params, &mut ()).unwrap().into()
     }
 

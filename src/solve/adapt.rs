@@ -8,12 +8,17 @@
 //! [`Floors::Resolution`]: a singular point gets vertices as close as floating point resolves.
 //! The loop always ends on a solve, so the mesh it returns carries the solution.
 
+use super::coefficients::Coefficients;
+use super::element::Element;
+use super::error::SolveError;
 use super::periodic;
-use super::regions::{self, RegionStats};
+use super::problem::Problem;
+use super::regions;
 use super::residual::Residual;
-use super::{Coefficients, Element, ErrorNorms, Problem, SolveError, solve_with};
+use super::solution::{ErrorNorms, solve_with};
 use crate::geom::Mesh;
 use crate::refine::{Criterion, Floors, Method, Observer, Params, Progress, StopReason, resume, variation};
+use crate::result::{SolveStats, Step};
 use serde::{Deserialize, Serialize};
 use std::time::{Duration, Instant};
 
@@ -63,74 +68,6 @@ impl Settings {
             time_limit: None,
         }
     }
-}
-
-/// One solve of the loop.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Step {
-    /// Vertices of the mesh solved on.
-    pub vertices: usize,
-    /// The estimate on it.
-    pub estimate: f64,
-    /// ½ ∫ k |∇u_h|².
-    pub energy: f64,
-    /// max over vertices of |u − u_h|, with an exact solution.
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub max_nodal_error: Option<f64>,
-    /// ‖u − u_h‖_L2, with an exact solution.
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub l2_error: Option<f64>,
-    /// ‖k^½ ∇(u − u_h)‖_L2, with an exact solution.
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub energy_error: Option<f64>,
-    /// Newton steps of this solve (a nonlinear problem).
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub newton_iterations: Option<u32>,
-    /// Newton's final relative residual ‖R‖₂ / ‖R(u = 0 inside)‖₂ (a nonlinear problem).
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub newton_residual: Option<f64>,
-}
-
-/// The outcome of the loop; the same request gives the same stats, bit for bit.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct SolveStats {
-    /// Vertices of the final mesh.
-    pub vertices: usize,
-    /// Its triangles.
-    pub triangles: usize,
-    /// Unknowns of the final solve (vertices not on the boundary).
-    pub unknowns: usize,
-    /// Solves made.
-    pub solves: usize,
-    /// The estimate on the final mesh.
-    pub estimate: f64,
-    /// ½ ∫ k |∇u_h|² on the final mesh (J/m for magnetostatics); on a curve or in a magnet,
-    /// ∫ H·dB along the material's law from where H = 0.
-    pub energy: f64,
-    /// ∫ B·H minus the energy: the coenergy (J/m), whose derivative is the force at
-    /// constant current.
-    pub coenergy: f64,
-    /// Edge flips made.
-    pub flips: u64,
-    /// Edges retired instead of split.
-    pub retired_edges: u64,
-    /// Why the loop stopped.
-    pub stop: StopReason,
-    /// Whether the final mesh passes the exact in-circle test on every interior edge that is
-    /// not a region's side: a constrained Delaunay triangulation when there are regions.
-    pub delaunay: bool,
-    /// Interior edges that lie on a region's side (the mesh follows every side).
-    #[serde(skip_serializing_if = "is_zero", default)]
-    pub constrained_edges: usize,
-    /// One entry per region, in the problem's order.
-    #[serde(skip_serializing_if = "Vec::is_empty", default)]
-    pub regions: Vec<RegionStats>,
-    /// One entry per solve, in order.
-    pub history: Vec<Step>,
-}
-
-fn is_zero(n: &usize) -> bool {
-    *n == 0
 }
 
 /// A finished loop.
@@ -381,12 +318,13 @@ fn round_params(
     settings: &Settings,
     time_limit: Option<Duration>,
 ) -> Params {
-    let params = Params::new(target.max(4)).expect("a round's target is a valid budget");
-    let params = params.with_criterion(criterion).with_method(settings.method);
-    match time_limit {
-        Some(t) => params.with_time_limit(t),
+    let params = Params::builder(target.max(4)).criterion(criterion).method(settings.method);
+    let params = match time_limit {
+        Some(t) => params.time_limit(t),
         None => params,
-    }
+    };
+    // A solution's methods are recursive or semi-recursive, and it sets no min_angle.
+    params.build().expect("a round's target is a valid budget")
 }
 
 /// Passes cancellation and insertions through to the loop's observer, but not the engine's
@@ -414,6 +352,6 @@ fn gradient(u: Exact<'_>, x: f64, y: f64) -> [f64; 2] {
 }
 
 #[cfg(test)]
-mod physics;
+mod physics_tests;
 #[cfg(test)]
 mod tests;

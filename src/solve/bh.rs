@@ -6,7 +6,7 @@
 //! stiffness along B is dH/dB, stays positive definite. Past the last point the curve goes on
 //! with the slope of vacuum, dB/dH = μ0, as FEMM extends its curves.
 
-use super::MU_0;
+use super::physics::MU_0;
 
 /// A material law H(|B|), strictly increasing from H(0) = 0: what a nonlinear region's
 /// stiffness and energy are computed from. [`BhCurve`] is a table's; tests use closed forms.

@@ -21,7 +21,7 @@
 //! CPU has it, only runs four lanes of independent chains at once; it cannot change a bit. The
 //! test `the_avx2_build_gives_the_portable_bits` holds it to that.
 
-use super::SolveError;
+use super::error::SolveError;
 use faer::Side;
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;

@@ -5,7 +5,7 @@
 //! over the triangles it cuts: the energy of a conductor at [0.2, 0.4] × [0.3, 0.7] stalled
 //! at 2.5e-3 from the Fourier series' from 10^4 vertices on.
 
-use super::Region;
+use super::problem::Region;
 use crate::geom::Point;
 
 /// The most side lines one triangle is cut along; past it (a coarse triangle under many

@@ -8,7 +8,10 @@
 //! symmetric positive definite and goes to the same Cholesky as a linear one.
 
 use super::cholesky::Analysis;
-use super::{Coefficients, Element, Problem, SolveError, solve_spd};
+use super::coefficients::Coefficients;
+use super::element::Element;
+use super::error::SolveError;
+use super::problem::Problem;
 use serde::{Deserialize, Serialize};
 
 /// Newton stops once ‖R‖₂ is at most this fraction of the residual of u = 0 inside (the
@@ -187,4 +190,13 @@ impl System<'_, '_> {
 /// The Euclidean norm, summed in index order.
 fn norm(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+/// Solves A x = b for the symmetric positive definite A given by its lower-triangle
+/// `entries` (column, row, value); duplicates are summed.
+fn solve_spd(n: usize, entries: Vec<(usize, usize, f64)>, b: Vec<f64>) -> Result<Vec<f64>, SolveError> {
+    if n == 0 {
+        return Ok(b);
+    }
+    Analysis::new(n, &entries)?.solve(entries, b)
 }

@@ -3,7 +3,8 @@
 //! unknown (`Numbering`). Refinement splits each side on its own; this puts the missing
 //! partners in, each by a split of the boundary edge it falls on (then Lawson's flips).
 
-use super::{Problem, SolveError};
+use super::error::SolveError;
+use super::problem::Problem;
 use crate::geom::{Mesh, NONE, Vertex};
 use crate::refine::Method;
 use std::collections::HashSet;

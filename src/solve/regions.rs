@@ -9,24 +9,10 @@
 //! follows the region's sides, so that ring never cuts into it. The torque about the origin
 //! is −∫ (x (T∇w)_y − y (T∇w)_x), T∇w being constant on each triangle.
 
-use super::{Coefficients, Element, Problem};
-use serde::{Deserialize, Serialize};
-
-/// One region's figures, in the request's order of regions.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct RegionStats {
-    /// The area the region's shape encloses (m²).
-    pub area: f64,
-    /// f over that area: the region's current in A/m (per metre of depth) in magnetostatics.
-    pub current: f64,
-    /// The mean of u over the triangles inside (Wb/m: flux linkage per turn is the difference
-    /// of two coil sides' means).
-    pub mean_a: f64,
-    /// The force on everything inside, [fx, fy] (N/m).
-    pub force: [f64; 2],
-    /// The torque about the origin (N·m/m).
-    pub torque: f64,
-}
+use super::coefficients::Coefficients;
+use super::element::Element;
+use super::problem::Problem;
+use crate::result::RegionStats;
 
 /// The figures of every region of `problem` on a solved mesh: `points` and `u` by vertex,
 /// `gradients` and `coefficients` by triangle.

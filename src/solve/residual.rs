@@ -12,7 +12,10 @@
 //! again on the interpolated values, so a bisected triangle's jumps fall with its edges and the
 //! worst of what remains is refined next.
 
-use super::{Coefficients, Element, Problem, SolveError};
+use super::coefficients::Coefficients;
+use super::element::Element;
+use super::error::SolveError;
+use super::problem::Problem;
 use crate::geom::{Mesh, NONE, Point, Vertex};
 use crate::refine::{Estimator, Field};
 

@@ -1,8 +1,9 @@
 //! Tests of the P1 solver: the patch test, convergence rates on uniform meshes, a symmetric
 //! inclusion, determinism and the errors that name a point.
 
+use super::coefficients::Coefficients;
 use super::*;
-use crate::geom::Rect;
+use crate::geom::{Point, Rect, Vertex};
 use crate::refine::{Criterion, Method, Params, refine};
 use std::f64::consts::PI;
 
@@ -39,7 +40,7 @@ pub(super) fn uniform(rect: Rect, n: u32) -> (Vec<Point>, Vec<[u32; 3]>) {
 
 /// A mesh from the crate's own refinement of `f` on `rect`.
 fn refined(rect: Rect, n: usize, method: Method, f: fn(f64, f64) -> f64) -> (Vec<Vertex>, Vec<[u32; 3]>) {
-    let params = Params::new(n).unwrap().with_method(method).with_criterion(Criterion::Variation);
+    let params = Params::builder(n).method(method).criterion(Criterion::Variation).build().unwrap();
     let r = refine(&f, rect, &params, &mut ()).unwrap();
     (r.mesh.vertices().to_vec(), r.mesh.triangles().collect())
 }

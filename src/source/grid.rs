@@ -1,6 +1,5 @@
 //! A function sampled on a regular grid, bilinear between nodes.
 
-use super::Surface;
 use crate::geom::{Point, Rect};
 
 /// nx × ny samples of F on a rectangle, row-major with x fastest:
@@ -167,10 +166,10 @@ fn cell(u: f64, n: usize) -> (usize, f64) {
     (i, u - to_f64(i))
 }
 
-impl Surface for Grid {
-    /// Bilinear interpolation in the cell that holds `p` (clamped to the grid).
+impl Grid {
+    /// F at `p`: bilinear interpolation in the cell that holds `p` (clamped to the grid).
     #[inline]
-    fn eval(&self, p: Point) -> f64 {
+    pub fn interpolate(&self, p: Point) -> f64 {
         let (u, v) = self.to_grid(p);
         let (i, fx) = cell(u, self.nx);
         let (j, fy) = cell(v, self.ny);
@@ -183,15 +182,12 @@ impl Surface for Grid {
         let top = high[0] * (1.0 - fx) + high[1] * fx;
         bottom * (1.0 - fy) + top * fy
     }
-
-    fn grid(&self) -> Option<&Grid> {
-        Some(self)
-    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::source::Surface;
 
     #[test]
     fn grid_errors_name_the_problem_and_the_bad_index() {

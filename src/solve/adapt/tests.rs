@@ -167,10 +167,10 @@ fn a_conductor_in_a_box_has_the_energy_of_the_fourier_series_and_a_symmetric_fie
     assert!((0.0..1e-3).contains(&relative), "W_h = {}, series {w}: {relative:e}", a.stats.energy);
 
     // B = (∂A/∂y, −∂A/∂x) circles the current counter-clockwise, mirror-symmetric about x = ½.
-    let result = crate::result::MeshResult::solution(a, crate::solve::Physics::Magnetostatic);
-    let flux = result.flux_density().unwrap();
+    let result = a.into_result(crate::solve::Physics::Magnetostatic);
+    let flux = result.field("B").unwrap();
     let (mut left, mut right, mut left_by, mut right_by) = (0.0, 0.0, 0.0, 0.0);
-    for (tri, b) in result.triangles.iter().zip(&flux) {
+    for (tri, b) in result.triangles.iter().zip(flux.values.chunks_exact(2)) {
         let p = tri.map(|v| result.vertices[v as usize]);
         let area = 0.5 * ((p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[2].x - p[0].x) * (p[1].y - p[0].y));
         let (cx, cy) = ((p[0].x + p[1].x + p[2].x) / 3.0, (p[0].y + p[1].y + p[2].y) / 3.0);

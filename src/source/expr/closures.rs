@@ -7,7 +7,7 @@
 //! a variable is folded into its operator's closure. The operations, and their order on each
 //! value, are the program's, so the results are the same bits.
 
-use super::{Op, max_of, min_of};
+use super::program::{Op, max_of, min_of};
 
 /// F(x, y) for one point.
 pub(super) type Scalar = Box<dyn Fn(f64, f64) -> f64 + Send + Sync>;

@@ -2,7 +2,8 @@
 //! `**`, another language's name for a function meval spells otherwise, `|x|`, a bracket
 //! meval does not group with, a parenthesis left open.
 
-use super::{ExprError, ExprErrorKind, arity};
+use super::error::{ExprError, ExprErrorKind};
+use super::program::arity;
 
 /// What to write instead, when the error is one of the slips this knows.
 pub(super) fn hint(text: &str, error: &ExprError) -> Option<String> {

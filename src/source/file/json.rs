@@ -5,7 +5,9 @@
 //! that is not a number is remembered, so the error can name its (i, j) once nx is known.
 //! The API's JSON requests carry the same array, decoded here by [`decode_values`].
 
-use super::{GridFileError, GridFileKind, Rows, check_size, detail, into_grid};
+use super::assemble::{Rows, check_size, into_grid};
+use super::error::{GridFileError, detail};
+use super::kind::GridFileKind;
 use crate::source::Grid;
 use serde::de::{self, DeserializeSeed, MapAccess, SeqAccess, Visitor};
 use std::cell::Cell;
@@ -46,7 +48,7 @@ pub fn decode_values(values: &str, nx: u64, ny: u64, max_points: usize) -> Resul
     grid_of(shape, values)
 }
 
-fn grid_of(shape: super::Shape, values: Values) -> Result<Grid, GridFileError> {
+fn grid_of(shape: super::assemble::Shape, values: Values) -> Result<Grid, GridFileError> {
     let expected = shape.points() as u64;
     if let Some((0, "an array")) = values.first_bad {
         return Err(GridFileError::Nested { rows: values.count });

@@ -7,7 +7,9 @@
 //! declared header length before reading it (up to 4 GiB from a 12-byte file) and quotes the
 //! whole header in its errors. A dict of three flat entries needs no recursive parser.
 
-use super::{GridFileError, GridFileKind, Rows, array, check_size, detail, into_grid};
+use super::assemble::{Rows, array, check_size, into_grid};
+use super::error::{GridFileError, detail};
+use super::kind::GridFileKind;
 use crate::source::Grid;
 
 const KIND: GridFileKind = GridFileKind::Npy;
@@ -26,7 +28,7 @@ pub(super) fn decode(bytes: &[u8], max_points: usize) -> Result<Grid, GridFileEr
     let &[rows, cols] = header.shape.as_slice() else {
         let dims: Vec<String> = header.shape.iter().map(u64::to_string).collect();
         let detail = format!("array of shape ({}) is not 2-D (rows, columns)", dims.join(", "));
-        return Err(GridFileError::Unsupported { kind: KIND, detail: super::detail(detail) });
+        return Err(GridFileError::Unsupported { kind: KIND, detail: super::error::detail(detail) });
     };
     let shape = check_size(cols, rows, max_points)?;
     let width = read.width;

@@ -6,7 +6,10 @@
 //! become a height silently. So a pixel with alpha below its maximum, or equal to the `tRNS`
 //! colour of an image without an alpha channel, is an error naming its (i, j).
 
-use super::{Encoding, GridFileError, GridFileKind, Rows, check_size, detail, find_in_grid_order, into_grid};
+use super::assemble::{Rows, check_size, find_in_grid_order, into_grid};
+use super::error::{GridFileError, detail};
+use super::hints::Encoding;
+use super::kind::GridFileKind;
 use crate::source::Grid;
 use ::png::{BitDepth, ColorType, Decoder, Transformations};
 use std::io::Cursor;

@@ -3,7 +3,10 @@
 //! arbitrary bytes. Every file is made here with the formats' own encoders (or, for .npy,
 //! byte for byte as numpy writes it).
 
+use super::kind::PNG_SIGNATURE;
 use super::*;
+use crate::geom::Rect;
+use crate::source::Grid;
 use crate::source::decode_values;
 use ::png::{BitDepth, ColorType};
 use ::tiff::encoder::colortype::{self, ColorType as TiffColour};
@@ -829,7 +832,7 @@ fn bytes_strategy() -> impl Strategy<Value = Vec<u8>> {
     let magic = prop_oneof![
         Just(b"\x93NUMPY\x01\x00".to_vec()),
         Just(b"\x93NUMPY\x02\x00".to_vec()),
-        Just(super::PNG_SIGNATURE.to_vec()),
+        Just(PNG_SIGNATURE.to_vec()),
         Just(b"II*\0".to_vec()),
         Just(b"MM\0*".to_vec()),
         Just(b"II+\0\x08\0\0\0".to_vec()),

@@ -1,7 +1,9 @@
 //! TIFF and GeoTIFF rasters: one band of integer or float samples, the georeferenced domain
 //! and the `GDAL_NODATA` value.
 
-use super::{GridFileError, GridFileKind, NoData, Rows, Shape, check_size, detail, into_grid};
+use super::assemble::{NoData, Rows, Shape, check_size, into_grid};
+use super::error::{GridFileError, detail};
+use super::kind::GridFileKind;
 use crate::geom::Rect;
 use crate::source::Grid;
 use ::tiff::decoder::ifd::Value;

@@ -181,8 +181,10 @@ fn a_magnet_slab_has_the_flux_density_of_its_one_dimensional_solution() {
     let expected = 0.5 / MU_0 * (0.2 * MU_0 * m0).powi(2);
     assert!((a.stats.energy - expected).abs() < 1e-9 * expected, "{} against {expected}", a.stats.energy);
     // H = −0.2 M0 x̂ on every triangle, magnet or air; μr = 1 in both.
-    let result = crate::result::MeshResult::solution(a.clone(), crate::solve::Physics::Magnetostatic);
-    for &[hx, hy, mu_r] in result.magnetic_field.as_ref().unwrap() {
+    let result = a.clone().into_result(crate::solve::Physics::Magnetostatic);
+    let (h, mu_r) = (result.field("H").unwrap(), result.field("mu_r").unwrap());
+    for (h, &mu_r) in h.values.chunks_exact(2).zip(&mu_r.values) {
+        let (hx, hy) = (h[0], h[1]);
         assert!(
             (hx + 0.2 * m0).abs() < 1e-6 * m0 && hy.abs() < 1e-6 * m0 && (mu_r - 1.0).abs() < 1e-12,
             "{hx} {hy} {mu_r}"

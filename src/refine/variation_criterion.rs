@@ -1,7 +1,10 @@
 //! The paper's criterion: split the edge with the largest |zᵢ − zⱼ|.
 
+use super::estimator::Field;
+use super::observer::Observer;
+use super::outcome::StopReason;
+use super::run::Run;
 use super::worst_edge::{Candidate, WorstEdgeQueue};
-use super::{Field, Observer, Run, StopReason};
 use crate::geom::Mesh;
 
 /// Refines `mesh` worst edge first until a stop rule fires.

@@ -1,0 +1,141 @@
+//! What a finished run reports: a mesh's [`Stats`] or a solution's, with what u stood for.
+//!
+//! A solution's report types live here, below the solver that fills them, so that a result
+//! (and every store and writer of one) knows nothing of how a solution was computed.
+
+use crate::refine::{Stats, StopReason};
+use serde::{Deserialize, Serialize};
+
+/// What a result's run reports: a mesh's stats or a solution's.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Summary {
+    /// A mesh of F.
+    Mesh(Stats),
+    /// The solution of a boundary value problem.
+    Solution(SolutionStats),
+}
+
+/// A solution's stats with what u stands for.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SolutionStats {
+    /// What u stands for.
+    pub physics: Physics,
+    /// The adaptive loop's counters, estimate, energy and history.
+    #[serde(flatten)]
+    pub run: SolveStats,
+}
+
+impl Summary {
+    /// Why the run stopped.
+    pub fn stop(&self) -> StopReason {
+        match self {
+            Summary::Mesh(s) => s.stop,
+            Summary::Solution(s) => s.run.stop,
+        }
+    }
+
+    /// What u stands for, for a solution.
+    pub fn physics(&self) -> Option<Physics> {
+        match self {
+            Summary::Mesh(_) => None,
+            Summary::Solution(s) => Some(s.physics),
+        }
+    }
+}
+
+/// What u stands for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Physics {
+    /// −∇·(k ∇u) = f as given.
+    #[default]
+    Poisson,
+    /// u is the vector potential A_z (Wb/m): k = 1/(μ0 μr), f = J_z (A/m²), and the flux
+    /// density is B = (∂A/∂y, −∂A/∂x) in tesla.
+    Magnetostatic,
+}
+
+/// One solve of the loop.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Step {
+    /// Vertices of the mesh solved on.
+    pub vertices: usize,
+    /// The estimate on it.
+    pub estimate: f64,
+    /// ½ ∫ k |∇u_h|².
+    pub energy: f64,
+    /// max over vertices of |u − u_h|, with an exact solution.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub max_nodal_error: Option<f64>,
+    /// ‖u − u_h‖_L2, with an exact solution.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub l2_error: Option<f64>,
+    /// ‖k^½ ∇(u − u_h)‖_L2, with an exact solution.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub energy_error: Option<f64>,
+    /// Newton steps of this solve (a nonlinear problem).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub newton_iterations: Option<u32>,
+    /// Newton's final relative residual ‖R‖₂ / ‖R(u = 0 inside)‖₂ (a nonlinear problem).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub newton_residual: Option<f64>,
+}
+
+/// The outcome of the loop; the same request gives the same stats, bit for bit.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SolveStats {
+    /// Vertices of the final mesh.
+    pub vertices: usize,
+    /// Its triangles.
+    pub triangles: usize,
+    /// Unknowns of the final solve (vertices not on the boundary).
+    pub unknowns: usize,
+    /// Solves made.
+    pub solves: usize,
+    /// The estimate on the final mesh.
+    pub estimate: f64,
+    /// ½ ∫ k |∇u_h|² on the final mesh (J/m for magnetostatics); on a curve or in a magnet,
+    /// ∫ H·dB along the material's law from where H = 0.
+    pub energy: f64,
+    /// ∫ B·H minus the energy: the coenergy (J/m), whose derivative is the force at
+    /// constant current.
+    pub coenergy: f64,
+    /// Edge flips made.
+    pub flips: u64,
+    /// Edges retired instead of split.
+    pub retired_edges: u64,
+    /// Why the loop stopped.
+    pub stop: StopReason,
+    /// Whether the final mesh passes the exact in-circle test on every interior edge that is
+    /// not a region's side: a constrained Delaunay triangulation when there are regions.
+    pub delaunay: bool,
+    /// Interior edges that lie on a region's side (the mesh follows every side).
+    #[serde(skip_serializing_if = "is_zero", default)]
+    pub constrained_edges: usize,
+    /// One entry per region, in the problem's order.
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub regions: Vec<RegionStats>,
+    /// One entry per solve, in order.
+    pub history: Vec<Step>,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
+}
+
+/// One region's figures, in the request's order of regions.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RegionStats {
+    /// The area the region's shape encloses (m²).
+    pub area: f64,
+    /// f over that area: the region's current in A/m (per metre of depth) in magnetostatics.
+    pub current: f64,
+    /// The mean of u over the triangles inside (Wb/m: flux linkage per turn is the difference
+    /// of two coil sides' means).
+    pub mean_a: f64,
+    /// The force on everything inside, [fx, fy] (N/m).
+    pub force: [f64; 2],
+    /// The torque about the origin (N·m/m).
+    pub torque: f64,
+}

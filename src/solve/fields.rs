@@ -1,0 +1,66 @@
+//! What each physics derives from a solution, as the named fields of its result: η_T for
+//! every problem, and in magnetostatics the flux density B, the field strength H and the
+//! relative permeability μr per triangle.
+
+use super::adapt::Adapted;
+use super::element::Element;
+use super::physics::MU_0;
+use crate::geom::Vertex;
+use crate::result::{Field, Lines, MeshResult, Physics, Role, SolutionStats, Summary};
+
+impl Adapted {
+    /// The result of this solve: z = u at every vertex, η_T per triangle and the fields of
+    /// `physics`.
+    pub fn into_result(self, physics: Physics) -> MeshResult {
+        let vertices = self.mesh.vertices().to_vec();
+        let triangles: Vec<[u32; 3]> = self.mesh.triangles().collect();
+        let mut fields: Vec<Field> =
+            self.indicators.map(crate::result::triangle_errors).into_iter().collect();
+        if physics == Physics::Magnetostatic {
+            fields.extend(magnetostatic(&vertices, &triangles, &self.fields));
+        }
+        MeshResult {
+            vertices,
+            triangles,
+            fields,
+            stats: Summary::Solution(SolutionStats { physics, run: self.stats }),
+            trace: None,
+        }
+    }
+}
+
+/// B = (∂A/∂y, −∂A/∂x) from the potential at the vertices, in tesla; H = (q_y, −q_x) from the
+/// flux q the weak form tests, in A/m; and μr = 1/(μ0 ν), the secant permeability B/(μ0 H)
+/// on a B–H curve. `flux` holds [q_x, q_y, ν] per triangle.
+fn magnetostatic(vertices: &[Vertex], triangles: &[[u32; 3]], flux: &[[f64; 3]]) -> [Field; 3] {
+    [
+        flux_density(vertices, triangles),
+        Field::cell_vector(
+            "H",
+            "magnetic_field",
+            "A/m",
+            Role::Extra,
+            flux.iter().map(|&[qx, qy, _]| [qy, -qx]),
+        ),
+        Field::cell_scalar(
+            "mu_r",
+            "relative_permeability",
+            "",
+            Role::Extra,
+            flux.iter().map(|&[_, _, k]| 1.0 / (MU_0 * k)).collect(),
+        ),
+    ]
+}
+
+/// B = (∂A/∂y, −∂A/∂x) per triangle, in tesla, from A = z at the vertices; its field lines
+/// are the contours of A.
+pub(crate) fn flux_density(vertices: &[Vertex], triangles: &[[u32; 3]]) -> Field {
+    let b = triangles.iter().enumerate().map(|(t, &tri)| {
+        let z = tri.map(|v| vertices[v as usize].z);
+        // The solver's triangles are counter-clockwise, so this never fails.
+        let g = Element::new(vertices, tri, t).map_or([0.0; 2], |e| e.gradient(z));
+        [g[1], -g[0]]
+    });
+    let lines = Lines { name: "field lines".into(), z: "A".into(), z_unit: "Wb/m".into() };
+    Field { lines: Some(lines), ..Field::cell_vector("B", "flux_density", "T", Role::Main, b) }
+}
