@@ -855,7 +855,8 @@ mod tests {
 
     #[test]
     fn the_readmes_table_is_the_settings_table() {
-        let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+        let readme =
+            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/settings.md")).unwrap();
         let rows: Vec<&str> = readme.lines().filter(|l| l.starts_with("| `MESHFIT_")).collect();
         let expected: Vec<String> = SETTINGS
             .iter()
