@@ -111,10 +111,18 @@ async fn shutdown_cancels_a_detached_job_after_the_grace_period_and_returns() {
         .json()
         .await
         .unwrap();
-    app.wait_running(status["id"].as_str().unwrap()).await;
-    let start = std::time::Instant::now();
+    let id = status["id"].as_str().unwrap().to_owned();
+    app.wait_running(&id).await;
+    // A client following the job hears how it ended: cancelled by the shutdown, where a
+    // shutdown that waited for the job would send its result.
+    let events = app.client.get(app.url(&format!("/v1/jobs/{id}/events"))).send().await.unwrap();
+    let events = tokio::spawn(crate::helpers::read_events(events));
     app.shutdown().await;
-    assert!(start.elapsed() < std::time::Duration::from_secs(2), "shutdown took {:?}", start.elapsed());
+    let events = events.await.unwrap();
+    let last = events.last().expect("the stream ends with the job's final event");
+    assert_eq!(last.event, "error", "{events:?}");
+    let problem: Value = serde_json::from_str(&last.data).unwrap();
+    assert_eq!(problem["type"], "/problems/job-cancelled", "{problem}");
 }
 
 #[tokio::test]
