@@ -1,34 +1,18 @@
 //! `POST /v1/jobs/{id}/evaluate`: F_n, the mesh's piecewise linear surrogate, at given points.
 
-use super::AppState;
 use super::extract::{Body, Media, Takes, media, parse_json};
 use super::jobs::finished_result;
 use super::problem::ApiError;
+use super::state::AppState;
 use crate::geom::Point;
-use crate::result::MeshResult;
 use crate::result::locate::Locator;
 use axum::extract::{Path, State};
 use axum::http::{HeaderMap, HeaderValue, header};
 use axum::response::{IntoResponse, Response};
-use std::sync::{Arc, Weak};
+use std::sync::Arc;
 
 /// The binary form of points and values: little-endian f64s.
 const OCTET_STREAM: &str = "application/octet-stream";
-
-/// Locators of recently evaluated results, each with the result it indexes: a result
-/// recomputed under the same id (after a time limit, say) is another mesh, so a hit counts
-/// only for the very same result.
-pub type Locators = moka::sync::Cache<String, (Weak<MeshResult>, Arc<Locator>)>;
-
-/// A locator cache of at most `bytes` bytes.
-pub fn locators(bytes: u64) -> Locators {
-    moka::sync::Cache::builder()
-        .max_capacity(bytes)
-        .weigher(|_: &String, (_, l): &(Weak<MeshResult>, Arc<Locator>)| {
-            u32::try_from(l.num_bytes()).unwrap_or(u32::MAX)
-        })
-        .build()
-}
 
 #[derive(serde::Deserialize)]
 #[serde(deny_unknown_fields)]

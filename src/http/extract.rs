@@ -1,8 +1,8 @@
 //! The request body as bytes, with a rejection that is a problem document, and JSON parsing
 //! whose errors are problems too (axum's AppJson pattern).
 
-use super::AppState;
 use super::problem::ApiError;
+use super::state::AppState;
 use crate::config::BodyLimits;
 use crate::jobs::{Charge, OverBudget};
 use crate::source::signed_kind;

@@ -1,6 +1,6 @@
 //! Liveness, readiness, metrics and the API description.
 
-use super::AppState;
+use super::state::AppState;
 use axum::Json;
 use axum::extract::State;
 use axum::http::{StatusCode, header};

@@ -1,10 +1,10 @@
 //! Handlers for meshes and jobs: create (synchronous or streamed), show, stream, fetch, cancel.
 
-use super::AppState;
 use super::extract::{Body, JobBody, Takes, parse_json};
 use super::negotiate::{self, Wanted};
 use super::problem::ApiError;
 use super::sse;
+use super::state::AppState;
 use crate::api::{JobRequest, JobStatus, JsonError, Links, SolveRequest};
 use crate::jobs::peers::KeptRequest;
 use crate::jobs::{
