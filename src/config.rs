@@ -37,6 +37,8 @@ pub struct Config {
     pub addr: SocketAddr,
     /// Log lines as text or JSON (`MESHFIT_LOG_FORMAT`).
     pub log_format: LogFormat,
+    /// Which log lines are written, in `RUST_LOG` syntax (`MESHFIT_LOG`).
+    pub log_filter: String,
     /// How long running jobs may finish after SIGTERM (`MESHFIT_SHUTDOWN_GRACE_MS`).
     pub shutdown_grace: Duration,
     /// What one request may ask for (`MESHFIT_MAX_VERTICES`, `MESHFIT_MAX_GRID_POINTS`,
@@ -161,6 +163,7 @@ impl Default for Config {
         Self {
             addr: DEFAULT_ADDR,
             log_format: LogFormat::Text,
+            log_filter: "info".to_owned(),
             shutdown_grace: Duration::from_secs(10),
             limits: Limits {
                 max_vertices: 2_000_000,
@@ -615,8 +618,11 @@ pub const SETTINGS: &[Setting] = &[
         value_name: "FILTER",
         default: Fallback::Value("info"),
         help: "log filter, in `RUST_LOG` syntax",
-        // Read by the tracing subscriber itself.
-        parse: |_, _| Ok(()),
+        parse: |v, c| {
+            tracing_subscriber::EnvFilter::try_new(v).map_err(|e| format!("not a log filter: {e}"))?;
+            c.log_filter = v.to_owned();
+            Ok(())
+        },
     },
 ];
 
@@ -771,6 +777,15 @@ mod tests {
         // A misspelt variable may hold a key: its value is not echoed.
         let err = Config::try_from(raw(&[("MESHFIT_API_KEY", "secret-0123456789abcdef")])).unwrap_err();
         assert_eq!(err.to_string(), "invalid configuration:\n  MESHFIT_API_KEY=<hidden>: unknown setting");
+    }
+
+    #[test]
+    fn the_log_filter_is_a_setting_checked_with_the_others() {
+        let c = Config::try_from(raw(&[("MESHFIT_LOG", "meshfit=debug,tower_http=warn")])).unwrap();
+        assert_eq!(c.log_filter, "meshfit=debug,tower_http=warn");
+        assert_eq!(Config::try_from(raw(&[])).unwrap().log_filter, "info");
+        let err = Config::try_from(raw(&[("MESHFIT_LOG", "meshfit=loud")])).unwrap_err();
+        assert!(err.0[0].name == "MESHFIT_LOG" && err.0[0].why.starts_with("not a log filter"), "{err}");
     }
 
     #[test]

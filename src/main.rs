@@ -59,11 +59,13 @@ const HEALTH_TIMEOUT: Duration = Duration::from_secs(3);
 fn health(args: &HealthArgs) -> Result<()> {
     use std::io::Read;
     use std::net::{IpAddr, Ipv4Addr, Ipv6Addr, TcpStream};
-    let text = args.addr.clone().or_else(|| std::env::var("MESHFIT_ADDR").ok());
-    let text = text.unwrap_or_else(|| meshfit::config::DEFAULT_ADDR.to_string());
-    let flag = if args.addr.is_some() { "--addr" } else { "MESHFIT_ADDR" };
-    let mut addr =
-        meshfit::config::listen_addr(&text).map_err(|why| anyhow::anyhow!("{flag} {text:?}: {why}"))?;
+    // The address the server takes: from the same settings table, unless --addr names one.
+    let mut addr = match &args.addr {
+        Some(text) => {
+            meshfit::config::listen_addr(text).map_err(|why| anyhow::anyhow!("--addr {text:?}: {why}"))?
+        }
+        None => Config::try_from(RawConfig::from_env())?.addr,
+    };
     if addr.ip().is_unspecified() {
         addr.set_ip(match addr.ip() {
             IpAddr::V4(_) => IpAddr::V4(Ipv4Addr::LOCALHOST),
@@ -137,7 +139,7 @@ impl ServeArgs {
 
 fn serve(args: &ServeArgs) -> Result<()> {
     let config = args.config()?;
-    meshfit::telemetry::init(config.log_format);
+    meshfit::telemetry::init(&config);
     let runtime =
         tokio::runtime::Builder::new_multi_thread().enable_all().build().context("starting tokio")?;
     runtime.block_on(async {

@@ -23,6 +23,7 @@ pub fn test_config() -> Config {
     Config {
         addr: SocketAddr::from(([127, 0, 0, 1], 0)),
         log_format: meshfit::config::LogFormat::Text,
+        log_filter: "info".to_owned(),
         shutdown_grace: Duration::from_secs(2),
         limits: Limits {
             max_vertices: 2_000_000,
