@@ -5,8 +5,7 @@ use crate::api::{BoundaryInput, Coefficient, RegionInput, SolveRequest};
 use crate::geom::{Point, Rect};
 use crate::refine::{Method, Observer};
 use crate::solve::{
-    Adapted, BhCurve, Boundary, Exact, MU_0, Physics, Polygon, Problem, Region, Settings, Shape, SolveError,
-    adapt,
+    Adapted, BhCurve, Boundary, Exact, MU_0, Physics, Problem, Region, Settings, Shape, SolveError, adapt,
 };
 use crate::source::Expression;
 use std::sync::Arc;
@@ -110,15 +109,11 @@ pub const MAX_REGIONS: usize = 100;
 /// them all, and every region side is a constraint.
 pub const MAX_CORNERS: usize = 10_000;
 
-/// The most corners a polygon may have: simplicity is checked pair by pair.
-pub const MAX_POLYGON_POINTS: usize = 1000;
-
-/// Region `i`'s shape: a rectangle inside `domain`, or a simple polygon inside it.
-fn shape(i: usize, r: &RegionInput, domain: Rect) -> Result<Shape, SpecError> {
+/// Region `i`'s shape, a rectangle or a simple polygon, as a region inside `domain`: the
+/// checks are the domain types' own, with their errors named by the request's fields.
+fn shaped(i: usize, r: &RegionInput, domain: Rect) -> Result<Region, SpecError> {
     let here = format!("regions[{i}]");
-    let inside =
-        |p: Point| domain.x0() <= p.x && p.x <= domain.x1() && domain.y0() <= p.y && p.y <= domain.y1();
-    match (&r.x, &r.y, &r.polygon) {
+    let shape = match (&r.x, &r.y, &r.polygon) {
         (Some(x), Some(y), None) => {
             let (x, y) = match (x.as_slice(), y.as_slice()) {
                 (&[x0, x1], &[y0, y1]) => ([x0, x1], [y0, y1]),
@@ -126,91 +121,23 @@ fn shape(i: usize, r: &RegionInput, domain: Rect) -> Result<Shape, SpecError> {
             };
             let rect = Rect::new(x[0] + 0.0, x[1] + 0.0, y[0] + 0.0, y[1] + 0.0)
                 .map_err(|e| invalid(&here, e.to_string()))?;
-            if !rect.corners().into_iter().all(inside) {
-                return Err(invalid(here, "the region must lie inside the domain"));
-            }
-            Ok(Shape::Rect(rect))
+            Shape::Rect(rect)
         }
         (None, None, Some(points)) => {
-            let at = |k: usize| format!("regions[{i}].polygon[{k}]");
-            if points.len() < 3 {
-                return Err(invalid(
-                    format!("{here}.polygon"),
-                    format!("needs at least 3 points, got {}", points.len()),
-                ));
-            }
-            if points.len() > MAX_POLYGON_POINTS {
-                return Err(invalid(
-                    format!("{here}.polygon"),
-                    format!("has {} points, more than {MAX_POLYGON_POINTS}", points.len()),
-                ));
-            }
-            let mut corners = Vec::with_capacity(points.len());
-            for (k, &[x, y]) in points.iter().enumerate() {
-                let p = Point::new(x + 0.0, y + 0.0);
-                if !(x.is_finite() && y.is_finite() && inside(p)) {
-                    return Err(invalid(
-                        at(k),
-                        format!("[{x}, {y}] must be a finite point inside the domain"),
-                    ));
-                }
-                corners.push(p);
-            }
-            let polygon = Polygon::new(corners);
-            if let Some((k, problem)) = polygon_fault(&polygon) {
-                return Err(invalid(at(k), problem));
-            }
-            Ok(Shape::Polygon(polygon))
+            let corners = points.iter().map(|&[x, y]| Point::new(x, y)).collect();
+            Shape::polygon(corners, domain).map_err(|e| match e.corner() {
+                Some(k) => invalid(format!("{here}.polygon[{k}]"), e.to_string()),
+                None => invalid(format!("{here}.polygon"), e.to_string()),
+            })?
         }
-        _ => Err(invalid(
-            here,
-            "a region is a rectangle (x and y) or a polygon (polygon), not both or neither",
-        )),
-    }
-}
-
-/// The first corner at which `corners` stop making a simple polygon, and why: a repeated
-/// corner, a zero-length or backtracking side, or two sides that cross or touch. Decided by
-/// exact orientation tests.
-fn polygon_fault(polygon: &Polygon) -> Option<(usize, &'static str)> {
-    use crate::geom::predicates::{Orientation, orientation};
-    let corners = polygon.corners();
-    let n = corners.len();
-    let side = |k: usize| (corners[k], corners[(k + 1) % n]);
-    // Whether c lies on the closed segment a–b, given that the three are collinear.
-    let within = |a: Point, b: Point, c: Point| {
-        a.x.min(b.x) <= c.x && c.x <= a.x.max(b.x) && a.y.min(b.y) <= c.y && c.y <= a.y.max(b.y)
+        _ => {
+            return Err(invalid(
+                here,
+                "a region is a rectangle (x and y) or a polygon (polygon), not both or neither",
+            ));
+        }
     };
-    let touch = |(a, b): (Point, Point), (c, d): (Point, Point)| {
-        let (o1, o2) = (orientation(a, b, c), orientation(a, b, d));
-        let (o3, o4) = (orientation(c, d, a), orientation(c, d, b));
-        let proper = o1 != o2 && o3 != o4 && ![o1, o2, o3, o4].contains(&Orientation::Collinear);
-        proper
-            || (o1 == Orientation::Collinear && within(a, b, c))
-            || (o2 == Orientation::Collinear && within(a, b, d))
-            || (o3 == Orientation::Collinear && within(c, d, a))
-            || (o4 == Orientation::Collinear && within(c, d, b))
-    };
-    for k in 0..n {
-        let (a, b) = side(k);
-        if a == b {
-            return Some(((k + 1) % n, "repeats the corner before it"));
-        }
-        // Two consecutive sides meet only at their shared corner: no fold back along a line.
-        let c = corners[(k + 2) % n];
-        if orientation(a, b, c) == Orientation::Collinear && within(a, b, c) && c != b {
-            return Some(((k + 2) % n, "folds back onto the side before it"));
-        }
-        for j in k + 2..n {
-            if k == 0 && j == n - 1 {
-                continue;
-            }
-            if touch(side(k), side(j)) {
-                return Some((j, "its side crosses or touches another: the polygon must be simple"));
-            }
-        }
-    }
-    (polygon.area() == 0.0).then_some((0, "encloses no area"))
+    Region::try_new(shape, domain).map_err(|e| invalid(here, e.to_string()))
 }
 
 /// Region `i`, inside `domain`, with k and f for `physics`, and its B–H table if it has one.
@@ -221,8 +148,7 @@ fn region(
     physics: Physics,
 ) -> Result<(Region, Option<BhTable>), SpecError> {
     let at = |name: &str| format!("regions[{i}].{name}");
-    let shape = shape(i, &r, domain)?;
-    let mut region = Region::new(shape);
+    let mut region = shaped(i, &r, domain)?;
     let mut table = None;
     // Whether the region sets any of the magnetostatic fields.
     let magnetic = [r.mu_r, r.current_density, r.current].iter().any(Option::is_some)

@@ -55,6 +55,7 @@ mod fields;
 mod nonlinear;
 mod periodic;
 mod physics;
+mod polygon;
 mod problem;
 mod quadrature;
 mod regions;
@@ -71,7 +72,8 @@ pub use error::SolveError;
 pub(crate) use fields::flux_density;
 pub use nonlinear::{MAX_NEWTON_ITERATIONS, NEWTON_TOLERANCE, Newton};
 pub use physics::MU_0;
-pub use problem::{Boundary, Polygon, Problem, Region, Shape, Side};
+pub use polygon::{MAX_POLYGON_POINTS, Polygon, PolygonError};
+pub use problem::{Boundary, OutsideDomain, Problem, Region, Shape, Side};
 pub use solution::{ErrorNorms, Solution, solve};
 // A solution's report is data of its result, which knows nothing of the solver.
 pub use crate::result::{Physics, RegionStats, SolveStats, Step};

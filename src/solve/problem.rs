@@ -2,6 +2,7 @@
 //! each side's condition, and the regions that override k and f.
 
 use super::bh::Curve;
+use super::polygon::{Polygon, PolygonError};
 use crate::geom::{Point, Rect};
 use std::sync::Arc;
 
@@ -17,49 +18,13 @@ pub enum Shape {
     Polygon(Polygon),
 }
 
-/// A simple polygon's corners, in either orientation, without repeating the first, and the
-/// box around them, which spares most points the walk around the sides.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Polygon {
-    corners: Vec<Point>,
-    /// The smallest x and y of the corners.
-    lo: Point,
-    /// The largest.
-    hi: Point,
-}
-
-impl Polygon {
-    /// The polygon of `corners` (at least three).
-    pub fn new(corners: Vec<Point>) -> Self {
-        let fold = |f: fn(f64, f64) -> f64, start: f64| {
-            let x = corners.iter().map(|p| p.x).fold(start, f);
-            let y = corners.iter().map(|p| p.y).fold(start, f);
-            Point::new(x, y)
-        };
-        let (lo, hi) = (fold(f64::min, f64::INFINITY), fold(f64::max, f64::NEG_INFINITY));
-        Self { corners, lo, hi }
-    }
-
-    /// The corners.
-    pub fn corners(&self) -> &[Point] {
-        &self.corners
-    }
-
-    /// The area enclosed (the shoelace formula), whatever the orientation.
-    pub fn area(&self) -> f64 {
-        let n = self.corners.len();
-        let twice: f64 = (0..n)
-            .map(|i| (self.corners[i], self.corners[(i + 1) % n]))
-            .map(|(a, b)| a.x * b.y - b.x * a.y)
-            .sum();
-        0.5 * twice.abs()
-    }
-}
-
 impl Shape {
-    /// A polygon of `corners`.
-    pub fn polygon(corners: Vec<Point>) -> Self {
-        Shape::Polygon(Polygon::new(corners))
+    /// The simple polygon of `corners` inside `domain`; see [`Polygon::try_new`].
+    ///
+    /// # Errors
+    /// As [`Polygon::try_new`].
+    pub fn polygon(corners: Vec<Point>, domain: Rect) -> Result<Self, PolygonError> {
+        Polygon::try_new(corners, domain).map(Shape::Polygon)
     }
 
     /// Whether `p` is within `margin` of the box around the shape: no point outside is in it.
@@ -160,10 +125,27 @@ pub struct Region {
     pub source: Option<[f64; 2]>,
 }
 
+/// A region's shape reaches outside the problem's domain.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("the region must lie inside the domain")]
+pub struct OutsideDomain;
+
 impl Region {
-    /// A region of `shape` that sets nothing yet.
+    /// A region of `shape` that sets nothing yet. [`Region::try_new`] also checks that it
+    /// lies inside the domain, which a problem's regions must.
     pub fn new(shape: Shape) -> Self {
         Self { shape, k: None, f: None, curve: None, source: None }
+    }
+
+    /// A region of `shape`, which must lie inside `domain` (boundary included), that sets
+    /// nothing yet.
+    ///
+    /// # Errors
+    /// [`OutsideDomain`] when a corner of the shape lies outside `domain`.
+    pub fn try_new(shape: Shape, domain: Rect) -> Result<Self, OutsideDomain> {
+        let inside =
+            |p: Point| domain.x0() <= p.x && p.x <= domain.x1() && domain.y0() <= p.y && p.y <= domain.y1();
+        if shape.sides().all(|[a, _]| inside(a)) { Ok(Self::new(shape)) } else { Err(OutsideDomain) }
     }
 
     /// A rectangle with k and/or f.

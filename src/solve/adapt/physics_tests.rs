@@ -43,7 +43,7 @@ fn a_slab_whose_interface_is_not_dyadic_is_solved_to_rounding_as_a_rectangle_and
     let rect = Rect::new(0.61, 1.0, 0.0, 1.0).unwrap();
     assert!(slab_error(Shape::Rect(rect)) < 1e-4);
     let polygon = rect.corners().to_vec();
-    assert!(slab_error(Shape::polygon(polygon)) < 1e-4);
+    assert!(slab_error(Shape::polygon(polygon, Rect::unit()).unwrap()) < 1e-4);
 }
 
 #[test]
@@ -55,7 +55,8 @@ fn a_rotated_square_conductors_sides_are_chains_of_mesh_edges_through_every_roun
             Point::new(c.x + r * a.cos(), c.y + r * a.sin())
         })
         .collect();
-    let region = Region { f: Some(1.0), ..Region::new(Shape::polygon(corners.clone())) };
+    let region =
+        Region { f: Some(1.0), ..Region::new(Shape::polygon(corners.clone(), Rect::unit()).unwrap()) };
     let problem = Problem::new(Rect::unit()).with_region(region);
     let a = adapt(&problem, None, &Settings::new(3_000), &mut Checked).unwrap();
     let mesh = &a.mesh;
