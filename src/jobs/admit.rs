@@ -4,9 +4,10 @@
 
 use super::JobSpec;
 use super::job::{Job, Lifetime};
+use super::replica::publish;
 use super::share::{Client, Seat};
 use super::state::{Inner, Listing, Start, SubmitError, Ticket};
-use super::{publish, worker};
+use super::worker;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 

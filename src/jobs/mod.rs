@@ -24,14 +24,15 @@
 //! - `worker`: one job's run on the blocking pool;
 //! - `cache`: stored results, in memory and on disk;
 //! - `registry`: [`Jobs`], the one public face: submit, find, watch, cancel, shut down.
-//! - [`peers`]: the store replicas share, as the one trait [`Peers`](peers::Peers) that jobs
-//!   talk to other replicas through, with its wire types (postings, kept requests, controls);
-//!   [`crate::cluster`] implements it over Redis, `peers::alone` for a replica on its own
-//!   (no store: every operation fails as if the store were away, and the replica acts
-//!   alone, as it does then), and the tests in memory;
-//! - `publish`, `follow`, `takeover`: the replica protocol over that trait: the replica
-//!   holding a job's lease publishes it, the others follow it, and a job whose replica died is
-//!   run again by the first replica to take its expired lease.
+//! - `replica`: the replica protocol, in its own folder: [`peers`], the store replicas
+//!   share, as the one trait [`Peers`](peers::Peers) that jobs talk to other replicas
+//!   through, with its wire types (postings, kept requests, controls); [`crate::cluster`]
+//!   implements it over Redis, `peers::alone` for a replica on its own (no store: every
+//!   operation fails as if the store were away, and the replica acts alone, as it does
+//!   then), and the tests in memory; and `publish`, `follow`, `takeover`: the replica
+//!   holding a job's lease publishes it, the others follow it, and a job whose replica died
+//!   is run again by the first replica to take its expired lease, from its request as a
+//!   [`RequestParser`] reads it.
 
 mod admit;
 mod budget;
@@ -39,17 +40,14 @@ mod cache;
 mod checks;
 mod dispatch;
 mod failure;
-mod follow;
 mod job;
 mod key;
-pub mod peers;
-mod publish;
 mod registry;
+mod replica;
 mod share;
 mod solution;
 mod spec;
 mod state;
-mod takeover;
 mod worker;
 
 pub use budget::{
@@ -62,18 +60,8 @@ pub use failure::{Cause, Failure};
 pub use job::{Job, JobError, Lifetime, Outcome, Record, Snapshot, Status};
 pub use key::{ENGINE_VERSION, JobKeys, job_id, job_keys};
 pub use registry::{Found, Jobs, Pool};
+pub use replica::{RequestParser, peers};
 pub use share::Client;
 pub use solution::{Coef, SolveSpec};
 pub use spec::{JobSpec, MeshSpec, Work};
 pub use state::{SubmitError, Ticket, Waiter};
-
-/// How a request another replica kept is read when replicas share: the server's own parsing
-/// of a request body (its content types are the HTTP layer's), given to the registry by the
-/// caller.
-pub trait RequestParser: Send + Sync + 'static {
-    /// Reads a request another replica kept, as if a client had just sent it here.
-    fn parse(
-        &self,
-        request: peers::KeptRequest,
-    ) -> futures_util::future::BoxFuture<'static, Result<(JobKeys, JobSpec), String>>;
-}

@@ -2,12 +2,13 @@
 
 use super::budget::Budget;
 use super::dispatch::Dispatch;
-use super::follow::Fetched;
 use super::job::{Job, Lifetime, Record, Status};
-use super::peers::{self, Alone, Claim, Control, Kept, KeptRequest, Peers, Take};
+use super::replica::follow::{self, Fetched};
+use super::replica::peers::{self, Acquired, Alone, Control, Kept, KeptRequest, Peers, Take};
+use super::replica::{RequestParser, takeover};
 use super::share::{Client, Shares};
 use super::state::{Inner, Lease, Listing, Start, SubmitError, Table, Ticket, Waiter};
-use super::{Cache, JobKeys, JobSpec, RequestParser, follow, takeover};
+use super::{Cache, JobKeys, JobSpec};
 use crate::metrics::Metrics;
 use crate::refine::trace::replay;
 use crate::result::MeshResult;
@@ -244,8 +245,8 @@ impl Jobs {
         let mut waits: u128 = 0;
         let won = loop {
             let held = match peers.acquire(&id, &token, Take::Fresh).await {
-                Ok(Claim::Won) => break true,
-                Ok(Claim::Held(holder)) => holder,
+                Ok(Acquired::Won) => break true,
+                Ok(Acquired::Held(holder)) => holder,
                 // The store is away, or there is none: run it here, unshared.
                 Err(_) => break false,
             };

@@ -6,7 +6,7 @@ use super::Cache;
 use super::budget::Budget;
 use super::dispatch::Dispatch;
 use super::job::{Job, JobError, Lifetime, Record, Status};
-use super::peers::{KeptRequest, Peers};
+use super::replica::peers::{KeptRequest, Peers};
 use super::share::Shares;
 use crate::metrics::Metrics;
 use crate::result::MeshResult;
@@ -108,7 +108,7 @@ pub(super) struct Inner {
     /// The mean time a job ran, in seconds (f64 bits; a moving average): the basis of every
     /// `Retry-After`.
     pub(super) mean_run: AtomicU64,
-    /// The other replicas: [`Alone`](super::peers::Alone) until the registry is
+    /// The other replicas: [`Alone`](super::replica::peers::Alone) until the registry is
     /// [`shared`](super::Jobs::shared).
     pub(super) peers: Arc<dyn Peers>,
     /// A turn per result being read from the store (see `follow::fetch`).

@@ -24,7 +24,7 @@ use serde::{Deserialize, Serialize};
 use std::time::Duration;
 use tokio::sync::broadcast;
 
-pub(super) use alone::Alone;
+pub(in crate::jobs) use alone::Alone;
 
 /// A job's state as the run holding its lease last posted it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -38,7 +38,7 @@ pub struct Posting {
     /// The stats, once succeeded.
     pub stats: Option<Summary>,
     /// Why it failed, once failed.
-    pub failure: Option<super::Failure>,
+    pub failure: Option<crate::jobs::Failure>,
     /// How long the engine ran, once finished.
     pub elapsed_ms: Option<f64>,
     /// The token of the run that posted it (see [`Peers::token`]).
@@ -84,7 +84,7 @@ pub enum Take {
 
 /// What taking a lease found.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Claim {
+pub enum Acquired {
     /// This run holds it now.
     Won,
     /// Another run holds it: this token's.
@@ -157,7 +157,7 @@ pub trait Peers: Send + Sync + 'static {
     async fn ping(&self) -> Result<()>;
 
     /// Takes the lease on job `id` for run `token` if nobody holds it.
-    async fn acquire(&self, id: &str, token: &str, take: Take) -> Result<Claim>;
+    async fn acquire(&self, id: &str, token: &str, take: Take) -> Result<Acquired>;
 
     /// Extends run `token`'s lease on `id`; false when it no longer holds it.
     async fn renew(&self, id: &str, token: &str) -> Result<bool>;

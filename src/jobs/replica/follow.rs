@@ -7,10 +7,10 @@
 //! holding the lease, so that a final posting of an earlier run (cancelled, say) is not taken
 //! for this one's.
 
-use super::Failure;
-use super::job::{Job, JobError, Lifetime, Outcome, Record, Status};
 use super::peers::{Control, Kept, Message, Peers, Posting};
-use super::state::{Inner, Listing, Waiter};
+use crate::jobs::Failure;
+use crate::jobs::job::{Job, JobError, Lifetime, Outcome, Record, Status};
+use crate::jobs::state::{Inner, Listing, Waiter};
 use crate::refine::StopReason;
 use crate::result::{MeshResult, compact};
 use std::sync::atomic::Ordering;
@@ -25,7 +25,7 @@ const LOST_AFTER: u32 = 3;
 
 /// Attaches a client to this replica's mirror of job `id`, which another replica runs (run
 /// `run`, if known), making the mirror (and the task that keeps it current) if there is none.
-pub(super) fn follow(inner: &Arc<Inner>, id: String, family: String, run: Option<String>) -> Waiter {
+pub(in crate::jobs) fn follow(inner: &Arc<Inner>, id: String, family: String, run: Option<String>) -> Waiter {
     let mut table = inner.lock();
     let live = match table.jobs.get(&id) {
         Some(Listing::Live(job)) if job.is_joinable() => {
@@ -51,12 +51,12 @@ pub(super) fn follow(inner: &Arc<Inner>, id: String, family: String, run: Option
 
 /// The record of a job whose posting says it has finished, as clients see it; `None` while
 /// it runs.
-pub(super) fn record(r: &Posting) -> Option<Record> {
+pub(in crate::jobs) fn record(r: &Posting) -> Option<Record> {
     r.is_final().then(|| view(r))
 }
 
 /// A stored posting as clients see it.
-pub(super) fn view(r: &Posting) -> Record {
+pub(in crate::jobs) fn view(r: &Posting) -> Record {
     let status = Status::parse(&r.status).unwrap_or(Status::Queued);
     Record {
         status,
@@ -77,7 +77,7 @@ fn failure_of(r: &Posting) -> JobError {
 }
 
 /// What a look for a result found.
-pub(super) enum Fetched {
+pub(in crate::jobs) enum Fetched {
     /// The result, now also kept here.
     Found(Arc<MeshResult>),
     /// The store answered: it has no such result.
@@ -88,7 +88,7 @@ pub(super) enum Fetched {
 
 impl Fetched {
     /// The result, if found.
-    pub(super) fn found(self) -> Option<Arc<MeshResult>> {
+    pub(in crate::jobs) fn found(self) -> Option<Arc<MeshResult>> {
         match self {
             Fetched::Found(result) => Some(result),
             _ => None,
@@ -99,7 +99,7 @@ impl Fetched {
 /// Result `id` from this replica's memory, or else from the store, checked, and kept here from
 /// now on. One look per id at a time: the clients of a result just made elsewhere arrive
 /// together, and each copy of a large mesh is megabytes.
-pub(super) async fn fetch(inner: &Arc<Inner>, id: &str, kept: Kept) -> Fetched {
+pub(in crate::jobs) async fn fetch(inner: &Arc<Inner>, id: &str, kept: Kept) -> Fetched {
     // A replica alone has no store to look in, nor a turn to take.
     if !inner.peers.is_shared() {
         return Fetched::Unreachable;
@@ -281,7 +281,7 @@ async fn keep_current(inner: Arc<Inner>, job: Arc<Job>, mut run: Option<String>)
 
 /// Hands every message to the job it concerns on this replica: a posting wakes the mirror's
 /// task, a request to cancel or detach goes to the job run here. Ends with the registry.
-pub(super) async fn dispatch(inner: Weak<Inner>, mut messages: broadcast::Receiver<Message>) {
+pub(in crate::jobs) async fn dispatch(inner: Weak<Inner>, mut messages: broadcast::Receiver<Message>) {
     loop {
         let message = match messages.recv().await {
             Ok(m) => m,

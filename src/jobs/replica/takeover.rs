@@ -4,17 +4,18 @@
 //! it get the same bytes the dead replica would have stored.
 
 use super::follow::{self, Fetched};
-use super::job::{Lifetime, Status};
-use super::peers::{Claim, Kept, Take};
+use super::parser::RequestParser;
+use super::peers::{Acquired, Kept, Take};
 use super::publish;
-use super::share::Client;
-use super::state::{Inner, Lease, Start};
-use super::{Failure, RequestParser};
+use crate::jobs::Failure;
+use crate::jobs::job::{Lifetime, Status};
+use crate::jobs::share::Client;
+use crate::jobs::state::{Inner, Lease, Start};
 use std::sync::{Arc, Weak};
 
 /// Looks for orphaned jobs until the registry is gone or closed. Also pings the store first, so
 /// that `/readyz` and `/metrics` say whether it answers even when no request needs it.
-pub(super) async fn sweep(inner: Weak<Inner>, parser: Arc<dyn RequestParser>) {
+pub(in crate::jobs) async fn sweep(inner: Weak<Inner>, parser: Arc<dyn RequestParser>) {
     loop {
         // Held only while sweeping: the registry may go between sweeps.
         let every = {
@@ -45,7 +46,7 @@ async fn sweep_once(inner: &Arc<Inner>, parser: &dyn RequestParser) {
             continue;
         }
         let token = peers.token();
-        if let Ok(Claim::Won) = peers.acquire(&id, &token, Take::Over).await
+        if let Ok(Acquired::Won) = peers.acquire(&id, &token, Take::Over).await
             && take_over(inner, parser, &id, token).await == Taken::Refused
         {
             // Full here: the other jobs would be fetched, parsed and refused too. Another

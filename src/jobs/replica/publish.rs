@@ -3,10 +3,10 @@
 //! its lease and reads what followers ask of it, and at the end stores the result before the
 //! final posting, so that a replica that reads the posting can fetch the result.
 
-use super::Failure;
-use super::job::{Job, JobError, Outcome, Snapshot, Status};
-use super::peers::{Claim, Kept, KeptRequest, Peers, Posting, Take};
-use super::state::{Inner, Lease};
+use super::peers::{Acquired, Kept, KeptRequest, Peers, Posting, Take};
+use crate::jobs::Failure;
+use crate::jobs::job::{Job, JobError, Outcome, Snapshot, Status};
+use crate::jobs::state::{Inner, Lease};
 use crate::refine::StopReason;
 use crate::result::{MeshResult, Summary, compact};
 use std::sync::Arc;
@@ -18,7 +18,12 @@ use tokio::time::Instant;
 const PUBLISH_EVERY: Duration = Duration::from_millis(100);
 
 /// Publishes job `job` for run `lease` until it finishes.
-pub(super) async fn run(inner: &Arc<Inner>, job: Arc<Job>, lease: Lease, request: Option<KeptRequest>) {
+pub(in crate::jobs) async fn run(
+    inner: &Arc<Inner>,
+    job: Arc<Job>,
+    lease: Lease,
+    request: Option<KeptRequest>,
+) {
     let (peers, token) = (&*inner.peers, lease.token.as_str());
     let mut rx = job.subscribe();
     // The first posting first: the submission's client waits for it, and a large request
@@ -94,7 +99,7 @@ async fn renewing<T>(peers: &dyn Peers, id: &str, token: &str, work: impl Future
 /// what followers asked of the run.
 async fn keep(inner: &Inner, peers: &dyn Peers, job: &Job, token: &str) {
     if let Ok(false) = peers.renew(&job.id, token).await
-        && let Ok(Claim::Held(_)) = peers.acquire(&job.id, token, Take::Over).await
+        && let Ok(Acquired::Held(_)) = peers.acquire(&job.id, token, Take::Over).await
     {
         // Another replica took the job over meanwhile: both runs make the same bytes, and
         // only the holder's postings are written, so this one goes on quietly.
@@ -180,8 +185,8 @@ async fn deliver(
     match peers.renew(id, token).await {
         Ok(true) => {}
         Ok(false) => match peers.acquire(id, token, Take::Over).await {
-            Ok(Claim::Won) => {}
-            Ok(Claim::Held(_)) => return true,
+            Ok(Acquired::Won) => {}
+            Ok(Acquired::Held(_)) => return true,
             Err(_) => return false,
         },
         Err(_) => return false,
