@@ -1,20 +1,25 @@
-//! The registry: which jobs exist, who waits on them, the queue's bound and the cache in front.
+//! The registry: [`Jobs`], the one public face of the jobs: submit, find, watch, cancel, shut
+//! down. Each part it is made of owns its state (see [`Inner`]).
 
+use super::admission::{Admission, Pool, SubmitError};
 use super::budget::Budget;
-use super::dispatch::Dispatch;
-use super::job::{Job, Lifetime, Record, Status};
+use super::families::Families;
+use super::inner::Inner;
+use super::job::{Job, JobError, Lifetime, Record, Status};
 use super::replica::follow::{self, Fetched};
+use super::replica::lease::Lease;
 use super::replica::peers::{self, Acquired, Alone, Control, Kept, KeptRequest, Peers, Take};
 use super::replica::{RequestParser, takeover};
-use super::share::{Client, Shares};
-use super::state::{Inner, Lease, Listing, Start, SubmitError, Table, Ticket, Waiter};
+use super::share::Client;
+use super::start::Start;
+use super::table::{Joined, Listing, Table, Waiter};
+use super::ticket::Ticket;
 use super::{Cache, JobKeys, JobSpec};
 use crate::metrics::Metrics;
 use crate::refine::trace::replay;
 use crate::result::MeshResult;
-use std::num::NonZeroUsize;
-use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Duration;
 
 /// A job, a finished job's record, or a cached result, for status queries.
@@ -57,23 +62,6 @@ const OWN_RUN_WAIT: Duration = Duration::from_millis(25);
 /// How many results being read from the store keep their turn (see [`follow::fetch`]).
 const FETCHES_KEPT: u64 = 10_000;
 
-/// How many families remember their furthest run.
-const FAMILIES_KEPT: u64 = 100_000;
-
-/// What a server runs jobs with.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Pool {
-    /// Refinements running at once (`MESHFIT_WORKERS`).
-    pub workers: NonZeroUsize,
-    /// Jobs that may wait for a worker beyond them (`MESHFIT_QUEUE`).
-    pub queue: usize,
-    /// One client's share of the workers and the queue, in (0, 1] (`MESHFIT_CLIENT_SHARE`).
-    pub client_share: f64,
-    /// The memory budget that jobs, bodies and cached meshes are charged to
-    /// (`MESHFIT_MEMORY_BYTES`).
-    pub memory_bytes: u64,
-}
-
 /// The job registry, its workers and its cache. Cheap to clone.
 #[derive(Clone)]
 pub struct Jobs {
@@ -107,25 +95,14 @@ impl Jobs {
     /// A registry of the workers, queue, shares and memory budget of `pool`, in front of
     /// `cache`, on its own until [`shared`](Self::shared).
     pub fn new(pool: &Pool, cache: Cache, metrics: Arc<Metrics>) -> Self {
-        let Pool { workers, queue, client_share, memory_bytes } = *pool;
-        let workers = workers.get();
         let cached = cache.clone();
-        let budget = Budget::new(memory_bytes, move || cached.memory_bytes_estimate());
-        let shares = Shares::new(client_share, workers, queue);
         Self {
             inner: Arc::new(Inner {
-                dispatch: Dispatch::new(workers, shares.workers),
-                workers,
-                queue,
-                waiting: AtomicUsize::new(0),
-                table: Mutex::new(Table::default()),
+                table: Table::new(),
+                admission: Admission::new(pool, move || cached.memory_bytes_estimate()),
                 cache,
-                families: moka::sync::Cache::new(FAMILIES_KEPT),
+                families: Families::new(),
                 metrics,
-                closed: AtomicBool::new(false),
-                shares,
-                budget,
-                mean_run: AtomicU64::new(1f64.to_bits()),
                 peers: Arc::new(Alone),
                 fetching: moka::sync::Cache::new(FETCHES_KEPT),
                 publishing: AtomicUsize::new(0),
@@ -162,13 +139,13 @@ impl Jobs {
 
     /// The memory budget that bodies and jobs are charged to.
     pub fn budget(&self) -> &Arc<Budget> {
-        &self.inner.budget
+        self.inner.admission.budget()
     }
 
     /// Seconds until a worker, and the memory its job holds, is likely free: the
     /// `Retry-After` of a refusal made outside `submit`.
     pub fn retry_after(&self) -> u64 {
-        self.inner.retry_after(self.inner.workers)
+        self.inner.admission.retry_after()
     }
 
     /// Bytes of meshes cached in memory.
@@ -183,7 +160,7 @@ impl Jobs {
 
     /// Whether a new job would be accepted now.
     pub fn is_ready(&self) -> bool {
-        !self.inner.closed.load(Ordering::SeqCst) && self.inner.has_room()
+        self.inner.admission.is_ready()
     }
 
     /// Answers from the cache, joins an identical job, or starts a new one charged to
@@ -220,14 +197,14 @@ impl Jobs {
         if let Some(finished) = self.cached(&id).await {
             inner.metrics.cache_hits.inc();
             // A run read back from disk after a restart answers its family from now on.
-            inner.note_run(&family, &id, &finished);
+            inner.families.note(&family, &id, &finished);
             return Ok(Ticket::Cached(finished));
         }
         if let Some(result) = self.prefix(&id, &family, &spec).await {
             inner.metrics.prefix_hits.inc();
             return Ok(Ticket::Prefix(result));
         }
-        if let Some(ticket) = inner.join(&id, lifetime) {
+        if let Some(ticket) = self.join(&id, lifetime) {
             return Ok(ticket);
         }
         let peers = &*inner.peers;
@@ -255,7 +232,7 @@ impl Jobs {
                 // A run of this replica: one a concurrent identical request is starting (join
                 // it), or one ending after a cancel (let it end, then run again). Never a
                 // mirror of it.
-                if let Some(ticket) = inner.join(&id, lifetime) {
+                if let Some(ticket) = self.join(&id, lifetime) {
                     return Ok(ticket);
                 }
             } else if !has_ended(peers, &id, &held).await {
@@ -264,8 +241,7 @@ impl Jobs {
             }
             // A run that has ended, or was asked to, and not yet let go: wait for its lease.
             if waits >= patience {
-                let retry_after = inner.retry_after(inner.workers);
-                return Err(SubmitError::QueueFull { waiting: inner.queued(), retry_after });
+                return Err(inner.admission.queue_full());
             }
             tokio::time::sleep(OWN_RUN_WAIT).await;
         };
@@ -290,12 +266,63 @@ impl Jobs {
         Ok(ticket)
     }
 
+    /// Answers from the table: joins a live job, repeats a failure on the input, or finds a
+    /// result cached since the caller's lookup.
+    fn join(&self, id: &str, lifetime: Lifetime) -> Option<Ticket> {
+        let inner = &self.inner;
+        match inner.table.join(id, lifetime)? {
+            Joined::Job(waiter) => {
+                inner.metrics.cache_misses.inc();
+                Some(Ticket::Job(waiter))
+            }
+            Joined::Done(record) => match &record.error {
+                // A failure on the input is deterministic: it is the answer again.
+                Some(e @ JobError::Refine(_)) => {
+                    inner.metrics.cache_misses.inc();
+                    Some(Ticket::Failed(e.clone()))
+                }
+                // It may have been cached between the lookup and the table's answer.
+                _ if record.status == Status::Succeeded => {
+                    let finished = inner.cache.get_memory(id)?;
+                    inner.metrics.cache_hits.inc();
+                    Some(Ticket::Cached(finished))
+                }
+                // Cancelled, an internal error, or a mesh evicted from the cache: run again.
+                _ => None,
+            },
+        }
+    }
+
+    /// The result of `spec` replayed from the furthest cached run of its family, stored under
+    /// `id`; `None` when there is no such run or the request goes past it.
+    async fn prefix(&self, id: &str, family: &str, spec: &JobSpec) -> Option<Arc<MeshResult>> {
+        let spec = spec.mesh()?;
+        let run = self.inner.families.furthest(family)?;
+        let source = self.cached(&run).await?;
+        let trace = source.trace.clone()?;
+        let (max_vertices, tolerance) = (spec.params.max_vertices(), spec.params.tolerance());
+        if !trace.covers(source.vertices.len(), max_vertices, tolerance) {
+            return None;
+        }
+        let (cache, id, spec) = (self.inner.cache.clone(), id.to_owned(), spec.clone());
+        crate::cpu::spawn(move || {
+            let mut replayed = replay(&trace, &source.vertices, max_vertices, tolerance)?;
+            spec.measure(&mut replayed);
+            let result = Arc::new(MeshResult::from(replayed));
+            cache.insert(&id, result.clone());
+            Some(result)
+        })
+        .await
+        .ok()
+        .flatten()
+    }
+
     /// The job, finished job or cached result with this id: on this replica, or, when
     /// replicas share, on any.
     pub async fn find(&self, id: &str) -> Option<Found> {
-        let found = match self.inner.lock().jobs.get(id) {
-            Some(Listing::Live(job)) => Some(Found::Job(job.clone())),
-            Some(Listing::Done(record)) => Some(Found::Done(record.clone())),
+        let found = match self.inner.table.get(id) {
+            Some(Listing::Live(job)) => Some(Found::Job(job)),
+            Some(Listing::Done(record)) => Some(Found::Done(record)),
             None => None,
         };
         match &found {
@@ -330,17 +357,12 @@ impl Jobs {
     /// Registers a client waiting on job `id` while it runs (server-sent events), here or,
     /// when replicas share, on another replica.
     pub async fn watch(&self, id: &str) -> Option<Waiter> {
-        {
-            let table = self.inner.lock();
-            match table.jobs.get(id) {
-                Some(Listing::Live(job)) => {
-                    return Some(self.inner.attach(&table, job, Lifetime::WhileWaited));
-                }
-                Some(Listing::Done(r)) if r.status == Status::Succeeded => return None,
-                // A job that failed or was cancelled here may run again elsewhere, and one
-                // unknown here may run on another replica.
-                _ => {}
-            }
+        match self.inner.table.watch(id) {
+            Ok(waiter) => return Some(waiter),
+            Err(Some(r)) if r.status == Status::Succeeded => return None,
+            // A job that failed or was cancelled here may run again elsewhere, and one
+            // unknown here may run on another replica.
+            Err(_) => {}
         }
         let peers = &*self.inner.peers;
         let (holder, posting) = (peers.holder(id).await.ok()?, peers.posting(id).await.ok()?);
@@ -364,30 +386,6 @@ impl Jobs {
         }
         job.cancel();
         Ok(())
-    }
-
-    /// The result of `spec` replayed from the furthest cached run of its family, stored under
-    /// `id`; `None` when there is no such run or the request goes past it.
-    async fn prefix(&self, id: &str, family: &str, spec: &JobSpec) -> Option<Arc<MeshResult>> {
-        let spec = spec.mesh()?;
-        let (run, _) = self.inner.families.get(family)?;
-        let source = self.cached(&run).await?;
-        let trace = source.trace.clone()?;
-        let (max_vertices, tolerance) = (spec.params.max_vertices(), spec.params.tolerance());
-        if !trace.covers(source.vertices.len(), max_vertices, tolerance) {
-            return None;
-        }
-        let (cache, id, spec) = (self.inner.cache.clone(), id.to_owned(), spec.clone());
-        crate::cpu::spawn(move || {
-            let mut replayed = replay(&trace, &source.vertices, max_vertices, tolerance)?;
-            spec.measure(&mut replayed);
-            let result = Arc::new(MeshResult::from(replayed));
-            cache.insert(&id, result.clone());
-            Some(result)
-        })
-        .await
-        .ok()
-        .flatten()
     }
 
     /// The result a time limit stopped for job `id`, if still held here or, when replicas
@@ -417,34 +415,18 @@ impl Jobs {
 
     /// Refuses new jobs from now on.
     pub fn close(&self) {
-        self.inner.closed.store(true, Ordering::SeqCst);
+        self.inner.admission.close();
     }
 
     /// Cancels every job not yet finished; when replicas share, hands them back for another
     /// replica to take over instead (a job followed from another replica runs on there).
     pub fn cancel_all(&self) {
-        for entry in self.inner.lock().jobs.values() {
-            // Decided once per job: the drain loop calls this again and again, and a job
-            // already cancelled (by a client, or by an earlier call) keeps what was decided.
-            if let Listing::Live(job) = entry
-                && !job.follows
-                && !job.cancel.load(Ordering::Relaxed)
-            {
-                // Only a job another replica can take over.
-                job.handed_back.store(job.kept.load(Ordering::SeqCst), Ordering::SeqCst);
-                job.cancel();
-            }
-        }
+        self.inner.table.stop_all();
     }
 
     /// Whether any job is queued or running, or still being told to the store.
     pub fn is_busy(&self) -> bool {
-        if self.inner.publishing.load(Ordering::SeqCst) > 0 {
-            return true;
-        }
-        let table = self.inner.lock();
-        // A job followed from another replica is that replica's to finish.
-        table.jobs.values().any(|e| matches!(e, Listing::Live(job) if !job.follows))
+        self.inner.publishing.load(Ordering::SeqCst) > 0 || self.inner.table.is_busy()
     }
 }
 
@@ -453,8 +435,7 @@ impl Jobs {
     /// Takes a worker, as a job would: tests hold every worker to keep jobs queued, and so
     /// decide when the engine runs.
     pub(super) async fn hold_worker(&self) -> super::dispatch::Worker {
-        let client = Client::from("test:holder".to_owned());
-        self.inner.dispatch.acquire(&client).await.expect("a worker")
+        self.inner.admission.hold_worker().await
     }
 }
 
@@ -466,6 +447,7 @@ mod tests {
     use crate::api::JobRequest;
     use crate::jobs::{JobError, Limits, Outcome, job_keys};
     use crate::refine::StopReason;
+    use std::num::NonZeroUsize;
     use std::time::Duration;
 
     fn jobs(workers: usize, queue: usize) -> Jobs {

@@ -3,14 +3,14 @@
 //! its lease and reads what followers ask of it, and at the end stores the result before the
 //! final posting, so that a replica that reads the posting can fetch the result.
 
+use super::lease::Lease;
 use super::peers::{Acquired, Kept, KeptRequest, Peers, Posting, Take};
 use crate::jobs::Failure;
+use crate::jobs::inner::Inner;
 use crate::jobs::job::{Job, JobError, Outcome, Snapshot, Status};
-use crate::jobs::state::{Inner, Lease};
 use crate::refine::StopReason;
 use crate::result::{MeshResult, Summary, compact};
 use std::sync::Arc;
-use std::sync::atomic::Ordering;
 use std::time::Duration;
 use tokio::time::Instant;
 
@@ -40,13 +40,13 @@ pub(in crate::jobs) async fn run(
     }
     match request {
         Some(request) => match renewing(peers, &job.id, token, peers.keep_request(&job.id, &request)).await {
-            Ok(true) => job.kept.store(true, Ordering::SeqCst),
+            Ok(true) => job.mark_kept(),
             _ => {
                 tracing::info!(job = %job.id, "request not kept in redis: no other replica can take this job over")
             }
         },
         // A job taken over: its request is kept already.
-        None => job.kept.store(true, Ordering::SeqCst),
+        None => job.mark_kept(),
     }
     let mut renew = tokio::time::interval(peers.renew_every());
     renew.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
@@ -110,7 +110,7 @@ async fn keep(inner: &Inner, peers: &dyn Peers, job: &Job, token: &str) {
             job.cancel();
         }
         if detach {
-            job.detach(&inner.lock());
+            inner.table.detach(job);
         }
     }
 }
@@ -138,7 +138,7 @@ async fn finish(inner: &Arc<Inner>, peers: &dyn Peers, job: &Job, token: &str, s
     let posting = wire(snapshot, failure, token);
     let give_up = Instant::now() + DELIVER_FOR;
     while !renewing(peers, &job.id, token, deliver(peers, &job.id, token, result.as_ref(), &posting)).await {
-        if inner.closed.load(Ordering::SeqCst) || Instant::now() >= give_up {
+        if inner.admission.is_closed() || Instant::now() >= give_up {
             tracing::warn!(job = %job.id, "redis away: other replicas will not know this job finished");
             return;
         }

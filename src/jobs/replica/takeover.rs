@@ -4,13 +4,15 @@
 //! it get the same bytes the dead replica would have stored.
 
 use super::follow::{self, Fetched};
+use super::lease::Lease;
 use super::parser::RequestParser;
 use super::peers::{Acquired, Kept, Take};
 use super::publish;
 use crate::jobs::Failure;
+use crate::jobs::inner::Inner;
 use crate::jobs::job::{Lifetime, Status};
 use crate::jobs::share::Client;
-use crate::jobs::state::{Inner, Lease, Start};
+use crate::jobs::start::Start;
 use std::sync::{Arc, Weak};
 
 /// Looks for orphaned jobs until the registry is gone or closed. Also pings the store first, so
@@ -20,7 +22,7 @@ pub(in crate::jobs) async fn sweep(inner: Weak<Inner>, parser: Arc<dyn RequestPa
         // Held only while sweeping: the registry may go between sweeps.
         let every = {
             let Some(inner) = inner.upgrade() else { return };
-            if inner.closed.load(std::sync::atomic::Ordering::SeqCst) {
+            if inner.admission.is_closed() {
                 return;
             }
             sweep_once(&inner, &*parser).await;
@@ -38,11 +40,11 @@ async fn sweep_once(inner: &Arc<Inner>, parser: &dyn RequestParser) {
     }
     let Ok(ids) = peers.pending().await else { return };
     for id in ids {
-        if !inner.has_room() {
+        if !inner.admission.has_room() {
             // A takeover would be refused: leave the jobs to replicas with room.
             break;
         }
-        if inner.runs_here(&id) || !matches!(peers.holder(&id).await, Ok(None)) {
+        if inner.table.runs_here(&id) || !matches!(peers.holder(&id).await, Ok(None)) {
             continue;
         }
         let token = peers.token();
