@@ -32,10 +32,12 @@
 //! - `replica`: the replica protocol, in its own folder: [`peers`], the store
 //!   replicas share as the one trait [`Peers`](peers::Peers) (with its wire types;
 //!   [`crate::cluster`] implements it over Redis, `peers::alone` for a replica on its own,
-//!   the tests in memory); `lease`; and `publish`, `follow`, `takeover`: the
+//!   the tests in memory); `claim`, who runs a job, in one call
+//!   (`Claim::{Run, Follow, Alone}`); `lease`; and `publish`, `follow`, `takeover`: the
 //!   replica holding a job's lease publishes it, the others follow it, and a job whose
 //!   replica died is run again by the first replica to take its expired lease;
-//! - `ticket`: what a submission found or started ([`Ticket`]);
+//! - `ticket`: what a submission found or started ([`Ticket`]); `submit`: a submission, a
+//!   small function per step (cache hit, prefix replay, join, claim, remote fetch);
 //! - `registry`: [`Jobs`], the one public face: submit, find, watch, cancel, shut down.
 
 mod admission;
@@ -54,6 +56,7 @@ mod share;
 mod solution;
 mod spec;
 mod start;
+mod submit;
 mod table;
 mod ticket;
 mod worker;

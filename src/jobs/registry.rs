@@ -1,26 +1,22 @@
 //! The registry: [`Jobs`], the one public face of the jobs: submit, find, watch, cancel, shut
-//! down. Each part it is made of owns its state (see [`Inner`]).
+//! down. Each part it is made of owns its state (see [`Inner`]); what a submission does, step
+//! by step, is in `submit`.
 
 use super::admission::{Admission, Pool, SubmitError};
 use super::budget::Budget;
 use super::families::Families;
 use super::inner::Inner;
-use super::job::{Job, JobError, Lifetime, Record, Status};
-use super::replica::follow::{self, Fetched};
-use super::replica::lease::Lease;
-use super::replica::peers::{self, Acquired, Alone, Control, Kept, KeptRequest, Peers, Take};
-use super::replica::{RequestParser, takeover};
+use super::job::{Job, Lifetime, Record, Status};
+use super::replica::peers::{self, Alone, Control, Kept, KeptRequest, Peers};
+use super::replica::{RequestParser, follow, takeover};
 use super::share::Client;
-use super::start::Start;
-use super::table::{Joined, Listing, Table, Waiter};
+use super::table::{Listing, Table, Waiter};
 use super::ticket::Ticket;
-use super::{Cache, JobKeys, JobSpec};
+use super::{Cache, JobKeys, JobSpec, submit};
 use crate::metrics::Metrics;
-use crate::refine::trace::replay;
 use crate::result::MeshResult;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::time::Duration;
 
 /// A job, a finished job's record, or a cached result, for status queries.
 #[derive(Clone)]
@@ -46,19 +42,6 @@ impl Found {
     }
 }
 
-/// Whether run `token` of job `id` has posted its end (and is about to let go of
-/// its lease), or was asked to stop: a new request must not be given its end.
-async fn has_ended(peers: &dyn Peers, id: &str, token: &str) -> bool {
-    let ended = matches!(peers.posting(id).await, Ok(Some(r)) if r.run == token && r.is_final());
-    ended || matches!(peers.asked(id).await, Ok((true, _)))
-}
-
-/// How often a submission looks again at a run that holds the job's lease and will not run
-/// it for this request: one of this replica being started by a concurrent identical request
-/// (to join), or one that has ended, or was asked to, and not yet let go of its lease (for at
-/// most a lease, then the submission is refused with `Retry-After`).
-const OWN_RUN_WAIT: Duration = Duration::from_millis(25);
-
 /// How many results being read from the store keep their turn (see [`follow::fetch`]).
 const FETCHES_KEPT: u64 = 10_000;
 
@@ -66,29 +49,6 @@ const FETCHES_KEPT: u64 = 10_000;
 #[derive(Clone)]
 pub struct Jobs {
     inner: Arc<Inner>,
-}
-
-/// Gives a lease back unless disarmed: a submission abandoned between taking a lease and
-/// starting its run (its client hung up, or the run was refused) leaves no lease behind.
-struct LeaseGuard {
-    peers: Arc<dyn Peers>,
-    id: String,
-    token: Option<String>,
-}
-
-impl LeaseGuard {
-    fn disarm(&mut self) {
-        self.token = None;
-    }
-}
-
-impl Drop for LeaseGuard {
-    fn drop(&mut self) {
-        if let (Some(token), Ok(runtime)) = (self.token.take(), tokio::runtime::Handle::try_current()) {
-            let (peers, id) = (self.peers.clone(), std::mem::take(&mut self.id));
-            runtime.spawn(async move { peers.release(&id, &token).await });
-        }
-    }
 }
 
 impl Jobs {
@@ -192,129 +152,7 @@ impl Jobs {
         client: &Client,
         request: Option<KeptRequest>,
     ) -> Result<Ticket, SubmitError> {
-        let inner = &self.inner;
-        let JobKeys { id, family } = keys;
-        if let Some(finished) = self.cached(&id).await {
-            inner.metrics.cache_hits.inc();
-            // A run read back from disk after a restart answers its family from now on.
-            inner.families.note(&family, &id, &finished);
-            return Ok(Ticket::Cached(finished));
-        }
-        if let Some(result) = self.prefix(&id, &family, &spec).await {
-            inner.metrics.prefix_hits.inc();
-            return Ok(Ticket::Prefix(result));
-        }
-        if let Some(ticket) = self.join(&id, lifetime) {
-            return Ok(ticket);
-        }
-        let peers = &*inner.peers;
-        // One replica runs a job: the one whose run takes its lease. Guarded from before the
-        // first try: a client hanging up while the lease is being taken leaves none behind.
-        let token = peers.token();
-        // (A replica alone takes no lease, and has none to give back.)
-        let mut guard = LeaseGuard {
-            peers: inner.peers.clone(),
-            id: id.clone(),
-            token: peers.is_shared().then(|| token.clone()),
-        };
-        // An ended run lets go of its lease within a lease, even if its release was lost.
-        let patience = (peers.lease() + Duration::from_secs(1)).as_millis() / OWN_RUN_WAIT.as_millis();
-        let mut waits: u128 = 0;
-        let won = loop {
-            let held = match peers.acquire(&id, &token, Take::Fresh).await {
-                Ok(Acquired::Won) => break true,
-                Ok(Acquired::Held(holder)) => holder,
-                // The store is away, or there is none: run it here, unshared.
-                Err(_) => break false,
-            };
-            waits += 1;
-            if peers.is_mine(&held) {
-                // A run of this replica: one a concurrent identical request is starting (join
-                // it), or one ending after a cancel (let it end, then run again). Never a
-                // mirror of it.
-                if let Some(ticket) = self.join(&id, lifetime) {
-                    return Ok(ticket);
-                }
-            } else if !has_ended(peers, &id, &held).await {
-                inner.metrics.cache_misses.inc();
-                return Ok(Ticket::Job(follow::follow(inner, id, family, Some(held))));
-            }
-            // A run that has ended, or was asked to, and not yet let go: wait for its lease.
-            if waits >= patience {
-                return Err(inner.admission.queue_full());
-            }
-            tokio::time::sleep(OWN_RUN_WAIT).await;
-        };
-        if !won {
-            let start = Start { id, family, seq: 0, lease: None, request: None };
-            return inner.start(start, spec, lifetime, client).map(|(ticket, _)| ticket);
-        }
-        // Finished elsewhere between the lookup above and the lease.
-        if let Fetched::Found(result) = follow::fetch(inner, &id, Kept::Whole).await {
-            inner.metrics.cache_hits.inc();
-            return Ok(Ticket::Cached(result));
-        }
-        let (announced, first_posting) = tokio::sync::oneshot::channel();
-        let lease = Lease { token, announced: Some(announced) };
-        let start = Start { id, family, seq: 0, lease: Some(lease), request };
-        let (ticket, started) = inner.start(start, spec, lifetime, client)?;
-        if started {
-            guard.disarm();
-            // Stored before the client hears of the job, so that any replica finds it at once.
-            let _ = first_posting.await;
-        }
-        Ok(ticket)
-    }
-
-    /// Answers from the table: joins a live job, repeats a failure on the input, or finds a
-    /// result cached since the caller's lookup.
-    fn join(&self, id: &str, lifetime: Lifetime) -> Option<Ticket> {
-        let inner = &self.inner;
-        match inner.table.join(id, lifetime)? {
-            Joined::Job(waiter) => {
-                inner.metrics.cache_misses.inc();
-                Some(Ticket::Job(waiter))
-            }
-            Joined::Done(record) => match &record.error {
-                // A failure on the input is deterministic: it is the answer again.
-                Some(e @ JobError::Refine(_)) => {
-                    inner.metrics.cache_misses.inc();
-                    Some(Ticket::Failed(e.clone()))
-                }
-                // It may have been cached between the lookup and the table's answer.
-                _ if record.status == Status::Succeeded => {
-                    let finished = inner.cache.get_memory(id)?;
-                    inner.metrics.cache_hits.inc();
-                    Some(Ticket::Cached(finished))
-                }
-                // Cancelled, an internal error, or a mesh evicted from the cache: run again.
-                _ => None,
-            },
-        }
-    }
-
-    /// The result of `spec` replayed from the furthest cached run of its family, stored under
-    /// `id`; `None` when there is no such run or the request goes past it.
-    async fn prefix(&self, id: &str, family: &str, spec: &JobSpec) -> Option<Arc<MeshResult>> {
-        let spec = spec.mesh()?;
-        let run = self.inner.families.furthest(family)?;
-        let source = self.cached(&run).await?;
-        let trace = source.trace.clone()?;
-        let (max_vertices, tolerance) = (spec.params.max_vertices(), spec.params.tolerance());
-        if !trace.covers(source.vertices.len(), max_vertices, tolerance) {
-            return None;
-        }
-        let (cache, id, spec) = (self.inner.cache.clone(), id.to_owned(), spec.clone());
-        crate::cpu::spawn(move || {
-            let mut replayed = replay(&trace, &source.vertices, max_vertices, tolerance)?;
-            spec.measure(&mut replayed);
-            let result = Arc::new(MeshResult::from(replayed));
-            cache.insert(&id, result.clone());
-            Some(result)
-        })
-        .await
-        .ok()
-        .flatten()
+        submit::submit(&self.inner, keys, spec, lifetime, client, request).await
     }
 
     /// The job, finished job or cached result with this id: on this replica, or, when
@@ -399,18 +237,7 @@ impl Jobs {
 
     /// The cached mesh with this id, if any.
     pub async fn cached(&self, id: &str) -> Option<Arc<MeshResult>> {
-        let cache = &self.inner.cache;
-        if let Some(f) = cache.get_memory(id) {
-            return Some(f);
-        }
-        if cache.has_disk() {
-            let (cache, id) = (cache.clone(), id.to_owned());
-            let found = tokio::task::spawn_blocking(move || cache.get(&id).map(|(f, _)| f)).await;
-            if let Ok(Some(found)) = found {
-                return Some(found);
-            }
-        }
-        follow::fetch(&self.inner, id, Kept::Whole).await.found()
+        submit::cached(&self.inner, id).await
     }
 
     /// Refuses new jobs from now on.

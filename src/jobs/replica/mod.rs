@@ -6,11 +6,14 @@
 //!   [`crate::cluster`] implements it over Redis, `peers::alone` for a replica on its own
 //!   (no store: every operation fails as if the store were away, and the replica acts
 //!   alone, as it does then), and the tests in memory;
-//! - `lease`: a run's lease as this replica holds it;
+//! - `lease`: a run's lease as this replica holds it, and the guard that gives it back;
+//! - `claim`: who runs a job, decided in one call, `claim(id)` →
+//!   `Claim::{Run, Follow, Alone}` (or `Joined`, when a run of this replica has it);
 //! - `publish`, `follow`, `takeover`: the replica holding a job's lease publishes it, the
 //!   others follow it, and a job whose replica died is run again by the first replica to
 //!   take its expired lease, from its request as `parser`'s [`RequestParser`] reads it.
 
+pub(super) mod claim;
 pub(super) mod follow;
 pub(super) mod lease;
 mod parser;
