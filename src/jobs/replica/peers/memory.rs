@@ -6,7 +6,8 @@
 //! messages that ask a run to act ([`Bus::lose_controls`]). Every operation yields first, as
 //! a round trip would, so that concurrent submissions interleave.
 
-use super::{Acquired, Control, Kept, KeptRequest, Message, Peers, Posting, Result, Take, Unavailable};
+use super::store::{Peers, Result, Unavailable};
+use super::wire::{Acquired, Control, Kept, KeptRequest, Message, Posting, Take};
 use std::collections::{BTreeSet, HashMap};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};

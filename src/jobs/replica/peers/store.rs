@@ -1,0 +1,106 @@
+//! The store the replicas share, as the one trait [`Peers`] this replica's jobs talk to it
+//! through, and why an operation on it failed.
+
+use super::wire::{Acquired, Control, Kept, KeptRequest, Message, Posting, Take};
+use std::time::Duration;
+use tokio::sync::broadcast;
+
+/// Why the store did not answer: the replica then acts on its own.
+#[derive(Debug, Clone, thiserror::Error)]
+#[error("the store replicas share did not answer: {0}")]
+pub struct Unavailable(pub String);
+
+/// The result of an operation on the store.
+pub type Result<T> = std::result::Result<T, Unavailable>;
+
+/// The store the replicas share. Every operation may fail with [`Unavailable`]; none waits
+/// long for a store that does not answer.
+#[async_trait::async_trait]
+pub trait Peers: Send + Sync + 'static {
+    /// How long a lease lasts without renewal: how soon another replica takes over a job
+    /// whose replica died. The protocol's other clocks follow from it (the lease timing lives
+    /// here, in this method and in `renew_every` and `sweep_every`).
+    fn lease(&self) -> Duration;
+
+    /// A token for a new run of a job on this replica.
+    fn token(&self) -> String;
+
+    /// Whether `token` names a run of this replica.
+    fn is_mine(&self, token: &str) -> bool;
+
+    /// Whether other replicas read this store: false for a replica on its own.
+    fn is_shared(&self) -> bool;
+
+    /// Whether the last operation reached the store.
+    fn is_up(&self) -> bool;
+
+    /// How often a run renews its lease: three times a lease.
+    fn renew_every(&self) -> Duration {
+        self.lease() / 3
+    }
+
+    /// How often each replica looks at the pending jobs (and a follower at the job it
+    /// follows): every half lease, and at least every second, so that a job handed back at
+    /// shutdown is taken over at once whatever the lease.
+    fn sweep_every(&self) -> Duration {
+        (self.lease() / 2).clamp(Duration::from_millis(20), Duration::from_secs(1))
+    }
+
+    /// Messages from every replica, as they arrive.
+    fn messages(&self) -> broadcast::Receiver<Message>;
+
+    /// Checks that the store answers now.
+    async fn ping(&self) -> Result<()>;
+
+    /// Takes the lease on job `id` for run `token` if nobody holds it.
+    async fn acquire(&self, id: &str, token: &str, take: Take) -> Result<Acquired>;
+
+    /// Extends run `token`'s lease on `id`; false when it no longer holds it.
+    async fn renew(&self, id: &str, token: &str) -> Result<bool>;
+
+    /// Gives up run `token`'s lease on `id`, so another may take the job at once.
+    async fn release(&self, id: &str, token: &str) -> Result<()>;
+
+    /// The token of the run holding the lease on `id`, if any.
+    async fn holder(&self, id: &str) -> Result<Option<String>>;
+
+    /// Stores job `id`'s posting and sends it to every replica, if run `token` holds the
+    /// lease, or, for `None`, if no run does (a follower ending a job it found run nowhere);
+    /// says whether it did.
+    async fn post(&self, id: &str, token: Option<&str>, posting: &Posting) -> Result<bool>;
+
+    /// Job `id`'s posting, if any run stored one (one that does not read, from another
+    /// version, counts as none).
+    async fn posting(&self, id: &str) -> Result<Option<Posting>>;
+
+    /// Keeps the request of job `id` and lists the job as pending, so that another replica
+    /// can take it over; says whether it was kept (not when larger than the store takes).
+    async fn keep_request(&self, id: &str, request: &KeptRequest) -> Result<bool>;
+
+    /// The request of job `id`, if kept.
+    async fn request(&self, id: &str) -> Result<Option<KeptRequest>>;
+
+    /// The jobs listed as pending.
+    async fn pending(&self) -> Result<Vec<String>>;
+
+    /// Whether job `id` is on the pending list (a replica will take it over if its own dies).
+    async fn is_pending(&self, id: &str) -> Result<bool>;
+
+    /// Takes job `id` off the pending list and drops its request and what was asked of its
+    /// run: it finished.
+    async fn forget(&self, id: &str) -> Result<()>;
+
+    /// Asks the run of job `id` to act: a message now, and a mark the run reads at its next
+    /// renewal (a message can be missed, a mark cannot).
+    async fn control(&self, id: &str, what: Control) -> Result<()>;
+
+    /// Whether a follower asked for job `id` to be cancelled, and to be detached.
+    async fn asked(&self, id: &str) -> Result<(bool, bool)>;
+
+    /// The stored result `id` in compact form.
+    async fn result(&self, id: &str, kept: Kept) -> Result<Option<Vec<u8>>>;
+
+    /// Stores result `id` in compact form, unless it is larger than the store takes; says
+    /// whether it was stored.
+    async fn keep_result(&self, id: &str, kept: Kept, bytes: &[u8]) -> Result<bool>;
+}
