@@ -245,3 +245,82 @@ impl Table {
         self.lock().0.jobs.values().any(|e| matches!(e, Listing::Live(job) if !job.follows))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    //! The table alone: no registry, no worker; each test makes its jobs by hand.
+
+    use super::*;
+    use crate::jobs::Outcome;
+    use std::convert::Infallible;
+
+    fn job(id: &str, lifetime: Lifetime) -> Arc<Job> {
+        Arc::new(Job::new(id.to_owned(), id.to_owned(), lifetime, false, 0))
+    }
+
+    /// Starts job `id` for `lifetime`, unleased: the new job, or the one joined.
+    fn start(table: &Arc<Table>, id: &str, lifetime: Lifetime) -> (Waiter, bool) {
+        match table.start::<Infallible>(id, lifetime, false, || Ok(job(id, lifetime))).unwrap() {
+            Started::New(waiter, _) => (waiter, true),
+            Started::Joined(waiter) => (waiter, false),
+        }
+    }
+
+    #[test]
+    fn the_last_client_leaving_cancels_a_job_nobody_detached() {
+        let table = Table::new();
+        let (first, new) = start(&table, "a", Lifetime::WhileWaited);
+        let (second, joined) = start(&table, "a", Lifetime::WhileWaited);
+        assert!(new && !joined, "the second start joins the first job");
+        assert!(Arc::ptr_eq(first.job(), second.job()));
+        let job = first.job().clone();
+        drop(first);
+        assert!(!job.is_cancelled(), "a client still waits");
+        drop(second);
+        assert!(job.is_cancelled());
+        assert!(table.join("a", Lifetime::WhileWaited).is_none(), "a cancelled job is not joined");
+    }
+
+    #[test]
+    fn a_detached_client_keeps_the_job_going_after_everyone_leaves() {
+        let table = Table::new();
+        let (waiting, _) = start(&table, "a", Lifetime::WhileWaited);
+        let Some(Joined::Job(detached)) = table.join("a", Lifetime::Detached) else { panic!("not joined") };
+        let job = waiting.job().clone();
+        drop((waiting, detached));
+        assert!(!job.is_cancelled());
+        assert!(table.runs_here("a") && table.is_busy());
+    }
+
+    #[test]
+    fn a_filed_job_leaves_its_record_and_its_clients_keep_the_outcome() {
+        let table = Table::new();
+        let (waiter, _) = start(&table, "a", Lifetime::WhileWaited);
+        waiter.job().finish(Outcome::Cancelled, None);
+        table.file(waiter.job());
+        assert!(!table.is_busy());
+        let Some(Listing::Done(record)) = table.get("a") else { panic!("no record") };
+        assert_eq!(record.status, crate::jobs::Status::Cancelled);
+        assert_eq!(waiter.job().snapshot().status, crate::jobs::Status::Cancelled);
+    }
+
+    #[test]
+    fn a_mirror_gives_way_to_a_leased_run_and_is_not_listed_over_a_run_still_ending() {
+        let table = Table::new();
+        let Started::New(follower, mirror) = table.follow("a".into(), "a".into()) else { panic!("joined") };
+        assert!(mirror.follows && !table.runs_here("a"));
+        // A run of this replica that took the lease replaces the mirror in the table.
+        let leased = table
+            .start::<Infallible>("a", Lifetime::WhileWaited, true, || Ok(job("a", Lifetime::WhileWaited)));
+        let Ok(Started::New(running, run)) = leased else { panic!("the mirror was joined") };
+        assert!(table.runs_here("a") && !Arc::ptr_eq(&run, &mirror));
+        // Cancelled and still ending: a new mirror is made, and the run keeps its place.
+        run.cancel();
+        let Started::New(_again, other) = table.follow("a".into(), "a".into()) else { panic!("joined") };
+        assert!(matches!(table.get("a"), Some(Listing::Live(j)) if Arc::ptr_eq(&j, &run)));
+        assert!(!table.forget_unwatched(&other), "its client waits");
+        drop((follower, running));
+        assert!(table.forget_unwatched(&mirror), "nobody waits on the first mirror");
+        assert!(table.live("a").is_some_and(|j| Arc::ptr_eq(&j, &run)), "the run was not dropped for it");
+    }
+}
