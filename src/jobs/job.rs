@@ -150,11 +150,13 @@ enum Stop {
 ///
 /// Its lifecycle ([`Status`]: queued, running, then succeeded, failed or cancelled) changes
 /// only through its own methods (`run`, `report`, `finish`, and `mirror` for a job followed
-/// from another replica), and its clients only through the table's (which hold the table's
-/// lock). What
-/// stays atomic is read where no lock may be taken: the stop request at every insertion of
-/// the engine's hot loop, the client count by a waiter's drop (under the table's lock, which
-/// the methods' guard argument proves).
+/// from another replica), and its clients only through the table's. Its state and progress
+/// go through a watch channel, not atomics: the latest snapshot wins, and SSE clients read
+/// it at their own pace. Three things stay atomic, each for a stated reason: the stop
+/// request, read at every insertion of the engine's hot loop, where no lock may be taken;
+/// the client count and the detached flag, guarded by the table's lock, which lives outside
+/// the job (the methods that change them take its guard, see `TableLock`); and the kept
+/// flag, set once by the task that publishes the job.
 pub struct Job {
     /// Set at creation, never changed.
     pub(super) id: String,
