@@ -81,3 +81,82 @@ async fn has_ended(peers: &dyn Peers, id: &str, token: &str) -> bool {
     let ended = matches!(peers.posting(id).await, Ok(Some(r)) if r.run == token && r.is_final());
     ended || matches!(peers.asked(id).await, Ok((true, _)))
 }
+
+#[cfg(test)]
+mod tests {
+    //! `claim` over the in-memory store, on tokio's paused clock.
+
+    use super::*;
+    use crate::jobs::replica::peers::Alone;
+    use crate::jobs::replica::peers::memory::Bus;
+
+    const LEASE: Duration = Duration::from_secs(2);
+
+    fn pair() -> (Arc<dyn Peers>, Arc<dyn Peers>) {
+        let bus = Bus::new(LEASE, 1 << 20);
+        (bus.replica("a"), bus.replica("b"))
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_replica_alone_runs_the_job_alone() {
+        let alone: Arc<dyn Peers> = Arc::new(Alone);
+        assert!(matches!(claim(&alone, "x", || None::<()>).await, Ok(Claim::Alone)));
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn the_first_claim_runs_and_another_replicas_claim_follows_that_run() {
+        let (a, b) = pair();
+        let Ok(Claim::Run(mut run)) = claim(&a, "x", || None::<()>).await else {
+            panic!("a does not run it")
+        };
+        run.disarm();
+        let Ok(Claim::Follow(followed)) = claim(&b, "x", || None::<()>).await else {
+            panic!("b does not follow")
+        };
+        assert_eq!(followed, run.token());
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_claim_on_a_run_of_this_replica_joins_it_or_waits_until_busy() {
+        let (a, _) = pair();
+        let Ok(Claim::Run(mut run)) = claim(&a, "x", || None::<()>).await else {
+            panic!("a does not run it")
+        };
+        run.disarm();
+        assert!(matches!(claim(&a, "x", || Some(7)).await, Ok(Claim::Joined(7))));
+        // The run renews its lease, as an ending run does until it lets go.
+        let renewing = tokio::spawn({
+            let (a, token) = (a.clone(), run.token().to_owned());
+            async move {
+                loop {
+                    let _ = a.renew("x", &token).await;
+                    tokio::time::sleep(a.renew_every()).await;
+                }
+            }
+        });
+        // Not joinable (it is ending) and never let go: refused after a lease and a second.
+        let mut looks = 0;
+        let refused = claim(&a, "x", || {
+            looks += 1;
+            None::<()>
+        })
+        .await;
+        assert!(matches!(refused, Err(Busy)));
+        assert_eq!(looks, (LEASE + Duration::from_secs(1)).as_millis() / OWN_RUN_WAIT.as_millis());
+        renewing.abort();
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_run_dropped_before_it_starts_gives_its_lease_back() {
+        let (a, b) = pair();
+        let Ok(Claim::Run(run)) = claim(&a, "x", || None::<()>).await else { panic!("a does not run it") };
+        drop(run);
+        for _ in 0..100 {
+            if matches!(b.holder("x").await, Ok(None)) {
+                break;
+            }
+            tokio::task::yield_now().await;
+        }
+        assert!(matches!(claim(&b, "x", || None::<()>).await, Ok(Claim::Run(_))), "the lease was given back");
+    }
+}
