@@ -30,7 +30,7 @@ mod listen;
 
 use crate::config::Redis;
 use crate::jobs::peers::{
-    Claim, Control, Kept, KeptRequest, Message, Peers, Posting, Result, Take, Unavailable,
+    Acquired, Control, Kept, KeptRequest, Message, Peers, Posting, Result, Take, Unavailable,
 };
 use redis::AsyncCommands;
 use redis::aio::ConnectionManager;
@@ -245,7 +245,7 @@ impl Peers for Cluster {
         self.note(set).map(|()| true)
     }
 
-    async fn acquire(&self, id: &str, token: &str, take: Take) -> Result<Claim> {
+    async fn acquire(&self, id: &str, token: &str, take: Take) -> Result<Acquired> {
         let lease = self.inner.settings.lease.as_millis() as u64;
         let held = ACQUIRE
             .key(key("lease", id))
@@ -257,7 +257,7 @@ impl Peers for Cluster {
             .arg(u8::from(take == Take::Fresh))
             .invoke_async::<Option<String>>(&mut self.conn()?)
             .await;
-        Ok(self.note(held)?.map_or(Claim::Won, Claim::Held))
+        Ok(self.note(held)?.map_or(Acquired::Won, Acquired::Held))
     }
 
     async fn renew(&self, id: &str, token: &str) -> Result<bool> {

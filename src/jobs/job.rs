@@ -7,7 +7,7 @@ use crate::refine::RefineError;
 use crate::result::MeshResult;
 use crate::result::Summary;
 use crate::solve::SolveError;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU8, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tokio::sync::{Notify, watch};
@@ -126,32 +126,67 @@ pub enum Lifetime {
     Detached,
 }
 
+/// What the job table's lock guard alone implements (`table::Locked`): a job's clients are
+/// counted under that lock, so that a client leaving and one joining cannot both decide
+/// whether the job goes on. The methods that count them take the guard: the rule is a type.
+pub(super) trait TableLock {}
+
+/// What a job has been asked to stop for. One atomic, set once by the first request (a
+/// client's cancel, or shutdown's), read by the engine at every insertion.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+enum Stop {
+    /// Not asked to stop.
+    Go = 0,
+    /// Cancelled: by a client, by every waiting client leaving, or by shutdown of a replica
+    /// with no other to take the job over.
+    Cancel = 1,
+    /// Stopped by shutdown and handed back: its lease is given up unfinished, so that another
+    /// replica takes it over, instead of telling its clients it was cancelled.
+    HandBack = 2,
+}
+
 /// One refinement, shared by everyone waiting on it.
+///
+/// Its lifecycle ([`Status`]: queued, running, then succeeded, failed or cancelled) changes
+/// only through its own methods (`run`, `report`, `finish`, and `mirror` for a job followed
+/// from another replica), and its clients only through the table's. Its state and progress
+/// go through a watch channel, not atomics: the latest snapshot wins, and SSE clients read
+/// it at their own pace. Three things stay atomic, each for a stated reason: the stop
+/// request, read at every insertion of the engine's hot loop, where no lock may be taken;
+/// the client count and the detached flag, guarded by the table's lock, which lives outside
+/// the job (the methods that change them take its guard, see `TableLock`); and the kept
+/// flag, set once by the task that publishes the job.
 pub struct Job {
+    /// Set at creation, never changed.
     pub(super) id: String,
     /// The id of the requests whose runs are prefixes of this one's (see [`super::JobKeys`]).
+    /// Set at creation, never changed.
     pub(super) family: String,
+    /// Whether another replica runs the job and this one follows it through the store. Set at
+    /// creation, never changed.
+    pub(super) follows: bool,
     /// The latest state wins: a slow watcher skips snapshots and the worker never waits on it
     /// (a watch channel, not a queue).
-    pub(super) state: watch::Sender<Snapshot>,
-    pub(super) cancel: AtomicBool,
-    pub(super) cancel_notify: Notify,
-    /// Created through `POST /v1/jobs`: runs on even when no client is waiting. Read and
-    /// written under the table lock, like `waiters`, so a leaving client and a joining one
-    /// cannot both decide.
-    pub(super) detached: AtomicBool,
-    pub(super) waiters: AtomicUsize,
+    state: watch::Sender<Snapshot>,
+    /// A [`Stop`]: an atomic, because the engine reads it at every insertion and must not
+    /// take a lock there.
+    stop: AtomicU8,
+    /// Wakes the task waiting for the job's worker (or, for a followed job, its next look) when
+    /// it is stopped or has news.
+    wake: Notify,
+    /// Created through `POST /v1/jobs`: runs on even when no client is waiting. Changed and
+    /// read under the table lock, like `waiters` (see [`TableLock`]).
+    detached: AtomicBool,
+    /// Clients waiting on the job (see [`TableLock`]).
+    waiters: AtomicUsize,
     /// A running mesh job's vertices as of its latest progress report, in insertion order,
     /// for viewers that follow the mesh as it grows; emptied when the job finishes (the
     /// result has them all).
-    pub(super) points: Mutex<Vec<Vertex>>,
-    /// Whether another replica runs the job and this one follows it through the store.
-    pub(super) follows: bool,
-    /// Set when shutdown cancels the job: its lease is given up unfinished, so that another
-    /// replica takes it over, instead of telling its clients it was cancelled.
-    pub(super) handed_back: AtomicBool,
-    /// Whether its request is kept in the store, so that another replica can take it over.
-    pub(super) kept: AtomicBool,
+    points: Mutex<Vec<Vertex>>,
+    /// Whether its request is kept in the store, so that another replica can take it over:
+    /// set once by the task publishing it, read when shutdown stops the job.
+    kept: AtomicBool,
 }
 
 impl Job {
@@ -168,14 +203,13 @@ impl Job {
         Self {
             id,
             family,
+            follows,
             state,
-            cancel: AtomicBool::new(false),
-            cancel_notify: Notify::new(),
+            stop: AtomicU8::new(Stop::Go as u8),
+            wake: Notify::new(),
             detached: AtomicBool::new(lifetime == Lifetime::Detached),
             waiters: AtomicUsize::new(0),
             points: Mutex::new(Vec::new()),
-            follows,
-            handed_back: AtomicBool::new(false),
             kept: AtomicBool::new(false),
         }
     }
@@ -203,9 +237,49 @@ impl Job {
     }
 
     /// Asks the job to stop: a queued job ends at once, a running one within one insertion.
+    /// A job already asked to stop keeps what was asked first.
     pub fn cancel(&self) {
-        self.cancel.store(true, Ordering::Relaxed);
-        self.cancel_notify.notify_one();
+        self.ask(Stop::Cancel);
+        self.wake.notify_one();
+    }
+
+    /// Stops the job for shutdown: handed back for another replica to take over when its
+    /// request is kept in the store, else cancelled. Decided once per job: a job already asked
+    /// to stop (by a client, or by an earlier call) keeps what was decided.
+    pub(super) fn stop_for_shutdown(&self) {
+        if self.ask(if self.kept.load(Ordering::SeqCst) { Stop::HandBack } else { Stop::Cancel }) {
+            self.wake.notify_one();
+        }
+    }
+
+    /// Asks the job to stop for `stop` unless it was asked already; says whether this asked.
+    fn ask(&self, stop: Stop) -> bool {
+        self.stop.compare_exchange(Stop::Go as u8, stop as u8, Ordering::SeqCst, Ordering::Relaxed).is_ok()
+    }
+
+    /// Whether the job was asked to stop, either way: what the engine reads at each insertion.
+    pub(super) fn is_cancelled(&self) -> bool {
+        self.stop.load(Ordering::Relaxed) != Stop::Go as u8
+    }
+
+    /// Whether shutdown stopped the job to hand it to another replica.
+    pub(super) fn is_handed_back(&self) -> bool {
+        self.stop.load(Ordering::SeqCst) == Stop::HandBack as u8
+    }
+
+    /// Notes that the job's request is kept in the store: shutdown hands it back from now on.
+    pub(super) fn mark_kept(&self) {
+        self.kept.store(true, Ordering::SeqCst);
+    }
+
+    /// Wakes whoever waits on [`woken`](Self::woken): a followed job's task, to look again.
+    pub(super) fn wake(&self) {
+        self.wake.notify_one();
+    }
+
+    /// Completes when the job is asked to stop or [woken](Self::wake).
+    pub(super) fn woken(&self) -> tokio::sync::futures::Notified<'_> {
+        self.wake.notified()
     }
 
     /// Waits for the outcome.
@@ -228,9 +302,42 @@ impl Job {
 
     /// Whether a new identical request may join this job instead of starting its own.
     pub(super) fn is_joinable(&self) -> bool {
-        !self.cancel.load(Ordering::Relaxed) && !self.is_finished()
+        !self.is_cancelled() && !self.is_finished()
     }
 
+    /// Queued → running: a worker took the job.
+    pub(super) fn run(&self) {
+        self.state.send_modify(|s| s.status = Status::Running);
+    }
+
+    /// A progress report, numbered as the next event; `vertices`, a mesh's vertices so far
+    /// (the first ones as already held), for viewers.
+    pub(super) fn report(&self, vertices: Option<&[Vertex]>, event: ProgressEvent) {
+        if let Some(vertices) = vertices {
+            let mut points = self.points.lock().expect("job points poisoned");
+            let held = points.len();
+            points.extend_from_slice(&vertices[held..]);
+        }
+        self.state.send_modify(|s| {
+            s.seq += 1;
+            s.progress = Some(event);
+        });
+    }
+
+    /// Applies what the run of a followed job last posted (its event number, status and
+    /// progress), if newer than what this mirror shows.
+    pub(super) fn mirror(&self, seq: u64, status: Status, progress: Option<ProgressEvent>) {
+        self.state.send_if_modified(|s| {
+            let newer = s.outcome.is_none() && (seq > s.seq || (seq == s.seq && s.status != status));
+            if newer {
+                (s.seq, s.status, s.progress) = (seq, status, progress.or(s.progress));
+            }
+            newer
+        });
+    }
+
+    /// Ends the job: its outcome, numbered as the next event; the vertices held for viewers
+    /// are let go.
     pub(super) fn finish(&self, outcome: Outcome, elapsed: Option<Duration>) {
         *self.points.lock().expect("job points poisoned") = Vec::new();
         self.state.send_modify(|s| {
@@ -243,6 +350,35 @@ impl Job {
             };
             s.outcome = Some(outcome);
         });
+    }
+
+    /// Registers one more client waiting on the job.
+    pub(super) fn attach(&self, _table: &impl TableLock) {
+        self.waiters.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Lets the job run to its end whoever waits.
+    pub(super) fn detach(&self, _table: &impl TableLock) {
+        self.detached.store(true, Ordering::Relaxed);
+    }
+
+    /// A client stops waiting; says whether the job should be cancelled: it was the last, the
+    /// job is not detached, and it has not finished.
+    pub(super) fn leave(&self, _table: &impl TableLock) -> bool {
+        let last = self.waiters.fetch_sub(1, Ordering::Relaxed) == 1;
+        last && !self.detached.load(Ordering::Relaxed) && !self.is_finished()
+    }
+
+    /// Whether the job runs to its end whoever waits: for tests, which read it without the
+    /// table's lock, as a condition to wait for.
+    #[cfg(test)]
+    pub(super) fn is_detached(&self) -> bool {
+        self.detached.load(Ordering::SeqCst)
+    }
+
+    /// Whether no client waits on the job.
+    pub(super) fn is_unwatched(&self, _table: &impl TableLock) -> bool {
+        self.waiters.load(Ordering::Relaxed) == 0
     }
 }
 

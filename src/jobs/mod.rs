@@ -14,44 +14,54 @@
 //!   ([`SpecError`] names the field at fault), as a canonical [`JobSpec`] of a mesh or of a
 //!   boundary value problem, and its id;
 //! - `failure`: why a job failed as data ([`Failure`]), the same whichever replica ran it;
-//! - `job`: a job's state, its outcome, and [`Record`], the one view clients get;
-//! - `state`: the job table behind its lock (functions that need the lock take its guard),
-//!   the waiters, and what every part below shares;
-//! - `admit`: admission (shutdown, the queue's bound, each [`Client`]'s share from `share`,
-//!   the memory [`Budget`] from `budget`, `Retry-After`) and the start of a run;
-//! - `dispatch`: the workers, given to waiting jobs so that none idles while a job waits, a
-//!   client under its share first;
-//! - `worker`: one job's run on the blocking pool;
-//! - `cache`: stored results, in memory and on disk;
+//! - `job`: one job: its lifecycle ([`Status`], changed only by the job's own methods), its
+//!   stop request, its clients (counted under the table's lock), its outcome, and
+//!   [`Record`], the one view clients get;
+//! - `table`: the job table, which owns its state (mini-redis's `Db`): its map is private,
+//!   its lock taken only in its own methods, which callers ask (`join`, `start`, `follow`,
+//!   `file`, `stop_all`, …); and [`Waiter`], a client waiting on a job;
+//! - `admission`: `Admission` as one type: shutdown, the queue's bound, each
+//!   [`Client`]'s share (from `share`), the workers handed out by `dispatch` (a client under
+//!   its share first, so that none idles while a job waits), the memory [`Budget`] (from
+//!   `budget`), and `Retry-After`: where a scheduler changes who runs and who waits;
+//! - `cache`: stored results, in memory and on disk; `families`: per family, the cached run
+//!   that answers smaller requests by replay;
+//! - `inner`: the parts above that the registry is made of, shared by everything below;
+//! - `worker`: one job's run on the blocking pool; `start`: a job admitted, listed in the
+//!   table, given to a worker and, when it holds a lease, to `replica::publish`;
+//! - `replica`: the replica protocol, in its own folder: [`peers`], the store
+//!   replicas share as the one trait [`Peers`](peers::Peers) (with its wire types;
+//!   [`crate::cluster`] implements it over Redis, `peers::alone` for a replica on its own,
+//!   the tests in memory); `claim`, who runs a job, in one call
+//!   (`Claim::{Run, Follow, Alone}`); `lease`; and `publish`, `follow`, `takeover`: the
+//!   replica holding a job's lease publishes it, the others follow it, and a job whose
+//!   replica died is run again by the first replica to take its expired lease;
+//! - `ticket`: what a submission found or started ([`Ticket`]); `submit`: a submission, a
+//!   small function per step (cache hit, prefix replay, join, claim, remote fetch);
 //! - `registry`: [`Jobs`], the one public face: submit, find, watch, cancel, shut down.
-//! - [`peers`]: the store replicas share, as the one trait [`Peers`](peers::Peers) that jobs
-//!   talk to other replicas through, with its wire types (postings, kept requests, controls);
-//!   [`crate::cluster`] implements it over Redis, `peers::alone` for a replica on its own
-//!   (no store: every operation fails as if the store were away, and the replica acts
-//!   alone, as it does then), and the tests in memory;
-//! - `publish`, `follow`, `takeover`: the replica protocol over that trait: the replica
-//!   holding a job's lease publishes it, the others follow it, and a job whose replica died is
-//!   run again by the first replica to take its expired lease.
 
-mod admit;
+mod admission;
 mod budget;
 mod cache;
 mod checks;
 mod dispatch;
 mod failure;
-mod follow;
+mod families;
+mod inner;
 mod job;
 mod key;
-pub mod peers;
-mod publish;
 mod registry;
+mod replica;
 mod share;
 mod solution;
 mod spec;
-mod state;
-mod takeover;
+mod start;
+mod submit;
+mod table;
+mod ticket;
 mod worker;
 
+pub use admission::{Pool, SubmitError};
 pub use budget::{
     Budget, Charge, OverBudget, SOLUTION_BYTES_PER_VERTEX, available_memory, cli_mesh_bytes_per_vertex,
     default_limit as default_memory_bytes,
@@ -61,19 +71,10 @@ pub use checks::{DEFAULT_MAX_VERTICES, Limits, SpecError};
 pub use failure::{Cause, Failure};
 pub use job::{Job, JobError, Lifetime, Outcome, Record, Snapshot, Status};
 pub use key::{ENGINE_VERSION, JobKeys, job_id, job_keys};
-pub use registry::{Found, Jobs, Pool};
+pub use registry::{Found, Jobs};
+pub use replica::{RequestParser, peers};
 pub use share::Client;
 pub use solution::{Coef, SolveSpec};
 pub use spec::{JobSpec, MeshSpec, Work};
-pub use state::{SubmitError, Ticket, Waiter};
-
-/// How a request another replica kept is read when replicas share: the server's own parsing
-/// of a request body (its content types are the HTTP layer's), given to the registry by the
-/// caller.
-pub trait RequestParser: Send + Sync + 'static {
-    /// Reads a request another replica kept, as if a client had just sent it here.
-    fn parse(
-        &self,
-        request: peers::KeptRequest,
-    ) -> futures_util::future::BoxFuture<'static, Result<(JobKeys, JobSpec), String>>;
-}
+pub use table::Waiter;
+pub use ticket::Ticket;

@@ -1,20 +1,22 @@
-//! The registry: which jobs exist, who waits on them, the queue's bound and the cache in front.
+//! The registry: [`Jobs`], the one public face of the jobs: submit, find, watch, cancel, shut
+//! down. Each part it is made of owns its state (see [`Inner`]); what a submission does, step
+//! by step, is in `submit`.
 
+use super::admission::{Admission, Pool, SubmitError};
 use super::budget::Budget;
-use super::dispatch::Dispatch;
-use super::follow::Fetched;
+use super::families::Families;
+use super::inner::Inner;
 use super::job::{Job, Lifetime, Record, Status};
-use super::peers::{self, Alone, Claim, Control, Kept, KeptRequest, Peers, Take};
-use super::share::{Client, Shares};
-use super::state::{Inner, Lease, Listing, Start, SubmitError, Table, Ticket, Waiter};
-use super::{Cache, JobKeys, JobSpec, RequestParser, follow, takeover};
+use super::replica::peers::{self, Alone, Control, Kept, KeptRequest, Peers};
+use super::replica::{RequestParser, follow, takeover};
+use super::share::Client;
+use super::table::{Listing, Table, Waiter};
+use super::ticket::Ticket;
+use super::{Cache, JobKeys, JobSpec, submit};
 use crate::metrics::Metrics;
-use crate::refine::trace::replay;
 use crate::result::MeshResult;
-use std::num::NonZeroUsize;
-use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex};
-use std::time::Duration;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// A job, a finished job's record, or a cached result, for status queries.
 #[derive(Clone)]
@@ -40,38 +42,8 @@ impl Found {
     }
 }
 
-/// Whether run `token` of job `id` has posted its end (and is about to let go of
-/// its lease), or was asked to stop: a new request must not be given its end.
-async fn has_ended(peers: &dyn Peers, id: &str, token: &str) -> bool {
-    let ended = matches!(peers.posting(id).await, Ok(Some(r)) if r.run == token && r.is_final());
-    ended || matches!(peers.asked(id).await, Ok((true, _)))
-}
-
-/// How often a submission looks again at a run that holds the job's lease and will not run
-/// it for this request: one of this replica being started by a concurrent identical request
-/// (to join), or one that has ended, or was asked to, and not yet let go of its lease (for at
-/// most a lease, then the submission is refused with `Retry-After`).
-const OWN_RUN_WAIT: Duration = Duration::from_millis(25);
-
 /// How many results being read from the store keep their turn (see [`follow::fetch`]).
 const FETCHES_KEPT: u64 = 10_000;
-
-/// How many families remember their furthest run.
-const FAMILIES_KEPT: u64 = 100_000;
-
-/// What a server runs jobs with.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Pool {
-    /// Refinements running at once (`MESHFIT_WORKERS`).
-    pub workers: NonZeroUsize,
-    /// Jobs that may wait for a worker beyond them (`MESHFIT_QUEUE`).
-    pub queue: usize,
-    /// One client's share of the workers and the queue, in (0, 1] (`MESHFIT_CLIENT_SHARE`).
-    pub client_share: f64,
-    /// The memory budget that jobs, bodies and cached meshes are charged to
-    /// (`MESHFIT_MEMORY_BYTES`).
-    pub memory_bytes: u64,
-}
 
 /// The job registry, its workers and its cache. Cheap to clone.
 #[derive(Clone)]
@@ -79,52 +51,18 @@ pub struct Jobs {
     inner: Arc<Inner>,
 }
 
-/// Gives a lease back unless disarmed: a submission abandoned between taking a lease and
-/// starting its run (its client hung up, or the run was refused) leaves no lease behind.
-struct LeaseGuard {
-    peers: Arc<dyn Peers>,
-    id: String,
-    token: Option<String>,
-}
-
-impl LeaseGuard {
-    fn disarm(&mut self) {
-        self.token = None;
-    }
-}
-
-impl Drop for LeaseGuard {
-    fn drop(&mut self) {
-        if let (Some(token), Ok(runtime)) = (self.token.take(), tokio::runtime::Handle::try_current()) {
-            let (peers, id) = (self.peers.clone(), std::mem::take(&mut self.id));
-            runtime.spawn(async move { peers.release(&id, &token).await });
-        }
-    }
-}
-
 impl Jobs {
     /// A registry of the workers, queue, shares and memory budget of `pool`, in front of
     /// `cache`, on its own until [`shared`](Self::shared).
     pub fn new(pool: &Pool, cache: Cache, metrics: Arc<Metrics>) -> Self {
-        let Pool { workers, queue, client_share, memory_bytes } = *pool;
-        let workers = workers.get();
         let cached = cache.clone();
-        let budget = Budget::new(memory_bytes, move || cached.memory_bytes_estimate());
-        let shares = Shares::new(client_share, workers, queue);
         Self {
             inner: Arc::new(Inner {
-                dispatch: Dispatch::new(workers, shares.workers),
-                workers,
-                queue,
-                waiting: AtomicUsize::new(0),
-                table: Mutex::new(Table::default()),
+                table: Table::new(),
+                admission: Admission::new(pool, move || cached.memory_bytes_estimate()),
                 cache,
-                families: moka::sync::Cache::new(FAMILIES_KEPT),
+                families: Families::new(),
                 metrics,
-                closed: AtomicBool::new(false),
-                shares,
-                budget,
-                mean_run: AtomicU64::new(1f64.to_bits()),
                 peers: Arc::new(Alone),
                 fetching: moka::sync::Cache::new(FETCHES_KEPT),
                 publishing: AtomicUsize::new(0),
@@ -161,13 +99,13 @@ impl Jobs {
 
     /// The memory budget that bodies and jobs are charged to.
     pub fn budget(&self) -> &Arc<Budget> {
-        &self.inner.budget
+        self.inner.admission.budget()
     }
 
     /// Seconds until a worker, and the memory its job holds, is likely free: the
     /// `Retry-After` of a refusal made outside `submit`.
     pub fn retry_after(&self) -> u64 {
-        self.inner.retry_after(self.inner.workers)
+        self.inner.admission.retry_after()
     }
 
     /// Bytes of meshes cached in memory.
@@ -182,7 +120,7 @@ impl Jobs {
 
     /// Whether a new job would be accepted now.
     pub fn is_ready(&self) -> bool {
-        !self.inner.closed.load(Ordering::SeqCst) && self.inner.has_room()
+        self.inner.admission.is_ready()
     }
 
     /// Answers from the cache, joins an identical job, or starts a new one charged to
@@ -214,87 +152,15 @@ impl Jobs {
         client: &Client,
         request: Option<KeptRequest>,
     ) -> Result<Ticket, SubmitError> {
-        let inner = &self.inner;
-        let JobKeys { id, family } = keys;
-        if let Some(finished) = self.cached(&id).await {
-            inner.metrics.cache_hits.inc();
-            // A run read back from disk after a restart answers its family from now on.
-            inner.note_run(&family, &id, &finished);
-            return Ok(Ticket::Cached(finished));
-        }
-        if let Some(result) = self.prefix(&id, &family, &spec).await {
-            inner.metrics.prefix_hits.inc();
-            return Ok(Ticket::Prefix(result));
-        }
-        if let Some(ticket) = inner.join(&id, lifetime) {
-            return Ok(ticket);
-        }
-        let peers = &*inner.peers;
-        // One replica runs a job: the one whose run takes its lease. Guarded from before the
-        // first try: a client hanging up while the lease is being taken leaves none behind.
-        let token = peers.token();
-        // (A replica alone takes no lease, and has none to give back.)
-        let mut guard = LeaseGuard {
-            peers: inner.peers.clone(),
-            id: id.clone(),
-            token: peers.is_shared().then(|| token.clone()),
-        };
-        // An ended run lets go of its lease within a lease, even if its release was lost.
-        let patience = (peers.lease() + Duration::from_secs(1)).as_millis() / OWN_RUN_WAIT.as_millis();
-        let mut waits: u128 = 0;
-        let won = loop {
-            let held = match peers.acquire(&id, &token, Take::Fresh).await {
-                Ok(Claim::Won) => break true,
-                Ok(Claim::Held(holder)) => holder,
-                // The store is away, or there is none: run it here, unshared.
-                Err(_) => break false,
-            };
-            waits += 1;
-            if peers.is_mine(&held) {
-                // A run of this replica: one a concurrent identical request is starting (join
-                // it), or one ending after a cancel (let it end, then run again). Never a
-                // mirror of it.
-                if let Some(ticket) = inner.join(&id, lifetime) {
-                    return Ok(ticket);
-                }
-            } else if !has_ended(peers, &id, &held).await {
-                inner.metrics.cache_misses.inc();
-                return Ok(Ticket::Job(follow::follow(inner, id, family, Some(held))));
-            }
-            // A run that has ended, or was asked to, and not yet let go: wait for its lease.
-            if waits >= patience {
-                let retry_after = inner.retry_after(inner.workers);
-                return Err(SubmitError::QueueFull { waiting: inner.queued(), retry_after });
-            }
-            tokio::time::sleep(OWN_RUN_WAIT).await;
-        };
-        if !won {
-            let start = Start { id, family, seq: 0, lease: None, request: None };
-            return inner.start(start, spec, lifetime, client).map(|(ticket, _)| ticket);
-        }
-        // Finished elsewhere between the lookup above and the lease.
-        if let Fetched::Found(result) = follow::fetch(inner, &id, Kept::Whole).await {
-            inner.metrics.cache_hits.inc();
-            return Ok(Ticket::Cached(result));
-        }
-        let (announced, first_posting) = tokio::sync::oneshot::channel();
-        let lease = Lease { token, announced: Some(announced) };
-        let start = Start { id, family, seq: 0, lease: Some(lease), request };
-        let (ticket, started) = inner.start(start, spec, lifetime, client)?;
-        if started {
-            guard.disarm();
-            // Stored before the client hears of the job, so that any replica finds it at once.
-            let _ = first_posting.await;
-        }
-        Ok(ticket)
+        submit::submit(&self.inner, keys, spec, lifetime, client, request).await
     }
 
     /// The job, finished job or cached result with this id: on this replica, or, when
     /// replicas share, on any.
     pub async fn find(&self, id: &str) -> Option<Found> {
-        let found = match self.inner.lock().jobs.get(id) {
-            Some(Listing::Live(job)) => Some(Found::Job(job.clone())),
-            Some(Listing::Done(record)) => Some(Found::Done(record.clone())),
+        let found = match self.inner.table.get(id) {
+            Some(Listing::Live(job)) => Some(Found::Job(job)),
+            Some(Listing::Done(record)) => Some(Found::Done(record)),
             None => None,
         };
         match &found {
@@ -329,17 +195,12 @@ impl Jobs {
     /// Registers a client waiting on job `id` while it runs (server-sent events), here or,
     /// when replicas share, on another replica.
     pub async fn watch(&self, id: &str) -> Option<Waiter> {
-        {
-            let table = self.inner.lock();
-            match table.jobs.get(id) {
-                Some(Listing::Live(job)) => {
-                    return Some(self.inner.attach(&table, job, Lifetime::WhileWaited));
-                }
-                Some(Listing::Done(r)) if r.status == Status::Succeeded => return None,
-                // A job that failed or was cancelled here may run again elsewhere, and one
-                // unknown here may run on another replica.
-                _ => {}
-            }
+        match self.inner.table.watch(id) {
+            Ok(waiter) => return Some(waiter),
+            Err(Some(r)) if r.status == Status::Succeeded => return None,
+            // A job that failed or was cancelled here may run again elsewhere, and one
+            // unknown here may run on another replica.
+            Err(_) => {}
         }
         let peers = &*self.inner.peers;
         let (holder, posting) = (peers.holder(id).await.ok()?, peers.posting(id).await.ok()?);
@@ -365,30 +226,6 @@ impl Jobs {
         Ok(())
     }
 
-    /// The result of `spec` replayed from the furthest cached run of its family, stored under
-    /// `id`; `None` when there is no such run or the request goes past it.
-    async fn prefix(&self, id: &str, family: &str, spec: &JobSpec) -> Option<Arc<MeshResult>> {
-        let spec = spec.mesh()?;
-        let (run, _) = self.inner.families.get(family)?;
-        let source = self.cached(&run).await?;
-        let trace = source.trace.clone()?;
-        let (max_vertices, tolerance) = (spec.params.max_vertices(), spec.params.tolerance());
-        if !trace.covers(source.vertices.len(), max_vertices, tolerance) {
-            return None;
-        }
-        let (cache, id, spec) = (self.inner.cache.clone(), id.to_owned(), spec.clone());
-        crate::cpu::spawn(move || {
-            let mut replayed = replay(&trace, &source.vertices, max_vertices, tolerance)?;
-            spec.measure(&mut replayed);
-            let result = Arc::new(MeshResult::from(replayed));
-            cache.insert(&id, result.clone());
-            Some(result)
-        })
-        .await
-        .ok()
-        .flatten()
-    }
-
     /// The result a time limit stopped for job `id`, if still held here or, when replicas
     /// share, in the store (never a new request's answer; see [`Cache::insert_partial`]).
     pub async fn partial(&self, id: &str) -> Option<Arc<MeshResult>> {
@@ -400,50 +237,23 @@ impl Jobs {
 
     /// The cached mesh with this id, if any.
     pub async fn cached(&self, id: &str) -> Option<Arc<MeshResult>> {
-        let cache = &self.inner.cache;
-        if let Some(f) = cache.get_memory(id) {
-            return Some(f);
-        }
-        if cache.has_disk() {
-            let (cache, id) = (cache.clone(), id.to_owned());
-            let found = tokio::task::spawn_blocking(move || cache.get(&id).map(|(f, _)| f)).await;
-            if let Ok(Some(found)) = found {
-                return Some(found);
-            }
-        }
-        follow::fetch(&self.inner, id, Kept::Whole).await.found()
+        submit::cached(&self.inner, id).await
     }
 
     /// Refuses new jobs from now on.
     pub fn close(&self) {
-        self.inner.closed.store(true, Ordering::SeqCst);
+        self.inner.admission.close();
     }
 
     /// Cancels every job not yet finished; when replicas share, hands them back for another
     /// replica to take over instead (a job followed from another replica runs on there).
     pub fn cancel_all(&self) {
-        for entry in self.inner.lock().jobs.values() {
-            // Decided once per job: the drain loop calls this again and again, and a job
-            // already cancelled (by a client, or by an earlier call) keeps what was decided.
-            if let Listing::Live(job) = entry
-                && !job.follows
-                && !job.cancel.load(Ordering::Relaxed)
-            {
-                // Only a job another replica can take over.
-                job.handed_back.store(job.kept.load(Ordering::SeqCst), Ordering::SeqCst);
-                job.cancel();
-            }
-        }
+        self.inner.table.stop_all();
     }
 
     /// Whether any job is queued or running, or still being told to the store.
     pub fn is_busy(&self) -> bool {
-        if self.inner.publishing.load(Ordering::SeqCst) > 0 {
-            return true;
-        }
-        let table = self.inner.lock();
-        // A job followed from another replica is that replica's to finish.
-        table.jobs.values().any(|e| matches!(e, Listing::Live(job) if !job.follows))
+        self.inner.publishing.load(Ordering::SeqCst) > 0 || self.inner.table.is_busy()
     }
 }
 
@@ -452,8 +262,7 @@ impl Jobs {
     /// Takes a worker, as a job would: tests hold every worker to keep jobs queued, and so
     /// decide when the engine runs.
     pub(super) async fn hold_worker(&self) -> super::dispatch::Worker {
-        let client = Client::from("test:holder".to_owned());
-        self.inner.dispatch.acquire(&client).await.expect("a worker")
+        self.inner.admission.hold_worker().await
     }
 }
 
@@ -465,6 +274,7 @@ mod tests {
     use crate::api::JobRequest;
     use crate::jobs::{JobError, Limits, Outcome, job_keys};
     use crate::refine::StopReason;
+    use std::num::NonZeroUsize;
     use std::time::Duration;
 
     fn jobs(workers: usize, queue: usize) -> Jobs {

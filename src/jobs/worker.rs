@@ -1,10 +1,9 @@
 //! The worker: waits for one of the server's workers ([`super::dispatch`]), refines (with
 //! progress and a trace) or solves on the blocking pool, and files the outcome.
 
-use super::budget;
-use super::job::{Job, JobError, Outcome, Status};
-use super::share::Seat;
-use super::state::Inner;
+use super::admission::Admitted;
+use super::inner::Inner;
+use super::job::{Job, JobError, Outcome};
 use super::{JobSpec, Work};
 use crate::api::ProgressEvent;
 use crate::geom::Mesh;
@@ -13,21 +12,15 @@ use crate::refine::trace::Recorder;
 use crate::refine::{Observer, Progress, StopReason, refine};
 use crate::result::MeshResult;
 use std::sync::Arc;
-use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 /// Waits for a worker, refines on the blocking pool, stores the result and finishes the job.
-pub(super) async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec, charges: (Seat, budget::Charge)) {
-    let (seat, memory) = charges;
-    let permit = tokio::select! {
-        worker = inner.dispatch.acquire(seat.client()) => worker,
-        () = job.cancel_notify.notified() => None,
-    };
-    inner.waiting.fetch_sub(1, Ordering::SeqCst);
+pub(super) async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec, admitted: Admitted) {
+    let permit = inner.admission.worker(&admitted, job.woken()).await;
     inner.metrics.jobs_queued.dec();
     let outcome = match permit {
-        Some(permit) if !job.cancel.load(Ordering::Relaxed) => {
-            job.state.send_modify(|s| s.status = Status::Running);
+        Some(permit) if !job.is_cancelled() => {
+            job.run();
             inner.metrics.jobs_running.inc();
             inner.metrics.engine_runs.inc();
             let (worker_job, worker) = (job.clone(), inner.clone());
@@ -38,7 +31,7 @@ pub(super) async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec, charges
                 });
             inner.metrics.jobs_running.dec();
             if let Some(elapsed) = outcome.1 {
-                inner.note_run_time(elapsed.as_secs_f64());
+                inner.admission.note_run_time(elapsed.as_secs_f64());
             }
             drop(permit);
             outcome
@@ -48,7 +41,7 @@ pub(super) async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec, charges
     let (outcome, elapsed) = outcome;
     // Stopped by shutdown with another replica to take it: its clients should ask again.
     let outcome = match outcome {
-        Outcome::Cancelled if job.handed_back.load(Ordering::SeqCst) => Outcome::Failed(JobError::HandedBack),
+        Outcome::Cancelled if job.is_handed_back() => Outcome::Failed(JobError::HandedBack),
         outcome => outcome,
     };
     let state = match &outcome {
@@ -60,8 +53,8 @@ pub(super) async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec, charges
     inner.metrics.jobs_finished.get_or_create(&StateLabel { state }).inc();
     tracing::info!(job = %job.id, state, "job finished");
     job.finish(outcome, elapsed);
-    drop((seat, memory));
-    inner.file(&job);
+    drop(admitted);
+    inner.table.file(&job);
 }
 
 /// A job publishes a progress event at most this often, however fast the engine reports: each
@@ -86,11 +79,6 @@ impl Observer for JobObserver<'_> {
             return;
         }
         self.published = Some(now);
-        if self.points {
-            let mut points = self.job.points.lock().expect("job points poisoned");
-            let held = points.len();
-            points.extend_from_slice(&mesh.vertices()[held..]);
-        }
         let event = ProgressEvent {
             vertices: p.vertices,
             triangles: p.triangles,
@@ -99,14 +87,11 @@ impl Observer for JobObserver<'_> {
             newton_iterations: p.newton.map(|n| n.0),
             newton_residual: p.newton.map(|n| n.1),
         };
-        self.job.state.send_modify(|s| {
-            s.seq += 1;
-            s.progress = Some(event);
-        });
+        self.job.report(self.points.then(|| mesh.vertices()), event);
     }
 
     fn is_cancelled(&self) -> bool {
-        self.job.cancel.load(Ordering::Relaxed)
+        self.job.is_cancelled()
     }
 }
 
@@ -150,7 +135,7 @@ fn compute(job: &Job, spec: &JobSpec, inner: &Inner) -> (Outcome, Option<Duratio
             let result = Arc::new(result);
             inner.cache.insert(&job.id, result.clone());
             if result.trace.is_some() {
-                inner.note_run(&job.family, &job.id, &result);
+                inner.families.note(&job.family, &job.id, &result);
             }
             result
         }

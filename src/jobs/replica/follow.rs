@@ -7,13 +7,13 @@
 //! holding the lease, so that a final posting of an earlier run (cancelled, say) is not taken
 //! for this one's.
 
-use super::Failure;
-use super::job::{Job, JobError, Lifetime, Outcome, Record, Status};
 use super::peers::{Control, Kept, Message, Peers, Posting};
-use super::state::{Inner, Listing, Waiter};
+use crate::jobs::Failure;
+use crate::jobs::inner::Inner;
+use crate::jobs::job::{Job, JobError, Outcome, Record, Status};
+use crate::jobs::table::{Started, Waiter};
 use crate::refine::StopReason;
 use crate::result::{MeshResult, compact};
-use std::sync::atomic::Ordering;
 use std::sync::{Arc, Weak};
 use std::time::Duration;
 use tokio::sync::broadcast;
@@ -25,38 +25,25 @@ const LOST_AFTER: u32 = 3;
 
 /// Attaches a client to this replica's mirror of job `id`, which another replica runs (run
 /// `run`, if known), making the mirror (and the task that keeps it current) if there is none.
-pub(super) fn follow(inner: &Arc<Inner>, id: String, family: String, run: Option<String>) -> Waiter {
-    let mut table = inner.lock();
-    let live = match table.jobs.get(&id) {
-        Some(Listing::Live(job)) if job.is_joinable() => {
-            return inner.attach(&table, job, Lifetime::WhileWaited);
+pub(in crate::jobs) fn follow(inner: &Arc<Inner>, id: String, family: String, run: Option<String>) -> Waiter {
+    match inner.table.follow(id, family) {
+        Started::Joined(waiter) => waiter,
+        Started::New(waiter, job) => {
+            inner.metrics.jobs_followed.inc();
+            tokio::spawn(keep_current(inner.clone(), job, run));
+            waiter
         }
-        Some(Listing::Live(_)) => true,
-        _ => false,
-    };
-    // Detached: a client leaving here never cancels the job; `DELETE` does, through the store.
-    // Its family is unknown here; a mirror notes no runs for replays.
-    let job = Arc::new(Job::new(id.clone(), family, Lifetime::Detached, true, 0));
-    let waiter = inner.attach(&table, &job, Lifetime::WhileWaited);
-    // A run of this replica still ending keeps its place in the table, where shutdown and
-    // the sweep look for it; the mirror lives on for its clients alone.
-    if !live {
-        table.jobs.insert(id, Listing::Live(job.clone()));
     }
-    drop(table);
-    inner.metrics.jobs_followed.inc();
-    tokio::spawn(keep_current(inner.clone(), job, run));
-    waiter
 }
 
 /// The record of a job whose posting says it has finished, as clients see it; `None` while
 /// it runs.
-pub(super) fn record(r: &Posting) -> Option<Record> {
+pub(in crate::jobs) fn record(r: &Posting) -> Option<Record> {
     r.is_final().then(|| view(r))
 }
 
 /// A stored posting as clients see it.
-pub(super) fn view(r: &Posting) -> Record {
+pub(in crate::jobs) fn view(r: &Posting) -> Record {
     let status = Status::parse(&r.status).unwrap_or(Status::Queued);
     Record {
         status,
@@ -77,7 +64,7 @@ fn failure_of(r: &Posting) -> JobError {
 }
 
 /// What a look for a result found.
-pub(super) enum Fetched {
+pub(in crate::jobs) enum Fetched {
     /// The result, now also kept here.
     Found(Arc<MeshResult>),
     /// The store answered: it has no such result.
@@ -88,7 +75,7 @@ pub(super) enum Fetched {
 
 impl Fetched {
     /// The result, if found.
-    pub(super) fn found(self) -> Option<Arc<MeshResult>> {
+    pub(in crate::jobs) fn found(self) -> Option<Arc<MeshResult>> {
         match self {
             Fetched::Found(result) => Some(result),
             _ => None,
@@ -99,7 +86,7 @@ impl Fetched {
 /// Result `id` from this replica's memory, or else from the store, checked, and kept here from
 /// now on. One look per id at a time: the clients of a result just made elsewhere arrive
 /// together, and each copy of a large mesh is megabytes.
-pub(super) async fn fetch(inner: &Arc<Inner>, id: &str, kept: Kept) -> Fetched {
+pub(in crate::jobs) async fn fetch(inner: &Arc<Inner>, id: &str, kept: Kept) -> Fetched {
     // A replica alone has no store to look in, nor a turn to take.
     if !inner.peers.is_shared() {
         return Fetched::Unreachable;
@@ -145,13 +132,7 @@ pub(super) async fn fetch(inner: &Arc<Inner>, id: &str, kept: Kept) -> Fetched {
 /// Applies a running job's posting to its mirror, if newer than what the mirror shows.
 fn apply(job: &Job, r: &Posting) {
     let Some(status) = Status::parse(&r.status) else { return };
-    job.state.send_if_modified(|s| {
-        let newer = s.outcome.is_none() && (r.seq > s.seq || (r.seq == s.seq && s.status != status));
-        if newer {
-            (s.seq, s.status, s.progress) = (r.seq, status, r.progress.or(s.progress));
-        }
-        newer
-    });
+    job.mirror(r.seq, status, r.progress);
 }
 
 /// The outcome of a finished job's posting: its result, or why it failed; `None` while the
@@ -260,28 +241,22 @@ async fn keep_current(inner: Arc<Inner>, job: Arc<Job>, mut run: Option<String>)
             // The store is away: the clients wait for it to come back, or for their own timeout.
             Look::Unknown => {}
         }
-        idle = if job.waiters.load(Ordering::SeqCst) == 0 { idle + 1 } else { 0 };
-        if idle >= 2 {
-            // Clients attach under the table lock: checked again under it, none can be lost.
-            let mut table = inner.lock();
-            if job.waiters.load(Ordering::SeqCst) == 0 {
-                if matches!(table.jobs.get(&job.id), Some(Listing::Live(j)) if Arc::ptr_eq(j, &job)) {
-                    table.jobs.remove(&job.id);
-                }
-                return;
-            }
+        idle = if inner.table.is_unwatched(&job) { idle + 1 } else { 0 };
+        // Checked again under the table's lock, where clients attach: none can be lost.
+        if idle >= 2 && inner.table.forget_unwatched(&job) {
+            return;
         }
         tokio::select! {
             () = tokio::time::sleep(every) => {}
-            () = job.cancel_notify.notified() => {}
+            () = job.woken() => {}
         }
     }
-    inner.file(&job);
+    inner.table.file(&job);
 }
 
 /// Hands every message to the job it concerns on this replica: a posting wakes the mirror's
 /// task, a request to cancel or detach goes to the job run here. Ends with the registry.
-pub(super) async fn dispatch(inner: Weak<Inner>, mut messages: broadcast::Receiver<Message>) {
+pub(in crate::jobs) async fn dispatch(inner: Weak<Inner>, mut messages: broadcast::Receiver<Message>) {
     loop {
         let message = match messages.recv().await {
             Ok(m) => m,
@@ -291,15 +266,14 @@ pub(super) async fn dispatch(inner: Weak<Inner>, mut messages: broadcast::Receiv
         };
         let Some(inner) = inner.upgrade() else { return };
         let (Message::Posted(id, _) | Message::Control(id, _)) = &message;
-        let table = inner.lock();
-        let Some(Listing::Live(job)) = table.jobs.get(id) else { continue };
+        let Some(job) = inner.table.live(id) else { continue };
         match message {
-            Message::Posted(..) if job.follows => job.cancel_notify.notify_one(),
+            Message::Posted(..) if job.follows => job.wake(),
             Message::Control(_, Control::Cancel) if !job.follows => {
                 tracing::info!(job = %id, "cancelled from another replica");
                 job.cancel();
             }
-            Message::Control(_, Control::Detach) if !job.follows => job.detach(&table),
+            Message::Control(_, Control::Detach) if !job.follows => inner.table.detach(&job),
             _ => {}
         }
     }

@@ -4,22 +4,25 @@
 //! it get the same bytes the dead replica would have stored.
 
 use super::follow::{self, Fetched};
-use super::job::{Lifetime, Status};
-use super::peers::{Claim, Kept, Take};
+use super::lease::Lease;
+use super::parser::RequestParser;
+use super::peers::{Acquired, Kept, Take};
 use super::publish;
-use super::share::Client;
-use super::state::{Inner, Lease, Start};
-use super::{Failure, RequestParser};
+use crate::jobs::Failure;
+use crate::jobs::inner::Inner;
+use crate::jobs::job::{Lifetime, Status};
+use crate::jobs::share::Client;
+use crate::jobs::start::Start;
 use std::sync::{Arc, Weak};
 
 /// Looks for orphaned jobs until the registry is gone or closed. Also pings the store first, so
 /// that `/readyz` and `/metrics` say whether it answers even when no request needs it.
-pub(super) async fn sweep(inner: Weak<Inner>, parser: Arc<dyn RequestParser>) {
+pub(in crate::jobs) async fn sweep(inner: Weak<Inner>, parser: Arc<dyn RequestParser>) {
     loop {
         // Held only while sweeping: the registry may go between sweeps.
         let every = {
             let Some(inner) = inner.upgrade() else { return };
-            if inner.closed.load(std::sync::atomic::Ordering::SeqCst) {
+            if inner.admission.is_closed() {
                 return;
             }
             sweep_once(&inner, &*parser).await;
@@ -37,15 +40,15 @@ async fn sweep_once(inner: &Arc<Inner>, parser: &dyn RequestParser) {
     }
     let Ok(ids) = peers.pending().await else { return };
     for id in ids {
-        if !inner.has_room() {
+        if !inner.admission.has_room() {
             // A takeover would be refused: leave the jobs to replicas with room.
             break;
         }
-        if inner.runs_here(&id) || !matches!(peers.holder(&id).await, Ok(None)) {
+        if inner.table.runs_here(&id) || !matches!(peers.holder(&id).await, Ok(None)) {
             continue;
         }
         let token = peers.token();
-        if let Ok(Claim::Won) = peers.acquire(&id, &token, Take::Over).await
+        if let Ok(Acquired::Won) = peers.acquire(&id, &token, Take::Over).await
             && take_over(inner, parser, &id, token).await == Taken::Refused
         {
             // Full here: the other jobs would be fetched, parsed and refused too. Another

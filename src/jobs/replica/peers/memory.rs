@@ -6,7 +6,8 @@
 //! messages that ask a run to act ([`Bus::lose_controls`]). Every operation yields first, as
 //! a round trip would, so that concurrent submissions interleave.
 
-use super::{Claim, Control, Kept, KeptRequest, Message, Peers, Posting, Result, Take, Unavailable};
+use super::store::{Peers, Result, Unavailable};
+use super::wire::{Acquired, Control, Kept, KeptRequest, Message, Posting, Take};
 use std::collections::{BTreeSet, HashMap};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -166,17 +167,17 @@ impl Peers for Replica {
         self.reach(true).await.map(drop)
     }
 
-    async fn acquire(&self, id: &str, token: &str, take: Take) -> Result<Claim> {
+    async fn acquire(&self, id: &str, token: &str, take: Take) -> Result<Acquired> {
         let mut state = self.reach(false).await?;
         if let Some(holder) = state.holder(id) {
-            return Ok(Claim::Held(holder.to_owned()));
+            return Ok(Acquired::Held(holder.to_owned()));
         }
         state.leases.insert(id.to_owned(), (token.to_owned(), Instant::now() + self.bus.lease));
         if take == Take::Fresh {
             state.postings.remove(id);
             state.marks.retain(|(job, _), _| job != id);
         }
-        Ok(Claim::Won)
+        Ok(Acquired::Won)
     }
 
     async fn renew(&self, id: &str, token: &str) -> Result<bool> {

@@ -16,7 +16,6 @@ use crate::result::{MeshResult, compact};
 use futures_util::future::BoxFuture;
 use std::num::NonZeroUsize;
 use std::sync::Arc;
-use std::sync::atomic::Ordering;
 use std::time::Duration;
 use tokio::time::timeout;
 
@@ -269,7 +268,7 @@ async fn a_follower_keeps_the_run_going_when_its_own_client_leaves() {
     let (_, a, b) = pair(LEASE, 1 << 20);
     let (held, on_a, on_b) = followed(&a, &b, Lifetime::WhileWaited).await;
     let job = on_a.job().clone();
-    until(|| job.detached.load(Ordering::SeqCst)).await;
+    until(|| job.is_detached()).await;
     // a's only client hangs up: without b's request the job would be cancelled here.
     drop(on_a);
     drop(held);

@@ -3,14 +3,14 @@
 //! its lease and reads what followers ask of it, and at the end stores the result before the
 //! final posting, so that a replica that reads the posting can fetch the result.
 
-use super::Failure;
-use super::job::{Job, JobError, Outcome, Snapshot, Status};
-use super::peers::{Claim, Kept, KeptRequest, Peers, Posting, Take};
-use super::state::{Inner, Lease};
+use super::lease::Lease;
+use super::peers::{Acquired, Kept, KeptRequest, Peers, Posting, Take};
+use crate::jobs::Failure;
+use crate::jobs::inner::Inner;
+use crate::jobs::job::{Job, JobError, Outcome, Snapshot, Status};
 use crate::refine::StopReason;
 use crate::result::{MeshResult, Summary, compact};
 use std::sync::Arc;
-use std::sync::atomic::Ordering;
 use std::time::Duration;
 use tokio::time::Instant;
 
@@ -18,7 +18,12 @@ use tokio::time::Instant;
 const PUBLISH_EVERY: Duration = Duration::from_millis(100);
 
 /// Publishes job `job` for run `lease` until it finishes.
-pub(super) async fn run(inner: &Arc<Inner>, job: Arc<Job>, lease: Lease, request: Option<KeptRequest>) {
+pub(in crate::jobs) async fn run(
+    inner: &Arc<Inner>,
+    job: Arc<Job>,
+    lease: Lease,
+    request: Option<KeptRequest>,
+) {
     let (peers, token) = (&*inner.peers, lease.token.as_str());
     let mut rx = job.subscribe();
     // The first posting first: the submission's client waits for it, and a large request
@@ -35,13 +40,13 @@ pub(super) async fn run(inner: &Arc<Inner>, job: Arc<Job>, lease: Lease, request
     }
     match request {
         Some(request) => match renewing(peers, &job.id, token, peers.keep_request(&job.id, &request)).await {
-            Ok(true) => job.kept.store(true, Ordering::SeqCst),
+            Ok(true) => job.mark_kept(),
             _ => {
                 tracing::info!(job = %job.id, "request not kept in redis: no other replica can take this job over")
             }
         },
         // A job taken over: its request is kept already.
-        None => job.kept.store(true, Ordering::SeqCst),
+        None => job.mark_kept(),
     }
     let mut renew = tokio::time::interval(peers.renew_every());
     renew.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
@@ -94,7 +99,7 @@ async fn renewing<T>(peers: &dyn Peers, id: &str, token: &str, work: impl Future
 /// what followers asked of the run.
 async fn keep(inner: &Inner, peers: &dyn Peers, job: &Job, token: &str) {
     if let Ok(false) = peers.renew(&job.id, token).await
-        && let Ok(Claim::Held(_)) = peers.acquire(&job.id, token, Take::Over).await
+        && let Ok(Acquired::Held(_)) = peers.acquire(&job.id, token, Take::Over).await
     {
         // Another replica took the job over meanwhile: both runs make the same bytes, and
         // only the holder's postings are written, so this one goes on quietly.
@@ -105,7 +110,7 @@ async fn keep(inner: &Inner, peers: &dyn Peers, job: &Job, token: &str) {
             job.cancel();
         }
         if detach {
-            job.detach(&inner.lock());
+            inner.table.detach(job);
         }
     }
 }
@@ -133,7 +138,7 @@ async fn finish(inner: &Arc<Inner>, peers: &dyn Peers, job: &Job, token: &str, s
     let posting = wire(snapshot, failure, token);
     let give_up = Instant::now() + DELIVER_FOR;
     while !renewing(peers, &job.id, token, deliver(peers, &job.id, token, result.as_ref(), &posting)).await {
-        if inner.closed.load(Ordering::SeqCst) || Instant::now() >= give_up {
+        if inner.admission.is_closed() || Instant::now() >= give_up {
             tracing::warn!(job = %job.id, "redis away: other replicas will not know this job finished");
             return;
         }
@@ -180,8 +185,8 @@ async fn deliver(
     match peers.renew(id, token).await {
         Ok(true) => {}
         Ok(false) => match peers.acquire(id, token, Take::Over).await {
-            Ok(Claim::Won) => {}
-            Ok(Claim::Held(_)) => return true,
+            Ok(Acquired::Won) => {}
+            Ok(Acquired::Held(_)) => return true,
             Err(_) => return false,
         },
         Err(_) => return false,

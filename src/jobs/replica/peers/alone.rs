@@ -3,7 +3,8 @@
 //! away. A single process thus runs the same protocol code as a replica among others, down
 //! its tested "store away" paths, and nothing it does leaves the process.
 
-use super::{Claim, Control, Kept, KeptRequest, Message, Peers, Posting, Result, Take, Unavailable};
+use super::store::{Peers, Result, Unavailable};
+use super::wire::{Acquired, Control, Kept, KeptRequest, Message, Posting, Take};
 use std::time::Duration;
 use tokio::sync::broadcast;
 
@@ -47,7 +48,7 @@ impl Peers for Alone {
         none()
     }
 
-    async fn acquire(&self, _: &str, _: &str, _: Take) -> Result<Claim> {
+    async fn acquire(&self, _: &str, _: &str, _: Take) -> Result<Acquired> {
         none()
     }
 

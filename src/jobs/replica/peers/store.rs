@@ -1,113 +1,9 @@
-//! The other replicas, as jobs see them: a store they all share, and the one interface
-//! ([`Peers`]) through which this replica's jobs talk to it.
-//!
-//! The store holds, per job: a lease (which run may run it), the run's [`Posting`] (its state,
-//! as `GET /v1/jobs/{id}` shows it), the request it was started from (so that another replica
-//! can run it again), what followers asked of the run ([`Control`]), and finished results in
-//! compact form. Postings and controls are also sent as [`Message`]s to every replica.
-//!
-//! What a replica does with these (publish the jobs it runs, follow the ones others run, take
-//! over those whose replica died) is decided in `publish`, `follow` and `takeover`, against this
-//! interface alone. [`crate::cluster`] implements it over Redis; `alone` for a replica on its
-//! own, with no store at all; the tests in memory, several replicas over one bus, with
-//! tokio's paused time.
+//! The store the replicas share, as the one trait [`Peers`] this replica's jobs talk to it
+//! through, and why an operation on it failed.
 
-mod alone;
-#[cfg(test)]
-pub(super) mod memory;
-#[cfg(test)]
-mod tests;
-
-use crate::api::ProgressEvent;
-use crate::result::Summary;
-use serde::{Deserialize, Serialize};
+use super::wire::{Acquired, Control, Kept, KeptRequest, Message, Posting, Take};
 use std::time::Duration;
 use tokio::sync::broadcast;
-
-pub(super) use alone::Alone;
-
-/// A job's state as the run holding its lease last posted it.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Posting {
-    /// `queued`, `running`, `succeeded`, `failed` or `cancelled`.
-    pub status: String,
-    /// Grows with every change, across takeovers too: the id of server-sent events.
-    pub seq: u64,
-    /// The latest progress report.
-    pub progress: Option<ProgressEvent>,
-    /// The stats, once succeeded.
-    pub stats: Option<Summary>,
-    /// Why it failed, once failed.
-    pub failure: Option<super::Failure>,
-    /// How long the engine ran, once finished.
-    pub elapsed_ms: Option<f64>,
-    /// The token of the run that posted it (see [`Peers::token`]).
-    pub run: String,
-}
-
-impl Posting {
-    /// Whether the job has finished, one way or another.
-    pub fn is_final(&self) -> bool {
-        matches!(self.status.as_str(), "succeeded" | "failed" | "cancelled")
-    }
-}
-
-/// A request as a client sent it, kept so that another replica can run the job again.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct KeptRequest {
-    /// `mesh` or `solution`: what the body was read as.
-    pub kind: String,
-    /// The body's `Content-Type`.
-    pub content_type: String,
-    /// The body.
-    pub body: bytes::Bytes,
-}
-
-/// What a follower asks of the run of a job.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Control {
-    /// Stop it.
-    Cancel,
-    /// Run it to the end even if its own clients leave: a client on another replica waits.
-    Detach,
-}
-
-/// How a run takes a lease.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Take {
-    /// For a new submission: the posting of an earlier run and what was asked of it are
-    /// dropped (its end is not this run's, and a cancel must not stop a new run).
-    Fresh,
-    /// For a takeover, or a run taking its lapsed lease again: what is stored stays.
-    Over,
-}
-
-/// What taking a lease found.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Claim {
-    /// This run holds it now.
-    Won,
-    /// Another run holds it: this token's.
-    Held(String),
-}
-
-/// A result as the store keeps it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Kept {
-    /// A run that ended on its own terms: every run of the id makes the same bytes.
-    Whole,
-    /// A run a time limit stopped: never a new request's answer (another run stops elsewhere).
-    Partial,
-}
-
-/// A message from a replica (this one included).
-#[derive(Debug, Clone)]
-pub enum Message {
-    /// Job `id` has a new posting.
-    Posted(String, Box<Posting>),
-    /// The run of job `id` is asked to act.
-    Control(String, Control),
-}
 
 /// Why the store did not answer: the replica then acts on its own.
 #[derive(Debug, Clone, thiserror::Error)]
@@ -157,7 +53,7 @@ pub trait Peers: Send + Sync + 'static {
     async fn ping(&self) -> Result<()>;
 
     /// Takes the lease on job `id` for run `token` if nobody holds it.
-    async fn acquire(&self, id: &str, token: &str, take: Take) -> Result<Claim>;
+    async fn acquire(&self, id: &str, token: &str, take: Take) -> Result<Acquired>;
 
     /// Extends run `token`'s lease on `id`; false when it no longer holds it.
     async fn renew(&self, id: &str, token: &str) -> Result<bool>;

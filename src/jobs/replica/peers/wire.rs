@@ -1,0 +1,91 @@
+//! What replicas exchange through the store: a job's [`Posting`], the request kept for a
+//! takeover, what a follower asks of a run, how a lease is taken and what that found, how a
+//! result is kept, and the messages every replica receives.
+
+use crate::api::ProgressEvent;
+use crate::jobs::Failure;
+use crate::result::Summary;
+use serde::{Deserialize, Serialize};
+
+/// A job's state as the run holding its lease last posted it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Posting {
+    /// `queued`, `running`, `succeeded`, `failed` or `cancelled`.
+    pub status: String,
+    /// Grows with every change, across takeovers too: the id of server-sent events.
+    pub seq: u64,
+    /// The latest progress report.
+    pub progress: Option<ProgressEvent>,
+    /// The stats, once succeeded.
+    pub stats: Option<Summary>,
+    /// Why it failed, once failed.
+    pub failure: Option<Failure>,
+    /// How long the engine ran, once finished.
+    pub elapsed_ms: Option<f64>,
+    /// The token of the run that posted it (see [`Peers::token`](super::Peers::token)).
+    pub run: String,
+}
+
+impl Posting {
+    /// Whether the job has finished, one way or another.
+    pub fn is_final(&self) -> bool {
+        matches!(self.status.as_str(), "succeeded" | "failed" | "cancelled")
+    }
+}
+
+/// A request as a client sent it, kept so that another replica can run the job again.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct KeptRequest {
+    /// `mesh` or `solution`: what the body was read as.
+    pub kind: String,
+    /// The body's `Content-Type`.
+    pub content_type: String,
+    /// The body.
+    pub body: bytes::Bytes,
+}
+
+/// What a follower asks of the run of a job.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Control {
+    /// Stop it.
+    Cancel,
+    /// Run it to the end even if its own clients leave: a client on another replica waits.
+    Detach,
+}
+
+/// How a run takes a lease.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Take {
+    /// For a new submission: the posting of an earlier run and what was asked of it are
+    /// dropped (its end is not this run's, and a cancel must not stop a new run).
+    Fresh,
+    /// For a takeover, or a run taking its lapsed lease again: what is stored stays.
+    Over,
+}
+
+/// What taking a lease found.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Acquired {
+    /// This run holds it now.
+    Won,
+    /// Another run holds it: this token's.
+    Held(String),
+}
+
+/// A result as the store keeps it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Kept {
+    /// A run that ended on its own terms: every run of the id makes the same bytes.
+    Whole,
+    /// A run a time limit stopped: never a new request's answer (another run stops elsewhere).
+    Partial,
+}
+
+/// A message from a replica (this one included).
+#[derive(Debug, Clone)]
+pub enum Message {
+    /// Job `id` has a new posting.
+    Posted(String, Box<Posting>),
+    /// The run of job `id` is asked to act.
+    Control(String, Control),
+}
