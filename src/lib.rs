@@ -3,35 +3,34 @@
 //!
 //! # Layout
 //! Data flows one way: `source` says what F is, `refine` builds the mesh by asking `source`
-//! for values and `geom` for topology, `result` holds the finished mesh as data, and `output`
-//! encodes it in the format a client asks for.
+//! for values and `geom` for topology, `solve` drives the same refinement from a computed
+//! solution, `result` holds a finished run as data (geometry, named fields, stats), and
+//! `output` encodes it in the format a client asks for. `jobs` is the one bridge from the
+//! async service to that engine.
 //!
 //! - [`geom`]: points, the rectangle, the half-edge mesh, edge splits and flips, constrained
 //!   edges (regions' sides, the first mesh from `spade`), exact predicates (`robust`) and
-//!   invariant checks. Depends on nothing else in the crate.
+//!   invariant checks.
 //! - [`source`]: the [`Surface`](source::Surface) trait and its two sources, a `meval`
 //!   expression compiled once and a sampled grid with bilinear interpolation, and
 //!   [`decode_grid`](source::decode_grid), which reads a grid from .npy, PNG, TIFF/GeoTIFF,
 //!   raw or JSON bytes.
-//! - [`refine`]: the refinement loop, its parameters, the worst-edge queue, the measures of a
-//!   finished mesh (V_n, E_n), and a run's trace with the replay of any prefix of it.
-//!   Depends on `geom` and `source`.
-//! - [`result`]: a finished mesh as data (arrays, per-triangle errors, stats, trace), its
-//!   checksummed binary form, and point location for F_n at any point.
+//! - [`refine`]: the refinement loop, its parameters (checked by their builder), the
+//!   worst-edge queue, the measures of a finished mesh (V_n, E_n), and a run's trace with the
+//!   replay of any prefix of it.
+//! - [`result`]: a finished run as data: arrays, named fields per vertex or triangle (with
+//!   units), stats, trace; its checksummed binary form, and point location for F_n anywhere.
 //! - [`solve`]: P1 finite elements on a mesh's vertices and triangles: −∇·(k ∇u) = f with
 //!   Dirichlet, Neumann and periodic sides, regions that are rectangles or polygons, B–H
 //!   curves solved by Newton, magnets, region forces, a sparse Cholesky solve, error norms
-//!   against an exact solution, and the adaptive loop. Depends on `geom` and `refine`.
+//!   against an exact solution, the adaptive loop, and each physics' derived fields.
 //! - [`output`]: the formats (json, obj, ply, stl, vtu, msh, glb, svg, png), each streamed
-//!   from a result; shared by the command line and the API.
-//! - [`jobs`]: validated, hashed job specs, the job record, the table, admission (the
-//!   bounded worker pool, each client's share of it, the memory budget), the worker, the cache
-//!   of results, why a job failed as data ([`jobs::Failure`]), and [`jobs::peers`], the one
-//!   trait through which jobs talk to other replicas (a replica on its own implements it with
-//!   no store). The only bridge between async code and the engine.
+//!   from a result and looping over its fields; shared by the command line and the API.
+//! - [`jobs`]: validated, hashed job specs, the job table, admission (the bounded worker
+//!   pool, each client's share of it, the memory budget), the worker, the cache of results,
+//!   and the replica protocol behind one trait ([`jobs::peers::Peers`]).
 //! - [`cluster`]: Redis, for replicas that share results and jobs: implements
-//!   [`jobs::peers::Peers`] in keys, scripts and channels. `jobs` decides what to do with
-//!   them, and knows nothing of Redis.
+//!   [`jobs::peers::Peers`] in keys, scripts and channels.
 //! - [`http`]: connections (their cap and timeouts), access (keys, origins), routes,
 //!   handlers, problem documents, server-sent events, and the page at `/`.
 //! - [`cpu`]: where CPU-bound work runs: the blocking pool, below the async workers' priority.
@@ -39,16 +38,22 @@
 //!   default, help, parser), arriving grouped by the part of the service that takes it.
 //! - [`api`]: the wire types; [`metrics`] and [`telemetry`] support the service.
 //!
-//! No two files import each other in a circle (`tests/layout.rs` checks it):
+//! Every arrow between these modules, and no other (`tests/layout.rs` checks both, and that no
+//! two files import each other in a circle):
 //!
 //! ```text
-//! http ──▶ jobs ──▶ refine ──▶ geom
-//!   │        │        └──────▶ source ──▶ geom
-//!   │        └──▶ result ──▶ refine
-//!   └──▶ api, output ──▶ result
-//! cluster ──▶ jobs::peers (Redis behind the trait jobs talks to replicas through)
-//! solve ──▶ geom
-//! config ──▶ jobs (its groups: Limits, Pool, CacheSettings); http, cluster ──▶ config
+//! geom      ──▶ (nothing)
+//! source    ──▶ geom
+//! refine    ──▶ geom, source
+//! result    ──▶ geom, refine
+//! solve     ──▶ geom, refine, result
+//! output    ──▶ geom, refine, result
+//! api       ──▶ refine, result, solve, source
+//! jobs      ──▶ api, cpu, geom, metrics, refine, result, solve, source
+//! cluster   ──▶ config, jobs
+//! config    ──▶ jobs, refine
+//! telemetry ──▶ config
+//! http      ──▶ api, config, cpu, geom, jobs, metrics, output, refine, result, source
 //! ```
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]

@@ -1,7 +1,8 @@
 //! The one subscription of a replica: postings and control messages from every replica, handed
 //! out through a broadcast channel; reconnects by itself.
 
-use super::{CONTROL, EVENTS, Inner};
+use super::keys::{CONTROL, EVENTS};
+use super::link::Inner;
 use crate::jobs::peers::{Control, Message};
 use futures_util::StreamExt;
 use std::sync::Weak;
