@@ -1,6 +1,6 @@
 //! Replicas that share results and jobs through Redis (`MESHFIT_REDIS_URL`).
 //!
-//! This module is the transport: [`Cluster`] implements [`Peers`], the store that
+//! This module is the transport: [`Cluster`] implements [`Peers`](crate::jobs::peers::Peers), the store that
 //! [`crate::jobs`] shares with the other replicas, in Redis keys, scripts and channels. What a
 //! replica does with it (follow a job another replica runs, take over one whose replica died)
 //! is decided in `jobs`, which knows nothing of Redis.
@@ -14,7 +14,7 @@
 //! |---|---|---|
 //! | `meshfit:result:{id}` | a finished result, compact and checksummed | `MESHFIT_REDIS_TTL_MS` |
 //! | `meshfit:partial:{id}` | a result a time limit stopped (never a new request's answer) | same |
-//! | `meshfit:job:{id}` | the job's [`Posting`] as JSON | same |
+//! | `meshfit:job:{id}` | the job's [`Posting`](crate::jobs::peers::Posting) as JSON | same |
 //! | `meshfit:lease:{id}` | the token of the run holding it: replica and run number | `MESHFIT_REDIS_LEASE_MS`, renewed |
 //! | `meshfit:request:{id}` | the request body, so another replica can take the job over | same as results |
 //! | `meshfit:pending` | ids of jobs not finished, with a stored request | |

@@ -17,7 +17,7 @@ use crate::geom::{Mesh, Rect};
 use crate::source::Surface;
 use std::time::Instant;
 
-/// Refines S₄ on `rect` until a stop rule of `params` fires. See the [module docs](self).
+/// Refines S₄ on `rect` until a stop rule of `params` fires. See the [module docs](crate::refine).
 ///
 /// # Errors
 /// [`RefineError::NonFinite`] when F is not finite at a corner or at a point the refinement

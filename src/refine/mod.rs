@@ -1,7 +1,7 @@
 //! Refinement by dividing the worst segment.
 //!
 //! # Usage
-//! [`refine`] takes a [`Surface`], the rectangle, [`Params`] and an [`Observer`], and returns
+//! [`refine`] takes a [`Surface`](crate::source::Surface), the rectangle, [`Params`] and an [`Observer`], and returns
 //! the mesh with its [`Stats`]:
 //! ```
 //! use meshfit::geom::Rect;

@@ -27,7 +27,7 @@ pub trait Observer {
     /// A progress snapshot of `mesh`, at most every [`PROGRESS_INTERVAL`].
     fn progress(&mut self, _mesh: &Mesh, _progress: &Progress) {}
 
-    /// Checked before every insertion; `true` stops the run with [`StopReason::Cancelled`].
+    /// Checked before every insertion; `true` stops the run with [`StopReason::Cancelled`](super::StopReason::Cancelled).
     fn is_cancelled(&self) -> bool {
         false
     }

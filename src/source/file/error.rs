@@ -158,7 +158,7 @@ pub enum GridFileError {
         ny: u64,
         /// nx·ny, saturated at `u64::MAX`.
         requested: u64,
-        /// The limit given to [`decode_grid`].
+        /// The limit given to [`decode_grid`](super::decode_grid).
         allowed: usize,
     },
     /// Fewer than two samples along an axis.

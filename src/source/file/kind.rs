@@ -3,7 +3,7 @@
 use super::hints::{GridHints, raw_size};
 use std::fmt;
 
-/// The format [`decode_grid`] recognised.
+/// The format [`decode_grid`](super::decode_grid) recognised.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum GridFileKind {
     /// A NumPy .npy array.
