@@ -11,9 +11,9 @@
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use meshfit::api::SolveRequest;
 use meshfit::geom::Rect;
-use meshfit::jobs::{Limits, SolveSpec};
 use meshfit::refine::{Params, refine};
 use meshfit::solve::{Problem, Settings, adapt, solve};
+use meshfit::spec::{Limits, SolveSpec};
 use std::time::Duration;
 
 fn peak(x: f64, y: f64) -> f64 {

@@ -5,7 +5,8 @@
 //! once, in [`SETTINGS`]: its variable, flag, default, help and parser; `meshfit serve`'s flags
 //! and `--help` are made from it, and tests hold the README's table and the defaults to it.
 
-use crate::jobs::{CacheSettings, Limits, Pool};
+use crate::jobs::{CacheSettings, Pool};
+use crate::spec::Limits;
 use ipnet::IpNet;
 use sha2::{Digest, Sha256};
 use std::collections::{BTreeMap, HashSet};

@@ -26,9 +26,11 @@
 //!   against an exact solution, the adaptive loop, and each physics' derived fields.
 //! - [`output`]: the formats (json, obj, ply, stl, vtu, msh, glb, svg, png), each streamed
 //!   from a result and looping over its fields; shared by the command line and the API.
-//! - [`jobs`]: validated, hashed job specs, the job table, admission (the bounded worker
-//!   pool, each client's share of it, the memory budget), the worker, the cache of results,
-//!   and the replica protocol behind one trait ([`jobs::peers::Peers`]).
+//! - [`spec`]: a request checked against the server's limits and mapped to the engine's
+//!   types, whose constructors hold the engine's rules, as a canonical, hashed job spec.
+//! - [`jobs`]: the job table, admission (the bounded worker pool, each client's share of it,
+//!   the memory budget), the worker, the cache of results, and the replica protocol behind
+//!   one trait ([`jobs::peers::Peers`]).
 //! - [`cluster`]: Redis, for replicas that share results and jobs: implements
 //!   [`jobs::peers::Peers`] in keys, scripts and channels.
 //! - [`http`]: connections (their cap and timeouts), access (keys, origins), routes,
@@ -49,11 +51,12 @@
 //! solve     ──▶ geom, refine, result
 //! output    ──▶ geom, refine, result
 //! api       ──▶ refine, result, solve, source
-//! jobs      ──▶ api, cpu, geom, metrics, refine, result, solve, source
+//! spec      ──▶ api, geom, refine, solve, source
+//! jobs      ──▶ api, cpu, geom, metrics, refine, result, solve, source, spec
 //! cluster   ──▶ config, jobs
-//! config    ──▶ jobs, refine
+//! config    ──▶ jobs, refine, spec
 //! telemetry ──▶ config
-//! http      ──▶ api, config, cpu, geom, jobs, metrics, output, refine, result, source
+//! http      ──▶ api, config, cpu, geom, jobs, metrics, output, refine, result, source, spec
 //! ```
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -71,6 +74,7 @@ pub mod refine;
 pub mod result;
 pub mod solve;
 pub mod source;
+pub mod spec;
 pub mod telemetry;
 
 use config::Config;

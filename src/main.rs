@@ -6,14 +6,12 @@ use clap::{Args, Parser, Subcommand};
 use meshfit::api::{DomainInput, GridInput, JobRequest, SolveRequest};
 use meshfit::config::{Config, RawConfig, SETTINGS, Setting};
 use meshfit::geom::Rect;
-use meshfit::jobs::{
-    JobSpec, Limits, SOLUTION_BYTES_PER_VERTEX, SolveSpec, SpecError, available_memory,
-    cli_mesh_bytes_per_vertex,
-};
+use meshfit::jobs::{SOLUTION_BYTES_PER_VERTEX, available_memory, cli_mesh_bytes_per_vertex};
 use meshfit::output::{self, Format, Options, json};
 use meshfit::refine::{Criterion, Method, estimate_error, refine};
 use meshfit::result::MeshResult;
 use meshfit::source::{Encoding, RawType};
+use meshfit::spec::{JobSpec, Limits, SolveSpec, SpecError};
 use std::io::{BufWriter, Write};
 use std::net::SocketAddr;
 use std::path::PathBuf;

@@ -227,14 +227,14 @@ fn solve_prints_the_solution_document_the_api_serves() {
     let path = temp_file("solve_inclusion.json", request);
     let doc = document(&["solve", path.to_str().unwrap()]);
     // The document the API encodes for the same request, without its id.
-    let limits = meshfit::jobs::Limits {
+    let limits = meshfit::spec::Limits {
         max_vertices: 1 << 20,
         max_grid_points: 1 << 20,
         max_expression_len: 4096,
         job_time_limit: std::time::Duration::from_secs(600),
     };
     let (spec, _) =
-        meshfit::jobs::SolveSpec::from_request(serde_json::from_str(request).unwrap(), &limits).unwrap();
+        meshfit::spec::SolveSpec::from_request(serde_json::from_str(request).unwrap(), &limits).unwrap();
     let adapted = spec.solve(&mut ()).unwrap();
     let result = std::sync::Arc::new(adapted.into_result(spec.physics));
     let encoded =

@@ -8,11 +8,11 @@ use super::state::AppState;
 use crate::api::{JobRequest, JobStatus, JsonError, Links, SolveRequest};
 use crate::jobs::peers::KeptRequest;
 use crate::jobs::{
-    Client, Found, JobError, JobKeys, JobSpec, Lifetime, Limits, Outcome, Record, RequestParser, Snapshot,
-    Status, Ticket, Waiter, Work, job_keys,
+    Client, Found, JobError, Lifetime, Outcome, Record, RequestParser, Snapshot, Status, Ticket, Waiter,
 };
 use crate::refine::StopReason;
 use crate::result::MeshResult;
+use crate::spec::{JobKeys, JobSpec, Limits, Work, job_keys};
 use axum::Extension;
 use axum::extract::{Path, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, Uri, header};

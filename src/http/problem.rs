@@ -1,8 +1,9 @@
 //! ApiError: every failure the API reports, written as RFC 9457 `application/problem+json`.
 
 use crate::api::{JsonError, pointer};
-use crate::jobs::{Cause, Failure, JobError, SpecError, SubmitError};
+use crate::jobs::{Cause, Failure, JobError, SubmitError};
 use crate::output::Format;
+use crate::spec::SpecError;
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use serde_json::{Map, Value, json};

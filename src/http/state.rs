@@ -2,9 +2,10 @@
 //! bound on large bodies parsed at once.
 
 use crate::config::BodyLimits;
-use crate::jobs::{Jobs, Limits};
+use crate::jobs::Jobs;
 use crate::result::MeshResult;
 use crate::result::locate::Locator;
+use crate::spec::Limits;
 use std::sync::{Arc, Weak};
 
 /// Locators of recently evaluated results, each with the result it indexes: a result

@@ -6,6 +6,8 @@
 //! cache's meshes in memory as they stand.
 
 use crate::refine::Criterion;
+use crate::source::Source;
+use crate::spec::{JobSpec, Work};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -163,6 +165,21 @@ pub fn available_memory() -> Option<u64> {
     match (meminfo("MemAvailable"), container) {
         (Some(a), Some(c)) => Some(a.min(c)),
         (a, c) => a.or(c),
+    }
+}
+
+/// The most memory a job of `spec` holds while it waits and runs: its decoded grid and its
+/// vertex budget at the measured bytes per vertex.
+pub(crate) fn memory_bytes(spec: &JobSpec) -> u64 {
+    match &spec.work {
+        Work::Mesh(m) => {
+            let grid = match &*m.source {
+                Source::Grid(g) => (g.nx() * g.ny()) as u64 * GRID_BYTES_PER_POINT,
+                Source::Expression(_) => 0,
+            };
+            grid + m.params.max_vertices() as u64 * MESH_BYTES_PER_VERTEX
+        }
+        Work::Solve(s) => s.settings.max_vertices as u64 * SOLUTION_BYTES_PER_VERTEX,
     }
 }
 

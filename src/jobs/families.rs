@@ -1,4 +1,4 @@
-//! Families: per family of requests (see [`super::JobKeys`]), the cached run that went
+//! Families: per family of requests (see [`crate::spec::JobKeys`]), the cached run that went
 //! furthest, the one that answers the most smaller requests by replay.
 
 use crate::result::MeshResult;

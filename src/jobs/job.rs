@@ -160,7 +160,7 @@ enum Stop {
 pub struct Job {
     /// Set at creation, never changed.
     pub(super) id: String,
-    /// The id of the requests whose runs are prefixes of this one's (see [`super::JobKeys`]).
+    /// The id of the requests whose runs are prefixes of this one's (see [`crate::spec::JobKeys`]).
     /// Set at creation, never changed.
     pub(super) family: String,
     /// Whether another replica runs the job and this one follows it through the store. Set at

@@ -1,18 +1,15 @@
 //! Jobs: the one bridge between async handlers and the synchronous engine.
 //!
-//! A submitted [`JobSpec`] gets an id (its canonical hash). A cached result answers at once;
-//! a smaller request of a cached run's family is replayed from its trace; an identical job
-//! already queued or running is joined; otherwise a new job waits for one of `workers`
-//! workers (handed out by `dispatch`) and then refines on tokio's blocking pool
-//! ([`crate::cpu`], at a lower OS priority than the async workers). The tokio docs for
+//! A submitted [`JobSpec`](crate::spec::JobSpec) (made by [`crate::spec`]) gets an id (its
+//! canonical hash). A cached result answers at once; a smaller request of a cached run's
+//! family is replayed from its trace; an identical job already queued or running is joined;
+//! otherwise a new job waits for one of `workers` workers (handed out by `dispatch`) and then
+//! refines on tokio's blocking pool ([`crate::cpu`], at a lower OS priority than the async workers). The tokio docs for
 //! `spawn_blocking` recommend exactly this: the blocking pool itself is large, so CPU-bound
 //! work needs its own bound.
 //!
 //! The files, in the order data flows through them (none imports one below it that imports
 //! it back):
-//! - `checks`, `spec`, `solution`, `key`: a request checked against the server's [`Limits`]
-//!   ([`SpecError`] names the field at fault), as a canonical [`JobSpec`] of a mesh or of a
-//!   boundary value problem, and its id;
 //! - `failure`: why a job failed as data ([`Failure`]), the same whichever replica ran it;
 //! - `job`: one job: its lifecycle ([`Status`], changed only by the job's own methods), its
 //!   stop request, its clients (counted under the table's lock), its outcome, and
@@ -43,18 +40,14 @@
 mod admission;
 mod budget;
 mod cache;
-mod checks;
 mod dispatch;
 mod failure;
 mod families;
 mod inner;
 mod job;
-mod key;
 mod registry;
 mod replica;
 mod share;
-mod solution;
-mod spec;
 mod start;
 mod submit;
 mod table;
@@ -67,14 +60,10 @@ pub use budget::{
     default_limit as default_memory_bytes,
 };
 pub use cache::{Cache, CacheSettings, Hit};
-pub use checks::{DEFAULT_MAX_VERTICES, Limits, SpecError};
 pub use failure::{Cause, Failure};
 pub use job::{Job, JobError, Lifetime, Outcome, Record, Snapshot, Status};
-pub use key::{ENGINE_VERSION, JobKeys, job_id, job_keys};
 pub use registry::{Found, Jobs};
 pub use replica::{RequestParser, peers};
 pub use share::Client;
-pub use solution::{Coef, SolveSpec};
-pub use spec::{JobSpec, MeshSpec, Work};
 pub use table::Waiter;
 pub use ticket::Ticket;

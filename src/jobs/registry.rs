@@ -12,9 +12,10 @@ use super::replica::{RequestParser, follow, takeover};
 use super::share::Client;
 use super::table::{Listing, Table, Waiter};
 use super::ticket::Ticket;
-use super::{Cache, JobKeys, JobSpec, submit};
+use super::{Cache, submit};
 use crate::metrics::Metrics;
 use crate::result::MeshResult;
+use crate::spec::{JobKeys, JobSpec};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -272,8 +273,9 @@ mod tests {
 
     use super::*;
     use crate::api::JobRequest;
-    use crate::jobs::{JobError, Limits, Outcome, job_keys};
+    use crate::jobs::{JobError, Outcome};
     use crate::refine::StopReason;
+    use crate::spec::{Limits, job_keys};
     use std::num::NonZeroUsize;
     use std::time::Duration;
 

@@ -1,7 +1,6 @@
 //! The start of a run: a job admitted here is listed in the table, given to a worker and,
 //! when it holds a lease, to the task that publishes it to the other replicas.
 
-use super::JobSpec;
 use super::admission::SubmitError;
 use super::inner::Inner;
 use super::job::{Job, Lifetime};
@@ -12,6 +11,7 @@ use super::share::Client;
 use super::table::Started;
 use super::ticket::Ticket;
 use super::worker;
+use crate::spec::JobSpec;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 
@@ -42,11 +42,12 @@ impl Inner {
         self.metrics.cache_misses.inc();
         let mut admitted = None;
         let started = self.table.start(&id, lifetime, lease.is_some(), || {
-            let admission = self.admission.admit(client, spec.memory_bytes()).inspect_err(|e| {
-                if let SubmitError::OverBudget { .. } = e {
-                    self.metrics.memory_refusals.inc();
-                }
-            })?;
+            let admission =
+                self.admission.admit(client, super::budget::memory_bytes(&spec)).inspect_err(|e| {
+                    if let SubmitError::OverBudget { .. } = e {
+                        self.metrics.memory_refusals.inc();
+                    }
+                })?;
             admitted = Some(admission);
             self.metrics.jobs_queued.inc();
             Ok(Arc::new(Job::new(id.clone(), family, lifetime, false, seq)))

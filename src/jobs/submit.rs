@@ -15,9 +15,9 @@ use super::share::Client;
 use super::start::Start;
 use super::table::Joined;
 use super::ticket::Ticket;
-use super::{JobKeys, JobSpec};
 use crate::refine::trace::replay;
 use crate::result::MeshResult;
+use crate::spec::{JobKeys, JobSpec};
 use std::sync::Arc;
 
 /// Answers from the cache, joins an identical job, follows it on another replica, or starts a

@@ -4,13 +4,13 @@
 use super::admission::Admitted;
 use super::inner::Inner;
 use super::job::{Job, JobError, Outcome};
-use super::{JobSpec, Work};
 use crate::api::ProgressEvent;
 use crate::geom::Mesh;
 use crate::metrics::StateLabel;
 use crate::refine::trace::Recorder;
 use crate::refine::{Observer, Progress, StopReason, refine};
 use crate::result::MeshResult;
+use crate::spec::{JobSpec, Work};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 

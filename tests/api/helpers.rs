@@ -1,7 +1,8 @@
 //! `spawn_app()`: a real server on 127.0.0.1:0 with small limits, and request helpers.
 
 use meshfit::config::{BodyLimits, Callers, Config, Connections, Redis};
-use meshfit::jobs::{CacheSettings, Limits, Pool};
+use meshfit::jobs::{CacheSettings, Pool};
+use meshfit::spec::Limits;
 use reqwest::{Client, Response};
 use serde_json::Value;
 use std::net::SocketAddr;

@@ -1,7 +1,7 @@
 //! How a request another replica kept is read, for a takeover.
 
 use super::peers::KeptRequest;
-use crate::jobs::{JobKeys, JobSpec};
+use crate::spec::{JobKeys, JobSpec};
 
 /// How a request another replica kept is read when replicas share: the server's own parsing
 /// of a request body (its content types are the HTTP layer's), given to the registry by the

@@ -7,12 +7,10 @@ use super::memory::{Bus, Replica};
 use super::{KeptRequest, Peers};
 use crate::api::JobRequest;
 use crate::jobs::dispatch::Worker;
-use crate::jobs::{
-    Cache, Client, JobError, JobKeys, JobSpec, Jobs, Lifetime, Limits, Outcome, Pool, RequestParser, Ticket,
-    Waiter, job_keys,
-};
+use crate::jobs::{Cache, Client, JobError, Jobs, Lifetime, Outcome, Pool, RequestParser, Ticket, Waiter};
 use crate::metrics::Metrics;
 use crate::result::{MeshResult, compact};
+use crate::spec::{JobKeys, JobSpec, Limits, job_keys};
 use futures_util::future::BoxFuture;
 use std::num::NonZeroUsize;
 use std::sync::Arc;

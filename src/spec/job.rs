@@ -63,22 +63,6 @@ impl JobSpec {
         Ok(Self { work: Work::Solve(Arc::new(spec)), requested_time_limit })
     }
 
-    /// The most memory the job holds while it waits and runs: its decoded grid and its
-    /// vertex budget at the measured bytes per vertex (see `budget`).
-    pub fn memory_bytes(&self) -> u64 {
-        use super::budget::{GRID_BYTES_PER_POINT, MESH_BYTES_PER_VERTEX, SOLUTION_BYTES_PER_VERTEX};
-        match &self.work {
-            Work::Mesh(m) => {
-                let grid = match &*m.source {
-                    Source::Grid(g) => (g.nx() * g.ny()) as u64 * GRID_BYTES_PER_POINT,
-                    Source::Expression(_) => 0,
-                };
-                grid + m.params.max_vertices() as u64 * MESH_BYTES_PER_VERTEX
-            }
-            Work::Solve(s) => s.settings.max_vertices as u64 * SOLUTION_BYTES_PER_VERTEX,
-        }
-    }
-
     /// The mesh part, for a mesh job.
     pub fn mesh(&self) -> Option<&MeshSpec> {
         match &self.work {

@@ -4,8 +4,8 @@
 //! filled in, so key order, `1` versus `1.0` and omitted defaults never make a new entry.
 //! std's `DefaultHasher` is not used: its docs say its output may change between releases.
 
+use super::job::{JobSpec, Work};
 use super::solution::{Coef, SolveSpec};
-use super::spec::{JobSpec, Work};
 use crate::solve::Shape;
 use crate::source::Source;
 use sha2::{Digest, Sha256};
@@ -137,10 +137,10 @@ fn solution_fields(h: &mut Sha256, spec: &SolveSpec, field: fn(&mut Sha256, &str
 mod tests {
     use super::*;
     use crate::api::JobRequest;
-    use crate::jobs::Limits;
     use crate::output::{self, Format, Options};
     use crate::refine::refine;
     use crate::result::MeshResult;
+    use crate::spec::Limits;
     use std::sync::Arc;
     use std::time::Duration;
 

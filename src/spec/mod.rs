@@ -1,0 +1,21 @@
+//! Requests as the engine takes them: the wire's request types checked against the server's
+//! [`Limits`] (none on the command line) and mapped to domain types, whose own constructors
+//! hold the engine's rules ([`crate::refine::ParamsBuilder`], [`crate::solve::Polygon::try_new`],
+//! [`crate::solve::Region::try_new`]), as a canonical [`JobSpec`] with its id.
+//!
+//! - `checks`: the server's [`Limits`], and [`SpecError`], which names the request field at
+//!   fault;
+//! - `job`: [`JobSpec`], a mesh ([`MeshSpec`]) or a solution, from a JSON request or an
+//!   uploaded grid file;
+//! - `solution`: [`SolveSpec`], a boundary value problem;
+//! - `key`: a spec's canonical hash, the job's id, under [`ENGINE_VERSION`].
+
+mod checks;
+mod job;
+mod key;
+mod solution;
+
+pub use checks::{DEFAULT_MAX_VERTICES, Limits, SpecError};
+pub use job::{JobSpec, MeshSpec, Work};
+pub use key::{ENGINE_VERSION, JobKeys, job_id, job_keys};
+pub use solution::{Coef, SolveSpec};
