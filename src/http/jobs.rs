@@ -12,6 +12,7 @@ use crate::jobs::{
 };
 use crate::refine::StopReason;
 use crate::result::MeshResult;
+use crate::result::Stop;
 use crate::spec::{JobKeys, JobSpec, Limits, Work, job_keys};
 use axum::Extension;
 use axum::extract::{Path, State};
@@ -194,7 +195,7 @@ fn status_body(id: &str, found: &Found) -> JobStatus {
 /// makes it a partial answer whatever found it.
 fn served(result: &MeshResult, otherwise: negotiate::Provenance) -> negotiate::Provenance {
     match result.stats.stop() {
-        StopReason::TimeLimit => negotiate::Provenance::Partial,
+        Stop::Mesh(StopReason::TimeLimit) => negotiate::Provenance::Partial,
         _ => otherwise,
     }
 }
@@ -330,7 +331,8 @@ async fn finished_outcome(state: &AppState, id: &str, found: Found) -> Option<(O
             (Some(e), _) => (Outcome::Failed(e.clone()), r.elapsed),
             (None, Status::Cancelled) => (Outcome::Cancelled, r.elapsed),
             _ => {
-                let stopped_by_time = r.stats.as_ref().is_some_and(|s| s.stop() == StopReason::TimeLimit);
+                let stopped_by_time =
+                    r.stats.as_ref().is_some_and(|s| s.stop() == Stop::Mesh(StopReason::TimeLimit));
                 let result = match stopped_by_time {
                     true => state.jobs.partial(id).await,
                     false => state.jobs.cached(id).await,

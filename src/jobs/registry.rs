@@ -451,7 +451,10 @@ mod tests {
         let Ticket::Prefix(result) = submit(&jobs, request(small), Lifetime::WhileWaited).await else {
             panic!("not a prefix")
         };
-        assert_eq!((result.vertices.len(), result.stats.stop()), (700, StopReason::MaxVertices));
+        assert_eq!(
+            (result.vertices.len(), result.stats.stop()),
+            (700, crate::result::Stop::Mesh(StopReason::MaxVertices))
+        );
         assert_eq!(jobs.metrics().engine_runs.get(), 1);
     }
 }

@@ -10,6 +10,8 @@ use crate::metrics::StateLabel;
 use crate::refine::trace::Recorder;
 use crate::refine::{Observer, Progress, StopReason, refine};
 use crate::result::MeshResult;
+use crate::result::Stop;
+use crate::solve::SolveObserver;
 use crate::spec::{JobSpec, Work};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -72,8 +74,10 @@ struct JobObserver<'a> {
     published: Option<Instant>,
 }
 
-impl Observer for JobObserver<'_> {
-    fn progress(&mut self, mesh: &Mesh, p: &Progress) {
+impl JobObserver<'_> {
+    /// Publishes `p`, with Newton's steps and residual for a solve, unless one went out less
+    /// than [`PROGRESS_EVERY`] ago.
+    fn publish(&mut self, mesh: &Mesh, p: &Progress, newton: Option<(u32, f64)>) {
         let now = Instant::now();
         if self.published.is_some_and(|last| now - last < PROGRESS_EVERY) {
             return;
@@ -84,10 +88,22 @@ impl Observer for JobObserver<'_> {
             triangles: p.triangles,
             worst: p.worst,
             elapsed_ms: p.elapsed.as_secs_f64() * 1e3,
-            newton_iterations: p.newton.map(|n| n.0),
-            newton_residual: p.newton.map(|n| n.1),
+            newton_iterations: newton.map(|n| n.0),
+            newton_residual: newton.map(|n| n.1),
         };
         self.job.report(self.points.then(|| mesh.vertices()), event);
+    }
+}
+
+impl SolveObserver for JobObserver<'_> {
+    fn solved(&mut self, mesh: &Mesh, p: &Progress, newton: Option<(u32, f64)>) {
+        self.publish(mesh, p, newton);
+    }
+}
+
+impl Observer for JobObserver<'_> {
+    fn progress(&mut self, mesh: &Mesh, p: &Progress) {
+        self.publish(mesh, p, None);
     }
 
     fn is_cancelled(&self) -> bool {
@@ -123,9 +139,9 @@ fn compute(job: &Job, spec: &JobSpec, inner: &Inner) -> (Outcome, Option<Duratio
     };
     let elapsed = Some(elapsed);
     let result = match result.stats.stop() {
-        StopReason::Cancelled => return (Outcome::Cancelled, elapsed),
+        Stop::Mesh(StopReason::Cancelled) => return (Outcome::Cancelled, elapsed),
         // Never a family's run to replay from, so no trace to keep.
-        StopReason::TimeLimit => {
+        Stop::Mesh(StopReason::TimeLimit) => {
             let result = Arc::new(result);
             inner.cache.insert_partial(&job.id, result.clone());
             result

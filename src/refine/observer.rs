@@ -14,8 +14,6 @@ pub struct Progress {
     pub worst: f64,
     /// Time since the refinement started.
     pub elapsed: Duration,
-    /// A nonlinear solve's Newton steps and final relative residual.
-    pub newton: Option<(u32, f64)>,
 }
 
 /// How often [`Observer::progress`] is called at most.

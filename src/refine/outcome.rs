@@ -19,9 +19,6 @@ pub enum StopReason {
     Cancelled,
     /// Every remaining candidate was retired (too short, or its split would fold a triangle).
     Exhausted,
-    /// A boundary value problem's Newton iteration did not converge on the latest mesh; the
-    /// result is the last round that did.
-    NotConverged,
 }
 
 /// Counters and the outcome of a run.

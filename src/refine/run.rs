@@ -105,7 +105,6 @@ impl<'a, O: Observer> Run<'a, O> {
                         triangles: mesh.num_triangles(),
                         worst: worst(),
                         elapsed: now - self.start,
-                        newton: None,
                     },
                 );
             }

@@ -181,13 +181,12 @@ pub fn write(result: &MeshResult, id: &str, out: impl Write) -> io::Result<u64> 
 /// The codes of a trace's method, criterion and stop reason: their index here.
 const METHODS: [Method; 3] = [Method::Recursive, Method::SemiRecursive, Method::DataDependent];
 const CRITERIA: [Criterion; 2] = [Criterion::Variation, Criterion::Error];
-const STOPS: [StopReason; 6] = [
+const STOPS: [StopReason; 5] = [
     StopReason::MaxVertices,
     StopReason::Tolerance,
     StopReason::TimeLimit,
     StopReason::Cancelled,
     StopReason::Exhausted,
-    StopReason::NotConverged,
 ];
 
 /// Reads little-endian fields off the front of a slice.

@@ -21,7 +21,7 @@ mod stats;
 
 pub use field::{Field, Lines, Location, Role};
 pub use finished::{MeshResult, triangle_errors};
-pub use stats::{Physics, RegionStats, SolutionStats, SolveStats, Step, Summary};
+pub use stats::{Physics, RegionStats, SolutionStats, SolveStats, Step, Stop, Summary};
 
 #[cfg(test)]
 pub(crate) mod testing {

@@ -26,11 +26,55 @@ pub struct SolutionStats {
     pub run: SolveStats,
 }
 
+/// Why a run stopped: one of the mesher's reasons, or a solver's own. Written as one name
+/// (`"max_vertices"`, `"not_converged"`), whichever it is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(into = "StopName", from = "StopName")]
+pub enum Stop {
+    /// The mesher stopped: its budget, tolerance, time limit, cancellation or exhaustion.
+    Mesh(StopReason),
+    /// A boundary value problem's Newton iteration did not converge on the latest mesh; the
+    /// result is the last round that did.
+    NotConverged,
+}
+
+/// [`Stop`] as written: the mesher's name, or the solver's.
+#[derive(Clone, Copy, Serialize, Deserialize)]
+#[serde(untagged)]
+enum StopName {
+    Mesh(StopReason),
+    Solver(SolverStop),
+}
+
+#[derive(Clone, Copy, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum SolverStop {
+    NotConverged,
+}
+
+impl From<Stop> for StopName {
+    fn from(stop: Stop) -> Self {
+        match stop {
+            Stop::Mesh(reason) => StopName::Mesh(reason),
+            Stop::NotConverged => StopName::Solver(SolverStop::NotConverged),
+        }
+    }
+}
+
+impl From<StopName> for Stop {
+    fn from(name: StopName) -> Self {
+        match name {
+            StopName::Mesh(reason) => Stop::Mesh(reason),
+            StopName::Solver(SolverStop::NotConverged) => Stop::NotConverged,
+        }
+    }
+}
+
 impl Summary {
     /// Why the run stopped.
-    pub fn stop(&self) -> StopReason {
+    pub fn stop(&self) -> Stop {
         match self {
-            Summary::Mesh(s) => s.stop,
+            Summary::Mesh(s) => Stop::Mesh(s.stop),
             Summary::Solution(s) => s.run.stop,
         }
     }
@@ -106,7 +150,7 @@ pub struct SolveStats {
     /// Edges retired instead of split.
     pub retired_edges: u64,
     /// Why the loop stopped.
-    pub stop: StopReason,
+    pub stop: Stop,
     /// Whether the final mesh passes the exact in-circle test on every interior edge that is
     /// not a region's side: a constrained Delaunay triangulation when there are regions.
     pub delaunay: bool,
@@ -138,4 +182,22 @@ pub struct RegionStats {
     pub force: [f64; 2],
     /// The torque about the origin (N·m/m).
     pub torque: f64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_stop_is_written_as_one_name_whichever_part_stopped_and_reads_back() {
+        for (stop, name) in [
+            (Stop::Mesh(StopReason::TimeLimit), "\"time_limit\""),
+            (Stop::Mesh(StopReason::Exhausted), "\"exhausted\""),
+            (Stop::NotConverged, "\"not_converged\""),
+        ] {
+            assert_eq!(serde_json::to_string(&stop).unwrap(), name);
+            assert_eq!(serde_json::from_str::<Stop>(name).unwrap(), stop);
+        }
+        assert!(serde_json::from_str::<Stop>("\"tired\"").is_err());
+    }
 }

@@ -18,7 +18,7 @@ use super::residual::Residual;
 use super::solution::{ErrorNorms, solve_with};
 use crate::geom::Mesh;
 use crate::refine::{Criterion, Floors, Method, Observer, Params, Progress, StopReason, resume, variation};
-use crate::result::{SolveStats, Step};
+use crate::result::{SolveStats, Step, Stop};
 use serde::{Deserialize, Serialize};
 use std::time::{Duration, Instant};
 
@@ -96,7 +96,7 @@ pub type Exact<'e> = &'e (dyn Fn(f64, f64) -> f64 + Sync);
 ///
 /// # Errors
 /// The first [`SolveError`] of a solve or of the indicator's sampling of k and f.
-pub fn adapt<O: Observer>(
+pub fn adapt<O: SolveObserver>(
     problem: &Problem<'_>,
     exact: Option<Exact<'_>>,
     settings: &Settings,
@@ -141,7 +141,7 @@ pub fn adapt<O: Observer>(
         let converged = solution.newton.as_ref().is_none_or(|n| n.converged);
         if !converged && !run.history.is_empty() {
             // The mesh keeps the last converged solution, interpolated.
-            return run.finish(mesh, &residual, settings.indicator, StopReason::NotConverged);
+            return run.finish(mesh, &residual, settings.indicator, Stop::NotConverged);
         }
         mesh.set_values(&solution.u);
         let estimate = match settings.indicator {
@@ -172,24 +172,15 @@ pub fn adapt<O: Observer>(
         });
         let elapsed = start.elapsed();
         run.times.push(elapsed);
-        forward.0.progress(
-            &mesh,
-            &Progress {
-                vertices: n,
-                triangles: mesh.num_triangles(),
-                worst: estimate,
-                elapsed,
-                newton: solution.newton.as_ref().map(|n| (n.iterations, n.residual)),
-            },
-        );
+        let progress = Progress { vertices: n, triangles: mesh.num_triangles(), worst: estimate, elapsed };
+        forward.0.solved(&mesh, &progress, solution.newton.as_ref().map(|n| (n.iterations, n.residual)));
 
         let remaining = settings.time_limit.map(|limit| limit.saturating_sub(elapsed));
-        let stop = (!converged)
-            .then_some(StopReason::NotConverged)
-            .or(pending)
+        let stop = (!converged).then_some(Stop::NotConverged).or(pending
             .or_else(|| settings.tolerance.is_some_and(|t| estimate <= t).then_some(StopReason::Tolerance))
             .or_else(|| (n >= settings.max_vertices).then_some(StopReason::MaxVertices))
-            .or_else(|| (remaining == Some(Duration::ZERO)).then_some(StopReason::TimeLimit));
+            .or_else(|| (remaining == Some(Duration::ZERO)).then_some(StopReason::TimeLimit))
+            .map(Stop::Mesh));
         if let Some(stop) = stop {
             return run.finish(mesh, &residual, settings.indicator, stop);
         }
@@ -205,9 +196,11 @@ pub fn adapt<O: Observer>(
         match round.stop {
             StopReason::MaxVertices => {}
             // Nothing to solve again: the mesh is the one just solved, or the job is over.
-            StopReason::Cancelled => return run.finish(mesh, &residual, settings.indicator, round.stop),
+            StopReason::Cancelled => {
+                return run.finish(mesh, &residual, settings.indicator, Stop::Mesh(round.stop));
+            }
             StopReason::Exhausted if mesh.num_vertices() == n => {
-                return run.finish(mesh, &residual, settings.indicator, round.stop);
+                return run.finish(mesh, &residual, settings.indicator, Stop::Mesh(round.stop));
             }
             // Solve what the round made, then stop.
             other => pending = Some(other),
@@ -241,7 +234,7 @@ impl Finish<'_, '_> {
         mesh: Mesh,
         residual: &Residual<'_, '_>,
         indicator: Indicator,
-        stop: StopReason,
+        stop: Stop,
     ) -> Result<Adapted, SolveError> {
         let last = *self.history.last().expect("the loop solves before it stops");
         let indicators = match indicator {
@@ -327,11 +320,23 @@ fn round_params(
     params.build().expect("a round's target is a valid budget")
 }
 
+/// Watches an adaptive solve: the mesher's hooks, and one report per solve. The mesher's own
+/// progress reports do not reach it: the loop reports once per solve.
+pub trait SolveObserver: Observer {
+    /// A solve on `mesh` ended: `progress` as a mesh reports it, with the estimate as its
+    /// worst value, and Newton's steps and final relative residual for a nonlinear problem.
+    fn solved(&mut self, mesh: &Mesh, progress: &Progress, _newton: Option<(u32, f64)>) {
+        self.progress(mesh, progress);
+    }
+}
+
+impl SolveObserver for () {}
+
 /// Passes cancellation and insertions through to the loop's observer, but not the engine's
 /// progress reports: the loop reports once per solve.
 struct Forward<'o, O>(&'o mut O);
 
-impl<O: Observer> Observer for Forward<'_, O> {
+impl<O: SolveObserver> Observer for Forward<'_, O> {
     fn is_cancelled(&self) -> bool {
         self.0.is_cancelled()
     }

@@ -64,7 +64,7 @@ mod solution;
 #[cfg(test)]
 mod tests;
 
-pub use adapt::{Adapted, Exact, INITIAL_VERTICES, Indicator, Settings, adapt};
+pub use adapt::{Adapted, Exact, INITIAL_VERTICES, Indicator, Settings, SolveObserver, adapt};
 pub use bh::{BhCurve, Curve, CurveError};
 pub use element::{Element, Position};
 pub use error::SolveError;

@@ -3,9 +3,10 @@
 use super::checks::{Limits, SpecError, at_most, budget, build, domain_of};
 use crate::api::{BoundaryInput, Coefficient, RegionInput, SolveRequest};
 use crate::geom::{Point, Rect};
-use crate::refine::{Method, Observer};
+use crate::refine::Method;
 use crate::solve::{
-    Adapted, BhCurve, Boundary, Exact, MU_0, Physics, Problem, Region, Settings, Shape, SolveError, adapt,
+    Adapted, BhCurve, Boundary, Exact, MU_0, Physics, Problem, Region, Settings, Shape, SolveError,
+    SolveObserver, adapt,
 };
 use crate::source::Expression;
 use std::sync::Arc;
@@ -354,7 +355,7 @@ impl SolveSpec {
     ///
     /// # Errors
     /// As [`adapt`].
-    pub fn solve<O: Observer>(&self, observer: &mut O) -> Result<Adapted, SolveError> {
+    pub fn solve<O: SolveObserver>(&self, observer: &mut O) -> Result<Adapted, SolveError> {
         let exact = self.exact.as_ref().map(|e| move |x: f64, y: f64| e.eval(x, y));
         adapt(&self.problem(), exact.as_ref().map(|u| u as Exact<'_>), &self.settings, observer)
     }

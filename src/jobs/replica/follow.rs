@@ -13,6 +13,7 @@ use crate::jobs::inner::Inner;
 use crate::jobs::job::{Job, JobError, Outcome, Record, Status};
 use crate::jobs::table::{Started, Waiter};
 use crate::refine::StopReason;
+use crate::result::Stop;
 use crate::result::{MeshResult, compact};
 use std::sync::{Arc, Weak};
 use std::time::Duration;
@@ -140,7 +141,7 @@ fn apply(job: &Job, r: &Posting) {
 async fn outcome(inner: &Arc<Inner>, id: &str, r: &Posting) -> Option<Outcome> {
     Some(match Status::parse(&r.status) {
         Some(Status::Succeeded) => {
-            let timed_out = r.stats.as_ref().is_some_and(|s| s.stop() == StopReason::TimeLimit);
+            let timed_out = r.stats.as_ref().is_some_and(|s| s.stop() == Stop::Mesh(StopReason::TimeLimit));
             match fetch(inner, id, if timed_out { Kept::Partial } else { Kept::Whole }).await {
                 Fetched::Found(result) => Outcome::Succeeded(result),
                 // Larger than MESHFIT_REDIS_MAX_BYTES, or expired: only its replica has it.

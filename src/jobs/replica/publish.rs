@@ -9,6 +9,7 @@ use crate::jobs::Failure;
 use crate::jobs::inner::Inner;
 use crate::jobs::job::{Job, JobError, Outcome, Snapshot, Status};
 use crate::refine::StopReason;
+use crate::result::Stop;
 use crate::result::{MeshResult, Summary, compact};
 use std::sync::Arc;
 use std::time::Duration;
@@ -150,7 +151,7 @@ async fn finish(inner: &Arc<Inner>, peers: &dyn Peers, job: &Job, token: &str, s
 /// its run).
 async fn encode(id: &str, result: &Arc<MeshResult>) -> Option<(Vec<u8>, Kept)> {
     let kept = match result.stats.stop() {
-        StopReason::TimeLimit => Kept::Partial,
+        Stop::Mesh(StopReason::TimeLimit) => Kept::Partial,
         _ => Kept::Whole,
     };
     let (result, key) = (result.clone(), id.to_owned());

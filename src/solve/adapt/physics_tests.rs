@@ -11,6 +11,8 @@ use std::sync::Arc;
 /// Checks the mesh after every insertion.
 struct Checked;
 
+impl SolveObserver for Checked {}
+
 impl Observer for Checked {
     fn inserted(&mut self, mesh: &Mesh, vertex: u32) {
         if let Err(e) = mesh.check_invariants() {
@@ -237,7 +239,7 @@ fn manufactured() -> (Problem<'static>, impl Fn(f64, f64) -> f64 + Sync) {
 fn a_manufactured_nonlinear_problem_converges_at_the_optimal_rate_and_newton_quadratically() {
     let (problem, exact) = manufactured();
     let a = adapt(&problem, Some(&exact), &Settings::new(20_000), &mut Checked).unwrap();
-    assert_eq!(a.stats.stop, StopReason::MaxVertices);
+    assert_eq!(a.stats.stop, Stop::Mesh(StopReason::MaxVertices));
     let energy: Vec<(f64, f64)> = (a.stats.history.iter().filter(|s| s.vertices >= 500))
         .map(|s| (s.vertices as f64, s.energy_error.unwrap()))
         .collect();
@@ -288,7 +290,7 @@ fn newton_that_cannot_converge_stops_the_run_with_the_last_converged_round() {
     let region = Region { curve: Some(Arc::new(curve)), ..Region::new(Shape::Rect(Rect::unit())) };
     let problem = Problem::new(Rect::unit()).with_f(|x, _| 10.0 * (1.0 + x)).with_region(region);
     let a = adapt(&problem, None, &Settings::new(20_000), &mut ()).unwrap();
-    assert_eq!(a.stats.stop, StopReason::NotConverged);
+    assert_eq!(a.stats.stop, Stop::NotConverged);
     assert!(a.stats.solves >= 2, "{:?}", a.stats.history);
     for step in &a.stats.history {
         assert!(step.newton_residual.unwrap() <= crate::solve::NEWTON_TOLERANCE, "{step:?}");

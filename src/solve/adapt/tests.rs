@@ -76,7 +76,7 @@ fn the_patch_test_holds_on_every_mesh_of_the_loop() {
     for method in [Method::SemiRecursive, Method::Recursive] {
         for indicator in [Indicator::Residual, Indicator::Variation] {
             let a = adapt(&problem, Some(&linear), &settings(2000, method, indicator), &mut ()).unwrap();
-            assert_eq!((a.stats.vertices, a.stats.stop), (2000, StopReason::MaxVertices));
+            assert_eq!((a.stats.vertices, a.stats.stop), (2000, Stop::Mesh(StopReason::MaxVertices)));
             assert!(a.stats.solves >= 10, "{method}/{indicator:?}: {} solves", a.stats.solves);
             // With an exact linear solution the residual indicator is rounding noise, so which
             // needles the loop makes turns on last bits: on one set of such meshes, faer's
@@ -213,6 +213,8 @@ struct Inspector {
     delaunay: bool,
 }
 
+impl SolveObserver for Inspector {}
+
 impl Observer for Inspector {
     fn inserted(&mut self, mesh: &Mesh, _vertex: u32) {
         self.insertions += 1;
@@ -283,7 +285,7 @@ fn the_tolerance_stops_at_the_first_estimate_below_it() {
     let a =
         adapt(&problem, None, &Settings { tolerance: Some(tolerance), ..Settings::new(1_000_000) }, &mut ())
             .unwrap();
-    assert_eq!(a.stats.stop, StopReason::Tolerance);
+    assert_eq!(a.stats.stop, Stop::Mesh(StopReason::Tolerance));
     let (last, before) = (a.stats.history.last().unwrap(), &a.stats.history[a.stats.history.len() - 2]);
     assert!(last.estimate <= tolerance && before.estimate > tolerance, "{before:?} then {last:?}");
     assert_eq!(a.stats.estimate, last.estimate);
@@ -294,6 +296,8 @@ struct CancelAfter {
     after: usize,
     solves: usize,
 }
+
+impl SolveObserver for CancelAfter {}
 
 impl Observer for CancelAfter {
     fn progress(&mut self, _mesh: &Mesh, _progress: &Progress) {
@@ -310,7 +314,7 @@ fn cancellation_stops_the_round_it_interrupts_without_another_solve() {
     let problem = Problem::new(Rect::unit()).with_f(peak_load).with_g(peak);
     let mut observer = CancelAfter { after: 3, solves: 0 };
     let a = adapt(&problem, None, &Settings::new(100_000), &mut observer).unwrap();
-    assert_eq!((a.stats.stop, a.stats.solves, observer.solves), (StopReason::Cancelled, 3, 3));
+    assert_eq!((a.stats.stop, a.stats.solves, observer.solves), (Stop::Mesh(StopReason::Cancelled), 3, 3));
 }
 
 #[test]
@@ -325,7 +329,7 @@ fn a_round_that_runs_out_of_time_is_solved_and_then_the_loop_stops() {
     .unwrap();
     assert_eq!(
         (a.stats.stop, a.stats.solves, a.stats.vertices),
-        (StopReason::TimeLimit, 1, INITIAL_VERTICES)
+        (Stop::Mesh(StopReason::TimeLimit), 1, INITIAL_VERTICES)
     );
 }
 
