@@ -9,7 +9,7 @@ mod support;
 
 use meshfit::geom::{Point, Rect};
 use meshfit::refine::{Method, Params, refine};
-use meshfit::result::MeshResult;
+use meshfit::result::RunResult;
 use meshfit::result::locate::Locator;
 use std::hint::black_box;
 use support::{franke, scatter};
@@ -18,7 +18,7 @@ fn evaluate(c: &mut Criterion) {
     let mut group = c.benchmark_group("evaluate");
     for method in [Method::SemiRecursive, Method::Recursive] {
         let params = Params::builder(100_000).method(method).build().unwrap();
-        let mesh: MeshResult = refine(&franke, Rect::unit(), &params, &mut ()).unwrap().into();
+        let mesh: RunResult = refine(&franke, Rect::unit(), &params, &mut ()).unwrap().into();
         let locator = Locator::new(&mesh);
         let points: Vec<Point> = scatter(1_000_000);
         group.throughput(Throughput::Elements(points.len() as u64));

@@ -10,12 +10,12 @@ mod support;
 use meshfit::geom::Rect;
 use meshfit::output::{self, Format, Options};
 use meshfit::refine::{Params, refine};
-use meshfit::result::MeshResult;
+use meshfit::result::RunResult;
 use std::sync::Arc;
 use support::franke;
 
 fn formats(c: &mut Criterion) {
-    let result: Arc<MeshResult> =
+    let result: Arc<RunResult> =
         Arc::new(refine(&franke, Rect::unit(), &Params::new(100_000).unwrap(), &mut ()).unwrap().into());
     let options = Options { id: Some("0".repeat(64)), ..Options::default() };
     let mut group = c.benchmark_group("output");

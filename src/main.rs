@@ -9,7 +9,7 @@ use meshfit::geom::Rect;
 use meshfit::jobs::{SOLUTION_BYTES_PER_VERTEX, available_memory, cli_mesh_bytes_per_vertex};
 use meshfit::output::{self, Format, Options, json};
 use meshfit::refine::{Criterion, Method, estimate_error, refine};
-use meshfit::result::MeshResult;
+use meshfit::result::RunResult;
 use meshfit::source::{Encoding, RawType};
 use meshfit::spec::{JobSpec, Limits, SolveSpec, SpecError};
 use std::io::{BufWriter, Write};
@@ -310,7 +310,7 @@ impl OutputArgs {
     }
 
     /// Writes `result` as the flags say.
-    fn write(&self, result: MeshResult, format: Format) -> Result<()> {
+    fn write(&self, result: RunResult, format: Format) -> Result<()> {
         let options = Options { id: None, z_scale: self.z_scale, size: self.size };
         let encoding = output::encode(&Arc::new(result), format, &options);
         match &self.output {
@@ -459,7 +459,7 @@ fn mesh(args: &MeshArgs) -> Result<()> {
             writeln!(out)
         });
     }
-    args.output.write(MeshResult::from(result), format)
+    args.output.write(RunResult::from(result), format)
 }
 
 /// Refuses a run of `vertices` vertices at `per_vertex` peak bytes each when that is more than

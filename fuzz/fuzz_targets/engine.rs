@@ -19,7 +19,7 @@ use libfuzzer_sys::fuzz_target;
 use meshfit::geom::{Mesh, Rect};
 use meshfit::refine::trace::{Recorder, replay};
 use meshfit::refine::{Criterion, Method, Observer, Params, StopReason, refine};
-use meshfit::result::MeshResult;
+use meshfit::result::RunResult;
 use meshfit::source::{Expression, Grid, Source};
 
 #[derive(Debug, Arbitrary)]
@@ -98,7 +98,7 @@ impl Observer for Checker {
 
 /// Everything a client sees of a run, with exact bits (NaN included) for comparison.
 fn seen(run: meshfit::refine::Refinement) -> String {
-    format!("{:?}", MeshResult::from(run))
+    format!("{:?}", RunResult::from(run))
 }
 
 fn source_of(input: &SourceInput) -> Option<Source> {

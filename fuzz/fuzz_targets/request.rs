@@ -21,7 +21,7 @@ use meshfit::jobs::JobError;
 use meshfit::spec::{JobSpec, Limits, Work, job_keys};
 use meshfit::refine::trace::Recorder;
 use meshfit::refine::{Method, refine};
-use meshfit::result::MeshResult;
+use meshfit::result::RunResult;
 use meshfit::source::Source;
 use std::time::Duration;
 
@@ -89,7 +89,7 @@ fn settle(spec: Result<JobSpec, ApiError>) {
             if params.method() == Method::SemiRecursive {
                 assert!(run.stats.delaunay, "semi-recursive mesh is not Delaunay");
             }
-            let result = MeshResult::from(run);
+            let result = RunResult::from(run);
             assert!(result.vertices.iter().all(|v| v.z.is_finite()));
         }
         Work::Solve(solve) => {

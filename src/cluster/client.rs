@@ -5,7 +5,7 @@ use super::link::Inner;
 use super::listen;
 use crate::config::Redis;
 use crate::jobs::peers::{
-    Acquired, Control, Kept, KeptRequest, Message, Peers, Posting, Result, Take, Unavailable,
+    Acquired, Asked, Control, Kept, KeptRequest, Message, Peers, Posting, Result, Take, Unavailable,
 };
 use redis::AsyncCommands;
 use redis::aio::ConnectionManager;
@@ -273,12 +273,12 @@ impl Peers for Cluster {
         self.note(done)
     }
 
-    async fn asked(&self, id: &str) -> Result<(bool, bool)> {
+    async fn asked(&self, id: &str) -> Result<Asked> {
         let asked = redis::pipe()
             .exists(key("cancel", id))
             .exists(key("detach", id))
             .query_async::<(bool, bool)>(&mut self.conn()?)
             .await;
-        self.note(asked)
+        self.note(asked).map(|(cancel, detach)| Asked { cancel, detach })
     }
 }

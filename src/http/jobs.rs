@@ -11,7 +11,7 @@ use crate::jobs::{
     Client, Found, JobError, Lifetime, Outcome, Record, RequestParser, Snapshot, Status, Ticket, Waiter,
 };
 use crate::refine::StopReason;
-use crate::result::MeshResult;
+use crate::result::RunResult;
 use crate::result::Stop;
 use crate::spec::{JobKeys, JobSpec, Limits, Work, job_keys};
 use axum::Extension;
@@ -193,7 +193,7 @@ fn status_body(id: &str, found: &Found) -> JobStatus {
 
 /// Where `result` is served from: `otherwise`, unless a time limit stopped its run, which
 /// makes it a partial answer whatever found it.
-fn served(result: &MeshResult, otherwise: negotiate::Provenance) -> negotiate::Provenance {
+fn served(result: &RunResult, otherwise: negotiate::Provenance) -> negotiate::Provenance {
     match result.stats.stop() {
         Stop::Mesh(StopReason::TimeLimit) => negotiate::Provenance::Partial,
         _ => otherwise,
@@ -348,7 +348,7 @@ async fn finished_outcome(state: &AppState, id: &str, found: Found) -> Option<(O
 pub(super) async fn finished_result(
     state: &AppState,
     id: &str,
-) -> Result<(Arc<MeshResult>, Option<Duration>), ApiError> {
+) -> Result<(Arc<RunResult>, Option<Duration>), ApiError> {
     let found = find(state, id).await?;
     let status = status_of(&found).as_str();
     match finished_outcome(state, id, found).await {

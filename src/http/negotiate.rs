@@ -5,7 +5,7 @@
 
 use super::problem::ApiError;
 use crate::output::{self, Format, Options};
-use crate::result::MeshResult;
+use crate::result::RunResult;
 use axum::body::Body;
 use axum::http::{HeaderMap, HeaderValue, StatusCode, Uri, header};
 use axum::response::{IntoResponse, Response};
@@ -130,7 +130,7 @@ pub async fn result_response(
     headers: &HeaderMap,
     wanted: &Wanted,
     id: &str,
-    result: Arc<MeshResult>,
+    result: Arc<RunResult>,
     provenance: Provenance,
     elapsed: Option<Duration>,
 ) -> Result<Response, ApiError> {

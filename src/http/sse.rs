@@ -9,7 +9,7 @@
 use crate::api::ProgressEvent;
 use crate::geom::Vertex;
 use crate::output::{self, Format, Options};
-use crate::result::MeshResult;
+use crate::result::RunResult;
 use axum::body::Body;
 use axum::http::{HeaderValue, header};
 use axum::response::{IntoResponse, Response};
@@ -55,7 +55,7 @@ pub fn error(id: u64, problem: &serde_json::Value) -> Bytes {
 }
 
 /// A `result` event carrying the JSON document of `result`, in chunks made as they are read.
-pub fn result(id: u64, job: &str, result: &Arc<MeshResult>) -> impl Iterator<Item = Bytes> + Send + use<> {
+pub fn result(id: u64, job: &str, result: &Arc<RunResult>) -> impl Iterator<Item = Bytes> + Send + use<> {
     let options = Options { id: Some(job.to_owned()), ..Options::default() };
     let head = Bytes::from(format!("event: result\nid: {id}\ndata: "));
     let document = output::encode(result, Format::Json, &options).into_chunks().map(Bytes::from);

@@ -3,7 +3,7 @@
 
 use crate::config::BodyLimits;
 use crate::jobs::Jobs;
-use crate::result::MeshResult;
+use crate::result::RunResult;
 use crate::result::locate::Locator;
 use crate::spec::Limits;
 use std::sync::{Arc, Weak};
@@ -11,13 +11,13 @@ use std::sync::{Arc, Weak};
 /// Locators of recently evaluated results, each with the result it indexes: a result
 /// recomputed under the same id (after a time limit, say) is another mesh, so a hit counts
 /// only for the very same result.
-pub type Locators = moka::sync::Cache<String, (Weak<MeshResult>, Arc<Locator>)>;
+pub type Locators = moka::sync::Cache<String, (Weak<RunResult>, Arc<Locator>)>;
 
 /// A locator cache of at most `bytes` bytes.
 fn locators(bytes: u64) -> Locators {
     moka::sync::Cache::builder()
         .max_capacity(bytes)
-        .weigher(|_: &String, (_, l): &(Weak<MeshResult>, Arc<Locator>)| {
+        .weigher(|_: &String, (_, l): &(Weak<RunResult>, Arc<Locator>)| {
             u32::try_from(l.num_bytes()).unwrap_or(u32::MAX)
         })
         .build()

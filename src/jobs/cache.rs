@@ -8,7 +8,7 @@
 //! served. The files are bounded in bytes too: a second moka cache, plain LRU, indexes
 //! them and deletes the least recently used file when they pass the limit.
 
-use crate::result::{MeshResult, compact};
+use crate::result::{RunResult, compact};
 use moka::notification::RemovalCause;
 use moka::policy::EvictionPolicy;
 use std::io::Write;
@@ -40,10 +40,10 @@ pub struct CacheSettings {
 /// The cache of finished meshes by job id.
 #[derive(Clone)]
 pub struct Cache {
-    memory: moka::sync::Cache<String, Arc<MeshResult>>,
+    memory: moka::sync::Cache<String, Arc<RunResult>>,
     /// Results of runs a time limit stopped, kept for the job's own clients (`GET /mesh`) but
     /// never the answer to a new request: how far such a run got depends on the machine.
-    partial: moka::sync::Cache<String, Arc<MeshResult>>,
+    partial: moka::sync::Cache<String, Arc<RunResult>>,
     disk: Option<Disk>,
 }
 
@@ -83,7 +83,7 @@ impl Cache {
 
     /// The entry for `id` from memory, without reading the disk; a hit marks its file as used
     /// in the disk index.
-    pub fn get_memory(&self, id: &str) -> Option<Arc<MeshResult>> {
+    pub fn get_memory(&self, id: &str) -> Option<Arc<RunResult>> {
         let found = self.memory.get(id);
         if found.is_some()
             && let Some(disk) = &self.disk
@@ -96,7 +96,7 @@ impl Cache {
 
     /// The entry for `id`, from memory or else from disk. Blocking: call it off the async
     /// workers when a disk is configured.
-    pub fn get(&self, id: &str) -> Option<(Arc<MeshResult>, Hit)> {
+    pub fn get(&self, id: &str) -> Option<(Arc<RunResult>, Hit)> {
         if let Some(f) = self.get_memory(id) {
             return Some((f, Hit::Memory));
         }
@@ -137,7 +137,7 @@ impl Cache {
 
     /// Stores an entry in memory and, if configured, on disk (blocking). A mesh whose file
     /// would not fit in the directory's whole limit stays in memory only.
-    pub fn insert(&self, id: &str, finished: Arc<MeshResult>) {
+    pub fn insert(&self, id: &str, finished: Arc<RunResult>) {
         if let Some(disk) = &self.disk
             && let Some(path) = disk.path(id)
         {
@@ -151,12 +151,12 @@ impl Cache {
     }
 
     /// Keeps the result of a run a time limit stopped, in memory only, apart from the answers.
-    pub fn insert_partial(&self, id: &str, result: Arc<MeshResult>) {
+    pub fn insert_partial(&self, id: &str, result: Arc<RunResult>) {
         self.partial.insert(id.to_owned(), result);
     }
 
     /// The result of a run of `id` that a time limit stopped, if still held.
-    pub fn get_partial(&self, id: &str) -> Option<Arc<MeshResult>> {
+    pub fn get_partial(&self, id: &str) -> Option<Arc<RunResult>> {
         self.partial.get(id)
     }
 
@@ -255,13 +255,13 @@ impl Disk {
 }
 
 /// A result's weight in a memory cache: its bytes.
-fn weight(_: &String, result: &Arc<MeshResult>) -> u32 {
+fn weight(_: &String, result: &Arc<RunResult>) -> u32 {
     u32::try_from(result.num_bytes()).unwrap_or(u32::MAX)
 }
 
 /// Writes `result` to the file for `id` and returns its size, or `None` (and no file) when
 /// it would be larger than `limit`.
-fn write_entry(path: &Path, id: &str, result: &MeshResult, limit: u64) -> std::io::Result<Option<u64>> {
+fn write_entry(path: &Path, id: &str, result: &RunResult, limit: u64) -> std::io::Result<Option<u64>> {
     // Sized first, so a file over the limit is never written only to be deleted.
     if compact::size(result, id) > limit {
         return Ok(None);
@@ -295,7 +295,7 @@ enum Unreadable {
     Corrupt(String),
 }
 
-fn read_entry(path: &Path, id: &str) -> Result<Option<(MeshResult, u64)>, Unreadable> {
+fn read_entry(path: &Path, id: &str) -> Result<Option<(RunResult, u64)>, Unreadable> {
     let data = match std::fs::read(path) {
         Ok(d) => d,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
@@ -309,8 +309,8 @@ fn read_entry(path: &Path, id: &str) -> Result<Option<(MeshResult, u64)>, Unread
 mod tests {
     use super::*;
 
-    fn entry() -> Arc<MeshResult> {
-        static SAMPLE: std::sync::OnceLock<Arc<MeshResult>> = std::sync::OnceLock::new();
+    fn entry() -> Arc<RunResult> {
+        static SAMPLE: std::sync::OnceLock<Arc<RunResult>> = std::sync::OnceLock::new();
         SAMPLE
             .get_or_init(|| Arc::new(crate::result::testing::sample(8, crate::refine::Criterion::Error)))
             .clone()

@@ -1,7 +1,7 @@
 //! Families: per family of requests (see [`crate::spec::JobKeys`]), the cached run that went
 //! furthest, the one that answers the most smaller requests by replay.
 
-use crate::result::MeshResult;
+use crate::result::RunResult;
 
 /// How many families remember their furthest run.
 const FAMILIES_KEPT: u64 = 100_000;
@@ -19,7 +19,7 @@ impl Families {
 
     /// Remembers cached run `id` as its family's furthest if it traced more steps than the
     /// one known.
-    pub(super) fn note(&self, family: &str, id: &str, result: &MeshResult) {
+    pub(super) fn note(&self, family: &str, id: &str, result: &RunResult) {
         let Some(steps) = result.trace.as_ref().map(|t| t.splits.len()) else { return };
         if self.runs.get(family).is_none_or(|(_, known)| steps >= known) {
             self.runs.insert(family.to_owned(), (id.to_owned(), steps));

@@ -4,7 +4,7 @@ use super::Failure;
 use crate::api::ProgressEvent;
 use crate::geom::Vertex;
 use crate::refine::RefineError;
-use crate::result::MeshResult;
+use crate::result::RunResult;
 use crate::result::Summary;
 use crate::solve::SolveError;
 use std::sync::atomic::{AtomicBool, AtomicU8, AtomicUsize, Ordering};
@@ -91,7 +91,7 @@ impl JobError {
 #[derive(Debug, Clone, PartialEq)]
 pub enum Outcome {
     /// With a mesh.
-    Succeeded(Arc<MeshResult>),
+    Succeeded(Arc<RunResult>),
     /// With an error.
     Failed(JobError),
     /// Cancelled by a client, by every waiting client leaving, or by shutdown (of a replica
@@ -434,7 +434,7 @@ impl Record {
     }
 
     /// The view of a result found in the cache with no job record (e.g. after a restart).
-    pub fn cached(result: &MeshResult) -> Self {
+    pub fn cached(result: &RunResult) -> Self {
         Self {
             status: Status::Succeeded,
             progress: None,

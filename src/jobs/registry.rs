@@ -14,7 +14,7 @@ use super::table::{Listing, Table, Waiter};
 use super::ticket::Ticket;
 use super::{Cache, submit};
 use crate::metrics::Metrics;
-use crate::result::MeshResult;
+use crate::result::RunResult;
 use crate::spec::{JobKeys, JobSpec};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -27,7 +27,7 @@ pub enum Found {
     /// A finished job.
     Done(Arc<Record>),
     /// A result from the cache with no job record (e.g. after a restart).
-    Cached(Arc<MeshResult>),
+    Cached(Arc<RunResult>),
     /// A job queued or running on another replica, as its last posting says.
     Remote(Arc<Record>),
 }
@@ -229,7 +229,7 @@ impl Jobs {
 
     /// The result a time limit stopped for job `id`, if still held here or, when replicas
     /// share, in the store (never a new request's answer; see [`Cache::insert_partial`]).
-    pub async fn partial(&self, id: &str) -> Option<Arc<MeshResult>> {
+    pub async fn partial(&self, id: &str) -> Option<Arc<RunResult>> {
         match self.inner.cache.get_partial(id) {
             Some(result) => Some(result),
             None => follow::fetch(&self.inner, id, Kept::Partial).await.found(),
@@ -237,7 +237,7 @@ impl Jobs {
     }
 
     /// The cached mesh with this id, if any.
-    pub async fn cached(&self, id: &str) -> Option<Arc<MeshResult>> {
+    pub async fn cached(&self, id: &str) -> Option<Arc<RunResult>> {
         submit::cached(&self.inner, id).await
     }
 

@@ -16,7 +16,7 @@ use super::start::Start;
 use super::table::Joined;
 use super::ticket::Ticket;
 use crate::refine::trace::replay;
-use crate::result::MeshResult;
+use crate::result::RunResult;
 use crate::spec::{JobKeys, JobSpec};
 use std::sync::Arc;
 
@@ -143,7 +143,7 @@ async fn stored_elsewhere(inner: &Arc<Inner>, id: &str) -> Option<Ticket> {
 
 /// The result of `spec` replayed from the furthest cached run of its family, stored under
 /// `id`; `None` when there is no such run or the request goes past it.
-async fn prefix(inner: &Arc<Inner>, id: &str, family: &str, spec: &JobSpec) -> Option<Arc<MeshResult>> {
+async fn prefix(inner: &Arc<Inner>, id: &str, family: &str, spec: &JobSpec) -> Option<Arc<RunResult>> {
     let spec = spec.mesh()?;
     let run = inner.families.furthest(family)?;
     let source = cached(inner, &run).await?;
@@ -156,7 +156,7 @@ async fn prefix(inner: &Arc<Inner>, id: &str, family: &str, spec: &JobSpec) -> O
     crate::cpu::spawn(move || {
         let mut replayed = replay(&trace, &source.vertices, max_vertices, tolerance)?;
         spec.measure(&mut replayed);
-        let result = Arc::new(MeshResult::from(replayed));
+        let result = Arc::new(RunResult::from(replayed));
         cache.insert(&id, result.clone());
         Some(result)
     })
@@ -167,7 +167,7 @@ async fn prefix(inner: &Arc<Inner>, id: &str, family: &str, spec: &JobSpec) -> O
 
 /// The cached mesh with this id, if any: in memory, on disk, or, when replicas share, in the
 /// store.
-pub(super) async fn cached(inner: &Arc<Inner>, id: &str) -> Option<Arc<MeshResult>> {
+pub(super) async fn cached(inner: &Arc<Inner>, id: &str) -> Option<Arc<RunResult>> {
     let cache = &inner.cache;
     if let Some(f) = cache.get_memory(id) {
         return Some(f);

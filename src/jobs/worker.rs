@@ -9,7 +9,7 @@ use crate::geom::Mesh;
 use crate::metrics::StateLabel;
 use crate::refine::trace::Recorder;
 use crate::refine::{Observer, Progress, StopReason, refine};
-use crate::result::MeshResult;
+use crate::result::RunResult;
 use crate::result::Stop;
 use crate::solve::SolveObserver;
 use crate::spec::{JobSpec, Work};
@@ -126,7 +126,7 @@ fn compute(job: &Job, spec: &JobSpec, inner: &Inner) -> (Outcome, Option<Duratio
             let trace = recorder.finish(refinement.stats.stop);
             let elapsed = refinement.elapsed;
             mesh.measure(&mut refinement);
-            (MeshResult::from(refinement), trace, elapsed)
+            (RunResult::from(refinement), trace, elapsed)
         }
         Work::Solve(solve) => {
             let adapted = match solve.solve(&mut observer) {

@@ -4,7 +4,7 @@
 use super::encoded::Encoded;
 use super::options::Options;
 use super::{glb, json, msh, obj, ply, png, stl, svg, vtu};
-use crate::result::MeshResult;
+use crate::result::RunResult;
 use std::sync::Arc;
 
 /// A way to write a mesh out.
@@ -98,7 +98,7 @@ impl std::fmt::Display for Format {
 }
 
 /// `result` in `format`.
-pub fn encode(result: &Arc<MeshResult>, format: Format, options: &Options) -> Encoded {
+pub fn encode(result: &Arc<RunResult>, format: Format, options: &Options) -> Encoded {
     match format {
         Format::Json => json::encode(result, options),
         Format::Obj => obj::encode(result, options),

@@ -8,7 +8,7 @@
 
 use super::{Encoded, Options, Part, colour};
 use crate::geom::Vertex;
-use crate::result::MeshResult;
+use crate::result::RunResult;
 use serde_json::json;
 use std::sync::Arc;
 
@@ -25,7 +25,7 @@ const TRIANGLES: u32 = 4;
 /// # Panics
 /// If the file would pass 4 GiB, which a GLB cannot (its lengths are u32): about 190 million
 /// vertices.
-pub(super) fn encode(result: &Arc<MeshResult>, options: &Options) -> Encoded {
+pub(super) fn encode(result: &Arc<RunResult>, options: &Options) -> Encoded {
     let (n, m) = (result.vertices.len(), result.triangles.len());
     let z_scale = options.z_scale;
     let position = move |v: &Vertex| [v.x as f32, v.y as f32, (v.z * z_scale) as f32];

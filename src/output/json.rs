@@ -8,13 +8,13 @@
 
 use super::{Encoded, Options, Part};
 use crate::refine::{ErrorEstimate, Stats};
-use crate::result::{MeshResult, Role};
+use crate::result::{Role, RunResult};
 use serde::Serialize;
 use std::io::{self, Write};
 use std::sync::Arc;
 
 /// The document, with `"id"` first when the options carry one (the API's).
-pub fn encode(result: &Arc<MeshResult>, options: &Options) -> Encoded {
+pub fn encode(result: &Arc<RunResult>, options: &Options) -> Encoded {
     let mut head = b"{".to_vec();
     if let Some(id) = &options.id {
         head.extend_from_slice(b"\"id\":");

@@ -1,4 +1,4 @@
-//! Results as bytes: each format a client can ask for, encoded from a [`MeshResult`](crate::result::MeshResult).
+//! Results as bytes: each format a client can ask for, encoded from a [`RunResult`](crate::result::RunResult).
 //!
 //! An encoder does not write the whole file at once. It returns an [`Encoded`]: a list of
 //! parts, each either fixed bytes (a header) or rows made on demand (one vertex, one triangle).

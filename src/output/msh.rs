@@ -10,12 +10,12 @@
 
 use super::encoded::push_f64;
 use super::{Encoded, Options, Part};
-use crate::result::{Location, MeshResult};
+use crate::result::{Location, RunResult};
 use std::io::Write;
 use std::sync::Arc;
 
 /// The MSH file of `result`.
-pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoded {
+pub(super) fn encode(result: &Arc<RunResult>, _options: &Options) -> Encoded {
     let (n, m) = (result.vertices.len(), result.triangles.len());
     // One surface entity, bounded by the rectangle; it has no physical groups and no curves.
     let [x0, x1, y0, y1] = result.bounds();

@@ -6,12 +6,12 @@
 
 use super::encoded::push_f64;
 use super::{Encoded, Options, Part};
-use crate::result::MeshResult;
+use crate::result::RunResult;
 use std::io::Write;
 use std::sync::Arc;
 
 /// The OBJ file of `result`.
-pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoded {
+pub(super) fn encode(result: &Arc<RunResult>, _options: &Options) -> Encoded {
     let head =
         format!("# meshfit: {} vertices, {} triangles\n", result.vertices.len(), result.triangles.len());
     let (r, s) = (result.clone(), result.clone());

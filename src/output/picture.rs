@@ -21,7 +21,7 @@
 
 use super::{colour, contour};
 use crate::geom::predicates::signed_area_x2;
-use crate::result::{Lines, Location, MeshResult, Summary};
+use crate::result::{Lines, Location, RunResult, Summary};
 
 /// A rectangle on the picture, y downward.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -119,7 +119,7 @@ pub(crate) struct Shading {
 
 impl Shading {
     /// How `result` is coloured.
-    pub fn of(result: &MeshResult) -> Self {
+    pub fn of(result: &RunResult) -> Self {
         let Some(field) = result.main_field().filter(|f| f.location == Location::Cell) else {
             let range = result.z_range();
             return Self { coloured: None, range, max: range.1, levels: Vec::new(), lines: None };
@@ -144,7 +144,7 @@ impl Shading {
     }
 
     /// The colour of triangle `t` of `result`.
-    pub fn colour(&self, result: &MeshResult, t: usize) -> [u8; 3] {
+    pub fn colour(&self, result: &RunResult, t: usize) -> [u8; 3] {
         let value = match &self.coloured {
             Some((b, _)) => b[t],
             None => result.triangles[t].iter().map(|&v| result.vertices[v as usize].z).sum::<f64>() / 3.0,
@@ -174,7 +174,7 @@ impl Shading {
     }
 
     /// Calls `piece` with the ends of each field line's piece in triangle `t` of `result`.
-    pub fn field_lines(&self, result: &MeshResult, t: usize, piece: impl FnMut([f64; 2], [f64; 2])) {
+    pub fn field_lines(&self, result: &RunResult, t: usize, piece: impl FnMut([f64; 2], [f64; 2])) {
         if self.levels.is_empty() {
             return;
         }
@@ -206,7 +206,7 @@ pub(crate) const INK: [u8; 3] = [34, 34, 34];
 
 impl Layout {
     /// The layout of `result` on a picture `width` units wide with text of `text` size.
-    pub fn new(result: &MeshResult, width: f64, text: TextMetrics) -> Self {
+    pub fn new(result: &RunResult, width: f64, text: TextMetrics) -> Self {
         let mut bounds = result.bounds();
         // A refined mesh always spans a rectangle; this keeps an empty one drawable.
         if !(bounds[1] > bounds[0] && bounds[3] > bounds[2]) {
@@ -308,7 +308,7 @@ impl Layout {
 }
 
 /// The area of `triangle` (counter-clockwise, as a result's triangles are).
-fn area(result: &MeshResult, triangle: [u32; 3]) -> f64 {
+fn area(result: &RunResult, triangle: [u32; 3]) -> f64 {
     let [a, b, c] = triangle.map(|v| result.vertices[v as usize].point());
     signed_area_x2(a, b, c) / 2.0
 }
@@ -333,7 +333,7 @@ fn weighted_quantile(values: &[f64], weights: &[f64], fraction: f64) -> f64 {
 /// edge by the triangle that has it from the lower vertex id to the higher (its neighbour has
 /// it the other way), a boundary edge by its only triangle. `bounds` is `result.bounds()`.
 pub(crate) fn owned_edges(
-    result: &MeshResult,
+    result: &RunResult,
     bounds: [f64; 4],
     t: usize,
 ) -> impl Iterator<Item = (u32, u32)> + '_ {
@@ -343,13 +343,13 @@ pub(crate) fn owned_edges(
 
 /// Whether p and q lie on the same side of the rectangle, so the edge pq is on the boundary.
 /// Exact: a midpoint of two points on a side has that side's coordinate bit for bit.
-fn on_one_side(result: &MeshResult, [x0, x1, y0, y1]: [f64; 4], p: u32, q: u32) -> bool {
+fn on_one_side(result: &RunResult, [x0, x1, y0, y1]: [f64; 4], p: u32, q: u32) -> bool {
     let (p, q) = (result.vertices[p as usize], result.vertices[q as usize]);
     (p.x == q.x && (p.x == x0 || p.x == x1)) || (p.y == q.y && (p.y == y0 || p.y == y1))
 }
 
 /// The stats line in pieces that a wrapped line keeps whole.
-pub(crate) fn stats_segments(result: &MeshResult) -> Vec<String> {
+pub(crate) fn stats_segments(result: &RunResult) -> Vec<String> {
     let mut segments = match &result.stats {
         Summary::Mesh(s) => {
             let mut segments = vec![

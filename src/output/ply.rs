@@ -4,11 +4,11 @@
 //! Binary keeps every f64 exact at 24 bytes a vertex. Faces are counter-clockwise, 0-based.
 
 use super::{Encoded, Options, Part};
-use crate::result::{MeshResult, Role};
+use crate::result::{Role, RunResult};
 use std::sync::Arc;
 
 /// The PLY file of `result`.
-pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoded {
+pub(super) fn encode(result: &Arc<RunResult>, _options: &Options) -> Encoded {
     // A face has room for one number: the refinement's indicator, under its field's name.
     let indicator = result.fields.iter().position(|f| f.role == Role::Indicator);
     let mut head = format!(
@@ -53,7 +53,7 @@ mod tests {
     use ply_rs_bw::parser::Parser;
     use ply_rs_bw::ply::{DefaultElement, Ply, Property};
 
-    fn read(result: &Arc<MeshResult>) -> Ply<DefaultElement> {
+    fn read(result: &Arc<RunResult>) -> Ply<DefaultElement> {
         let bytes = encode(result, &Options::default()).to_vec();
         Parser::<DefaultElement>::new().read_ply(&mut bytes.as_slice()).unwrap()
     }

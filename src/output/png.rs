@@ -9,7 +9,7 @@
 
 use super::picture::{self, BACKGROUND, INK, Layout, TextMetrics};
 use super::{Encoded, Options, Part};
-use crate::result::MeshResult;
+use crate::result::RunResult;
 use embedded_graphics::mono_font::iso_8859_1 as fonts;
 use embedded_graphics::mono_font::{MonoFont, MonoTextStyle};
 use embedded_graphics::pixelcolor::Rgb888;
@@ -19,12 +19,12 @@ use std::sync::Arc;
 use tiny_skia::{FillRule, Paint, PathBuilder, Pixmap, PremultipliedColorU8, Rect, Stroke, Transform};
 
 /// The picture of `result`, `options.size` pixels wide.
-pub fn encode(result: &Arc<MeshResult>, options: &Options) -> Encoded {
+pub fn encode(result: &Arc<RunResult>, options: &Options) -> Encoded {
     Encoded::new(vec![Part::Bytes(render(result, options.size))])
 }
 
 /// The PNG file of `result`, `width` pixels wide.
-fn render(result: &MeshResult, width: u32) -> Vec<u8> {
+fn render(result: &RunResult, width: u32) -> Vec<u8> {
     let width = width.max(1);
     let (font, scale) = font_for(width);
     let text = metrics(font, scale);
@@ -90,7 +90,7 @@ fn colour([r, g, b]: [u8; 3], alpha: u8) -> tiny_skia::Color {
     tiny_skia::Color::from_rgba8(r, g, b, alpha)
 }
 
-fn fill_triangles(pixmap: &mut Pixmap, result: &MeshResult, layout: &Layout) {
+fn fill_triangles(pixmap: &mut Pixmap, result: &RunResult, layout: &Layout) {
     let corners: Vec<(f32, f32)> = result
         .vertices
         .iter()
@@ -125,7 +125,7 @@ fn fill_triangles(pixmap: &mut Pixmap, result: &MeshResult, layout: &Layout) {
     }
 }
 
-fn draw_edges(pixmap: &mut Pixmap, result: &MeshResult, layout: &Layout) {
+fn draw_edges(pixmap: &mut Pixmap, result: &RunResult, layout: &Layout) {
     let opacity = layout.edge_opacity(result.triangles.len());
     if opacity <= 0.0 {
         return;
@@ -149,7 +149,7 @@ fn draw_edges(pixmap: &mut Pixmap, result: &MeshResult, layout: &Layout) {
 }
 
 /// The field lines of a magnetostatic solution, as one anti-aliased path.
-fn draw_field_lines(pixmap: &mut Pixmap, result: &MeshResult, layout: &Layout) {
+fn draw_field_lines(pixmap: &mut Pixmap, result: &RunResult, layout: &Layout) {
     let mut path = PathBuilder::new();
     for t in 0..result.triangles.len() {
         layout.shading.field_lines(result, t, |p, q| {
@@ -316,7 +316,7 @@ mod tests {
         a.iter().zip(&b).all(|(x, y)| x.abs_diff(*y) <= tolerance)
     }
 
-    fn picture(result: &MeshResult, size: u32) -> (Decoded, Layout) {
+    fn picture(result: &RunResult, size: u32) -> (Decoded, Layout) {
         let options = Options { size, ..Options::default() };
         let bytes = encode(&Arc::new(result.clone()), &options).to_vec();
         let (font, scale) = font_for(size);

@@ -6,14 +6,14 @@
 
 use super::{Encoded, Options, Part};
 use crate::geom::Vertex;
-use crate::result::MeshResult;
+use crate::result::RunResult;
 use std::sync::Arc;
 
 /// The header; readers take a file that starts with `solid` for ASCII STL, so this must not.
 const HEADER: &[u8] = b"meshfit binary STL";
 
 /// The STL file of `result`.
-pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoded {
+pub(super) fn encode(result: &Arc<RunResult>, _options: &Options) -> Encoded {
     let mut head = HEADER.to_vec();
     head.resize(80, b' ');
     // Triangle ids are u32, so their count fits the u32 field.

@@ -7,7 +7,7 @@
 
 use super::picture::{self, BACKGROUND, INK, Layout, TextMetrics};
 use super::{Encoded, Options, Part};
-use crate::result::MeshResult;
+use crate::result::RunResult;
 use std::fmt::Write as _;
 use std::io::Write as _;
 use std::sync::Arc;
@@ -27,7 +27,7 @@ const ASCENT: f64 = 0.8;
 const BAR_STOPS: usize = 16;
 
 /// The picture of `result`; the options change nothing (its size is the view box's).
-pub fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoded {
+pub fn encode(result: &Arc<RunResult>, _options: &Options) -> Encoded {
     let layout = Arc::new(Layout::new(result, VIEW_WIDTH, TEXT));
     let range = layout.shading.range;
     let mut head = String::new();
@@ -214,7 +214,7 @@ mod tests {
     use crate::refine::Criterion;
     use crate::result::testing::{magnetic, sample};
 
-    fn svg(result: &Arc<MeshResult>) -> String {
+    fn svg(result: &Arc<RunResult>) -> String {
         String::from_utf8(encode(result, &Options::default()).to_vec()).unwrap()
     }
 

@@ -9,7 +9,7 @@
 //! reads the raw bytes as XML text and fails at the first byte 0x3C, `<` (0.6).
 
 use super::{Encoded, Options, Part};
-use crate::result::{Location, MeshResult};
+use crate::result::{Location, RunResult};
 use base64::Engine;
 use base64::engine::general_purpose::STANDARD;
 use std::sync::Arc;
@@ -18,7 +18,7 @@ use std::sync::Arc;
 const VTK_TRIANGLE: u8 = 5;
 
 /// The VTU file of `result`.
-pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoded {
+pub(super) fn encode(result: &Arc<RunResult>, _options: &Options) -> Encoded {
     let (n, m) = (result.vertices.len(), result.triangles.len());
     let array = |attributes: &str| format!("<DataArray {attributes} format=\"binary\">").into_bytes();
     let mut parts = vec![
@@ -80,13 +80,13 @@ pub(super) fn encode(result: &Arc<MeshResult>, _options: &Options) -> Encoded {
 }
 
 /// The positions in `result.fields` of the fields at `location`.
-fn indices(result: &MeshResult, location: Location) -> Vec<usize> {
+fn indices(result: &RunResult, location: Location) -> Vec<usize> {
     (result.fields.iter().enumerate()).filter(|(_, f)| f.location == location).map(|(i, _)| i).collect()
 }
 
 /// Field `f` of `result` as a data array of `count` values: a scalar as is, a vector in the
 /// plane as three components (x, y, 0), which is what ParaView draws as vectors.
-fn data_array(result: &Arc<MeshResult>, f: usize, count: usize) -> [Part; 3] {
+fn data_array(result: &Arc<RunResult>, f: usize, count: usize) -> [Part; 3] {
     let field = &result.fields[f];
     let vector = field.components > 1;
     let attributes = match vector {

@@ -184,7 +184,7 @@ fn the_same_input_gives_the_same_mesh_bit_for_bit() {
     for method in [Method::Recursive, Method::SemiRecursive] {
         let run = || {
             let r = refine(&f, Rect::unit(), &params(5_000, method), &mut ()).unwrap();
-            crate::result::MeshResult::from(r)
+            crate::result::RunResult::from(r)
         };
         assert_eq!(run(), run(), "{method}");
     }

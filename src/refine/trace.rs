@@ -286,7 +286,7 @@ mod tests {
     }
 
     /// Everything a client sees of a run: vertices, triangles, errors and stats.
-    fn seen(r: &Refinement) -> crate::result::MeshResult {
+    fn seen(r: &Refinement) -> crate::result::RunResult {
         r.clone().into()
     }
 

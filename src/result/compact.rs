@@ -1,4 +1,4 @@
-//! The compact binary form of a [`MeshResult`], as stores keep it: little-endian arrays behind a
+//! The compact binary form of a [`RunResult`], as stores keep it: little-endian arrays behind a
 //! short header, and a SHA-256 of everything before it at the end.
 //!
 //! ```text
@@ -18,7 +18,7 @@
 //! or with edited stats is refused like one with a flipped bit in the arrays.
 
 use super::field::{Field, Location};
-use super::finished::MeshResult;
+use super::finished::RunResult;
 use crate::geom::Vertex;
 use crate::refine::trace::Trace;
 use crate::refine::{Criterion, Method, StopReason};
@@ -78,7 +78,7 @@ impl<W: Write> Write for Hashing<W> {
 }
 
 /// The number of bytes [`write()`] writes for `result` under `id`, found without writing them.
-pub fn size(result: &MeshResult, id: &str) -> u64 {
+pub fn size(result: &RunResult, id: &str) -> u64 {
     let stats = serde_json::to_vec(&result.stats).map_or(0, |s| s.len()) as u64;
     let fields = serde_json::to_vec(&result.fields).map_or(0, |s| s.len()) as u64;
     let (nv, nt) = (result.vertices.len() as u64, result.triangles.len() as u64);
@@ -96,7 +96,7 @@ pub fn size(result: &MeshResult, id: &str) -> u64 {
 ///
 /// # Errors
 /// Whatever writing to `out` returns.
-pub fn write(result: &MeshResult, id: &str, out: impl Write) -> io::Result<u64> {
+pub fn write(result: &RunResult, id: &str, out: impl Write) -> io::Result<u64> {
     let stats = serde_json::to_vec(&result.stats).map_err(io::Error::other)?;
     let fields = serde_json::to_vec(&result.fields).map_err(io::Error::other)?;
     let mut w = Hashing { out, hash: Sha256::new(), written: 0 };
@@ -269,7 +269,7 @@ fn read_trace(r: &mut Reader<'_>) -> Result<Trace, CompactError> {
 /// # Errors
 /// When the bytes are not this format, do not add up, fail the checksum, hold another id or
 /// name vertices that are not there. Sizes are checked before anything is allocated.
-pub fn read(bytes: &[u8], id: &str) -> Result<MeshResult, CompactError> {
+pub fn read(bytes: &[u8], id: &str) -> Result<RunResult, CompactError> {
     let Some(body_len) = bytes.len().checked_sub(CHECKSUM_LEN) else {
         return Err(CompactError::Format);
     };
@@ -335,7 +335,7 @@ pub fn read(bytes: &[u8], id: &str) -> Result<MeshResult, CompactError> {
         0 => None,
         _ => Some(Arc::new(read_trace(&mut r)?)),
     };
-    Ok(MeshResult { vertices, triangles, fields, stats, trace })
+    Ok(RunResult { vertices, triangles, fields, stats, trace })
 }
 
 #[cfg(test)]
@@ -347,7 +347,7 @@ mod tests {
 
     const ID: &str = "ab12";
 
-    fn bytes(result: &MeshResult) -> Vec<u8> {
+    fn bytes(result: &RunResult) -> Vec<u8> {
         let mut out = Vec::new();
         let n = write(result, ID, &mut out).unwrap();
         assert_eq!(n, out.len() as u64);

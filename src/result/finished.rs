@@ -10,7 +10,7 @@ use std::sync::Arc;
 /// A refined mesh of F or a solution on one: vertices in insertion order (any prefix is an
 /// earlier step's vertex set), counter-clockwise triangles, and what is known on them.
 #[derive(Debug, Clone, PartialEq)]
-pub struct MeshResult {
+pub struct RunResult {
     /// x, y and z (F, or the solution u), in insertion order; the first four are the
     /// rectangle's corners.
     pub vertices: Vec<Vertex>,
@@ -30,7 +30,7 @@ pub fn triangle_errors(errors: Vec<f64>) -> Field {
     Field::cell_scalar("error", "triangle_errors", "", Role::Indicator, errors)
 }
 
-impl From<Refinement> for MeshResult {
+impl From<Refinement> for RunResult {
     fn from(r: Refinement) -> Self {
         Self {
             vertices: r.mesh.vertices().to_vec(),
@@ -42,7 +42,7 @@ impl From<Refinement> for MeshResult {
     }
 }
 
-impl MeshResult {
+impl RunResult {
     /// The field named `name`, if the result has one.
     pub fn field(&self, name: &str) -> Option<&Field> {
         self.fields.iter().find(|f| f.name == name)

@@ -9,7 +9,7 @@
 //! triangulation", 2002); a walk that still has not arrived after many steps falls back to a
 //! scan, so every answer is exact.
 
-use super::MeshResult;
+use super::RunResult;
 use crate::geom::predicates::{Orientation, orientation, signed_area_x2};
 // `signed_area_x2` is robust's orient2d: its sign is exact, so the walk decides with it.
 use crate::geom::{NONE, Point, Vertex};
@@ -20,7 +20,7 @@ const MAX_WALK: usize = 4096;
 /// Batches from this size on are sorted by bucket before they are evaluated.
 const SORT_FROM: usize = 4096;
 
-/// A bucket grid over one [`MeshResult`]'s triangles, each with its corners and neighbours,
+/// A bucket grid over one [`RunResult`]'s triangles, each with its corners and neighbours,
 /// built once and shared.
 #[derive(Debug, Clone)]
 pub struct Locator {
@@ -55,7 +55,7 @@ impl Triangle {
 
 impl Locator {
     /// Indexes `mesh`: about one bucket per triangle.
-    pub fn new(mesh: &MeshResult) -> Self {
+    pub fn new(mesh: &RunResult) -> Self {
         let bounds = mesh.bounds();
         let triangles = mesh.triangles.len().max(1);
         let (w, h) = (bounds[1] - bounds[0], bounds[3] - bounds[2]);
@@ -251,7 +251,7 @@ fn span(lo: f64, hi: f64, n: usize) -> std::ops::Range<usize> {
 }
 
 /// The twin of every half-edge, found by sorting the directed edges once.
-fn twins(mesh: &MeshResult) -> Vec<u32> {
+fn twins(mesh: &RunResult) -> Vec<u32> {
     let key = |a: u32, b: u32| (u64::from(a) << 32) | u64::from(b);
     let mut edges: Vec<(u64, u32)> = Vec::with_capacity(3 * mesh.triangles.len());
     for (t, tri) in mesh.triangles.iter().enumerate() {
@@ -277,17 +277,17 @@ mod tests {
     use crate::result::testing::sample;
     use proptest::prelude::*;
 
-    fn point(mesh: &MeshResult, v: u32) -> Point {
+    fn point(mesh: &RunResult, v: u32) -> Point {
         mesh.vertices[v as usize].point()
     }
 
     /// The naive oracle: the first triangle, by index, that contains `p`.
-    fn scan(mesh: &MeshResult, p: Point) -> Option<u32> {
+    fn scan(mesh: &RunResult, p: Point) -> Option<u32> {
         (0..mesh.triangles.len() as u32)
             .find(|&t| contains(mesh.triangles[t as usize].map(|v| point(mesh, v)), p))
     }
 
-    fn recursive_sample(n: usize) -> MeshResult {
+    fn recursive_sample(n: usize) -> RunResult {
         let f = |x: f64, y: f64| (12.0 * x).sin() * (9.0 * y).cos();
         let params =
             Params::builder(n).method(Method::Recursive).criterion(Criterion::Variation).build().unwrap();

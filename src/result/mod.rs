@@ -5,7 +5,7 @@
 //! Nothing in it depends on the machine or the moment: the same request gives the same
 //! result, bit for bit.
 //!
-//! - `finished`: [`MeshResult`], vertices and triangles with their fields, stats and trace;
+//! - `finished`: [`RunResult`], vertices and triangles with their fields, stats and trace;
 //! - `field`: [`Field`], a named array per vertex or per triangle, with its unit, components
 //!   and role (which writers carry it);
 //! - `stats`: what a run reports ([`Summary`]): a mesh's stats, or a solution's with what u
@@ -20,14 +20,14 @@ pub mod locate;
 mod stats;
 
 pub use field::{Field, Lines, Location, Role};
-pub use finished::{MeshResult, triangle_errors};
+pub use finished::{RunResult, triangle_errors};
 pub use stats::{Physics, RegionStats, SolutionStats, SolveStats, Step, Stop, Summary};
 
 #[cfg(test)]
 pub(crate) mod testing {
     //! A small result for the tests of stores and encoders.
 
-    use super::MeshResult;
+    use super::RunResult;
     use crate::geom::Rect;
     use crate::refine::trace::Recorder;
     use crate::refine::{Criterion, Params, refine};
@@ -43,14 +43,14 @@ pub(crate) mod testing {
 
     /// A refined mesh of a bump on [-1, 2] × [0, 1] with `n` vertices, with or without
     /// per-triangle errors.
-    pub(crate) fn sample(n: usize, criterion: Criterion) -> MeshResult {
+    pub(crate) fn sample(n: usize, criterion: Criterion) -> RunResult {
         let params = Params::builder(n).criterion(criterion).build().unwrap();
         refine(&bump, rect(), &params, &mut ()).unwrap().into()
     }
 
     /// The magnetostatic solution around a square conductor of 1 A in a box of air on
     /// [0, 1]², on about `n` vertices.
-    pub(crate) fn magnetic(n: usize) -> MeshResult {
+    pub(crate) fn magnetic(n: usize) -> RunResult {
         use crate::solve::{MU_0, Physics, Problem, Region, Settings, Shape, adapt};
         let conductor = Rect::new(0.4, 0.6, 0.4, 0.6).unwrap();
         let region = Region { f: Some(25.0), ..Region::new(Shape::Rect(conductor)) };
@@ -61,7 +61,7 @@ pub(crate) mod testing {
 
     /// `result`, a magnetostatic solution, with A = `a(x, y)` at every vertex and B made anew
     /// from it.
-    pub(crate) fn with_potential(mut result: MeshResult, a: impl Fn(f64, f64) -> f64) -> MeshResult {
+    pub(crate) fn with_potential(mut result: RunResult, a: impl Fn(f64, f64) -> f64) -> RunResult {
         result.vertices.iter_mut().for_each(|v| v.z = a(v.x, v.y));
         let b = crate::solve::flux_density(&result.vertices, &result.triangles);
         let at = result.fields.iter().position(|f| f.name == "B").expect("a magnetostatic solution");
@@ -70,12 +70,12 @@ pub(crate) mod testing {
     }
 
     /// [`sample`] with its trace.
-    pub(crate) fn traced(n: usize, criterion: Criterion) -> MeshResult {
+    pub(crate) fn traced(n: usize, criterion: Criterion) -> RunResult {
         let params = Params::builder(n).criterion(criterion).build().unwrap();
         let mut quiet = ();
         let mut recorder = Recorder::new(&mut quiet, &params);
         let run = refine(&bump, rect(), &params, &mut recorder).unwrap();
         let trace = recorder.finish(run.stats.stop).expect("a replayable method");
-        MeshResult { trace: Some(Arc::new(trace)), ..run.into() }
+        RunResult { trace: Some(Arc::new(trace)), ..run.into() }
     }
 }

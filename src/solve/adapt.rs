@@ -8,7 +8,7 @@
 //! [`Floors::Resolution`]: a singular point gets vertices as close as floating point resolves.
 //! The loop always ends on a solve, so the mesh it returns carries the solution.
 
-use super::coefficients::Coefficients;
+use super::coefficients::TriangleCoefficients;
 use super::element::Element;
 use super::error::SolveError;
 use super::periodic;
@@ -270,7 +270,7 @@ impl Finish<'_, '_> {
 ///
 /// # Errors
 /// A triangle the last round added but no solve sampled (a cancelled or stopped round) whose
-/// k or f is invalid: [`Coefficients::of`]'s error.
+/// k or f is invalid: [`TriangleCoefficients::of`]'s error.
 fn measure_fields(
     problem: &Problem<'_>,
     adapted: &mut Adapted,
@@ -287,7 +287,7 @@ fn measure_fields(
         let e = Element::new(&points, tri, t)?;
         gradients.push(e.gradient(tri.map(|v| u[v as usize])));
         if indicator == Indicator::Variation {
-            measured.push(Coefficients::of(problem, &e, t)?);
+            measured.push(TriangleCoefficients::of(problem, &e, t)?);
         }
     }
     let coefficients = match indicator {

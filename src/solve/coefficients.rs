@@ -11,7 +11,7 @@ use crate::geom::Point;
 
 /// What the quadrature rule measures of k and f on one triangle.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Coefficients {
+pub(crate) struct TriangleCoefficients {
     /// The rule's mean of k: the triangle's conductivity in the stiffness matrix.
     pub k: f64,
     /// The rule's mean of f².
@@ -24,7 +24,7 @@ pub(crate) struct Coefficients {
     pub source: [f64; 2],
 }
 
-impl Coefficients {
+impl TriangleCoefficients {
     /// Samples k and f at the rule's points of triangle `t`, or of each piece of it when a
     /// region's side crosses it (see [`cut`]).
     pub(crate) fn of(problem: &Problem<'_>, e: &Element, t: usize) -> Result<Self, SolveError> {

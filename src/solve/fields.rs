@@ -6,12 +6,12 @@ use super::adapt::Adapted;
 use super::element::Element;
 use super::physics::MU_0;
 use crate::geom::Vertex;
-use crate::result::{Field, Lines, MeshResult, Physics, Role, SolutionStats, Summary};
+use crate::result::{Field, Lines, Physics, Role, RunResult, SolutionStats, Summary};
 
 impl Adapted {
     /// The result of this solve: z = u at every vertex, η_T per triangle and the fields of
     /// `physics`.
-    pub fn into_result(self, physics: Physics) -> MeshResult {
+    pub fn into_result(self, physics: Physics) -> RunResult {
         let vertices = self.mesh.vertices().to_vec();
         let triangles: Vec<[u32; 3]> = self.mesh.triangles().collect();
         let mut fields: Vec<Field> =
@@ -19,7 +19,7 @@ impl Adapted {
         if physics == Physics::Magnetostatic {
             fields.extend(magnetostatic(&vertices, &triangles, &self.fields));
         }
-        MeshResult {
+        RunResult {
             vertices,
             triangles,
             fields,

@@ -5,7 +5,7 @@
 //! # Usage
 //! Describe the problem with [`Problem`], then call [`solve`] with the mesh's vertices (either
 //! [`Point`](crate::geom::Point)s or [`Vertex`](crate::geom::Vertex)es, so a [`geom::Mesh`](crate::geom::Mesh) and a
-//! [`MeshResult`](crate::result::MeshResult) both work) and its counter-clockwise triangles,
+//! [`RunResult`](crate::result::RunResult) both work) and its counter-clockwise triangles,
 //! or [`adapt`] to refine and solve in rounds on a mesh that follows the regions' sides.
 //! [`Solution::errors`] measures the result against a known exact solution.
 //!

@@ -8,7 +8,7 @@
 //! symmetric positive definite and goes to the same Cholesky as a linear one.
 
 use super::cholesky::Analysis;
-use super::coefficients::Coefficients;
+use super::coefficients::TriangleCoefficients;
 use super::element::Element;
 use super::error::SolveError;
 use super::problem::Problem;
@@ -43,7 +43,7 @@ pub(super) struct System<'s, 'p> {
     pub problem: &'s Problem<'p>,
     pub triangles: &'s [[u32; 3]],
     pub elements: &'s [Element],
-    pub coefficients: &'s [Coefficients],
+    pub coefficients: &'s [TriangleCoefficients],
     /// The unknown index of each vertex, `None` on a Dirichlet side.
     pub unknown: &'s [Option<usize>],
     /// u at each vertex = sign · its unknown (−1 across an antiperiodic pair).

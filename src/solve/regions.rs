@@ -9,7 +9,7 @@
 //! follows the region's sides, so that ring never cuts into it. The torque about the origin
 //! is −∫ (x (T∇w)_y − y (T∇w)_x), T∇w being constant on each triangle.
 
-use super::coefficients::Coefficients;
+use super::coefficients::TriangleCoefficients;
 use super::element::Element;
 use super::problem::Problem;
 use crate::result::RegionStats;
@@ -22,7 +22,7 @@ pub(crate) fn measure(
     u: &[f64],
     triangles: &[[u32; 3]],
     gradients: &[[f64; 2]],
-    coefficients: &[Coefficients],
+    coefficients: &[TriangleCoefficients],
 ) -> Vec<RegionStats> {
     // A split of a slanted side leaves its midpoint within rounding of the side.
     let tolerance = 1e-9 * problem.domain().diagonal();

@@ -2,7 +2,7 @@
 //!
 //! η_T² = h_T² ‖f‖²_T + ½ Σ_E h_E ‖[k ∂u_h/∂n]‖²_E over the interior edges E of T, with h_T
 //! the longest edge, h_E the edge's length and k the triangle's quadrature mean (ν(|B|) on a
-//! nonlinear triangle, and the flux carries a magnet's source: see [`Coefficients::flux`]). The
+//! nonlinear triangle, and the flux carries a magnet's source: see [`TriangleCoefficients::flux`]). The
 //! jump is constant along an edge (u_h is linear on each side), so its term is |E|² · jump².
 //! Dirichlet edges carry no jump: u is given there. A Neumann edge's term is its whole normal
 //! flux, which should vanish, without the ½ that two triangles sharing an edge split.
@@ -12,7 +12,7 @@
 //! again on the interpolated values, so a bisected triangle's jumps fall with its edges and the
 //! worst of what remains is refined next.
 
-use super::coefficients::Coefficients;
+use super::coefficients::TriangleCoefficients;
 use super::element::Element;
 use super::error::SolveError;
 use super::problem::Problem;
@@ -23,7 +23,7 @@ use crate::refine::{Estimator, Field};
 pub(crate) struct Residual<'p, 'a> {
     problem: &'p Problem<'a>,
     /// k and f as the quadrature rule measures them, by triangle slot: the next solve's too.
-    coefficients: Vec<Coefficients>,
+    coefficients: Vec<TriangleCoefficients>,
     /// h_T² ‖f‖²_T, by triangle slot.
     volume: Vec<f64>,
     /// k ∇u_h, by triangle slot: set from each solve's gradients, and measured again on the
@@ -39,7 +39,7 @@ impl<'p, 'a> Residual<'p, 'a> {
 
     /// Each triangle's coefficients, by triangle index, once [`Residual::measure_all`] and
     /// the engine's rewrites have kept them up to date.
-    pub(crate) fn coefficients(&self) -> &[Coefficients] {
+    pub(crate) fn coefficients(&self) -> &[TriangleCoefficients] {
         &self.coefficients
     }
 
@@ -55,14 +55,15 @@ impl<'p, 'a> Residual<'p, 'a> {
     fn measure(&mut self, mesh: &Mesh, t: u32) -> Result<(), SolveError> {
         let t = t as usize;
         if self.volume.len() <= t {
-            let empty = Coefficients { k: 0.0, f_sq: 0.0, load: [0.0; 3], curve: None, source: [0.0; 2] };
+            let empty =
+                TriangleCoefficients { k: 0.0, f_sq: 0.0, load: [0.0; 3], curve: None, source: [0.0; 2] };
             self.coefficients.resize(t + 1, empty);
             self.volume.resize(t + 1, 0.0);
             self.flux.resize(t + 1, [0.0; 2]);
         }
         let tri = mesh.triangle(t);
         let e = Element::new(mesh.vertices(), tri, t)?;
-        let c = Coefficients::of(self.problem, &e, t)?;
+        let c = TriangleCoefficients::of(self.problem, &e, t)?;
         let h_sq = (3 * t as u32..3 * t as u32 + 3).map(|h| mesh.len_sq(h)).fold(0.0, f64::max);
         let g = e.gradient(tri.map(|v| mesh.vertex(v).z));
         self.coefficients[t] = c;

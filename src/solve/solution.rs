@@ -1,7 +1,7 @@
 //! The discrete solution of one mesh: assembly, the linear or Newton solve, and the
 //! quantities derived from u_h, with its distance from an exact solution.
 
-use super::coefficients::{Coefficients, checked_k};
+use super::coefficients::{TriangleCoefficients, checked_k};
 use super::dofs::Numbering;
 use super::element::{Element, Position};
 use super::error::SolveError;
@@ -71,14 +71,14 @@ pub fn solve<P: Position>(
     solve_with(problem, vertices, triangles, None, None)
 }
 
-/// [`solve`] with each triangle's [`Coefficients`] already measured (by triangle index), as
+/// [`solve`] with each triangle's [`TriangleCoefficients`] already measured (by triangle index), as
 /// the adaptive loop keeps them from round to round: only new triangles sample k and f.
 /// `start` holds u at every vertex for Newton to start from (a nonlinear problem only).
 pub(crate) fn solve_with<P: Position>(
     problem: &Problem<'_>,
     vertices: &[P],
     triangles: &[[u32; 3]],
-    known: Option<&[Coefficients]>,
+    known: Option<&[TriangleCoefficients]>,
     start: Option<&[f64]>,
 ) -> Result<Solution, SolveError> {
     let Numbering { unknown, sign, mut u, masters } = Numbering::new(problem, vertices)?;
@@ -91,7 +91,7 @@ pub(crate) fn solve_with<P: Position>(
         Some(known) => &known[..triangles.len()],
         None => {
             measured = (elements.iter().enumerate())
-                .map(|(t, e)| Coefficients::of(problem, e, t))
+                .map(|(t, e)| TriangleCoefficients::of(problem, e, t))
                 .collect::<Result<Vec<_>, _>>()?;
             &measured[..]
         }

@@ -1,7 +1,7 @@
 //! Tests of the P1 solver: the patch test, convergence rates on uniform meshes, a symmetric
 //! inclusion, determinism and the errors that name a point.
 
-use super::coefficients::Coefficients;
+use super::coefficients::TriangleCoefficients;
 use super::*;
 use crate::geom::{Point, Rect, Vertex};
 use crate::refine::{Criterion, Method, Params, refine};
@@ -196,7 +196,7 @@ fn a_region_side_that_cuts_a_triangle_counts_with_its_exact_share_of_the_area() 
     let e = Element::new(&points, [0, 1, 2], 0).unwrap();
     let region = Region::rect(Rect::new(0.25, 2.0, -1.0, 2.0).unwrap(), Some(3.0), Some(2.0));
     let problem = Problem::new(Rect::new(-1.0, 2.0, -1.0, 2.0).unwrap()).with_region(region);
-    let c = Coefficients::of(&problem, &e, 0).unwrap();
+    let c = TriangleCoefficients::of(&problem, &e, 0).unwrap();
     let share = 0.28125 / 0.5;
     assert!((c.k - (3.0 * share + (1.0 - share))).abs() < 1e-14, "mean k {}", c.k);
     assert!((c.f_sq - 4.0 * share).abs() < 1e-14, "mean f² {}", c.f_sq);

@@ -5,7 +5,7 @@
 //! std's `DefaultHasher` is not used: its docs say its output may change between releases.
 
 use super::job::{JobSpec, Work};
-use super::solution::{Coef, SolveSpec};
+use super::solution::{Function, SolveSpec};
 use crate::solve::Shape;
 use crate::source::Source;
 use sha2::{Digest, Sha256};
@@ -93,10 +93,10 @@ pub fn job_keys(spec: &JobSpec) -> JobKeys {
 fn solution_fields(h: &mut Sha256, spec: &SolveSpec, field: fn(&mut Sha256, &str, &[u8])) {
     let bits = |v: f64| v.to_bits().to_le_bytes();
     let optional = |v: Option<f64>| v.map_or(Vec::new(), |v| bits(v).to_vec());
-    let coef = |h: &mut Sha256, name: &str, c: Option<&Coef>| match c {
+    let coef = |h: &mut Sha256, name: &str, c: Option<&Function>| match c {
         None => field(h, name, &[]),
-        Some(Coef::Constant(v)) => field(h, name, &[&[0u8][..], &bits(*v)].concat()),
-        Some(Coef::Expression(e)) => field(h, name, &[&[1u8][..], e.text().as_bytes()].concat()),
+        Some(Function::Constant(v)) => field(h, name, &[&[0u8][..], &bits(*v)].concat()),
+        Some(Function::Expression(e)) => field(h, name, &[&[1u8][..], e.text().as_bytes()].concat()),
     };
     field(h, "physics", format!("{:?}", spec.physics).as_bytes());
     let d = spec.domain;
@@ -139,7 +139,7 @@ mod tests {
     use crate::api::JobRequest;
     use crate::output::{self, Format, Options};
     use crate::refine::refine;
-    use crate::result::MeshResult;
+    use crate::result::RunResult;
     use crate::spec::Limits;
     use std::sync::Arc;
     use std::time::Duration;
@@ -191,7 +191,7 @@ mod tests {
         let id = job_id(&spec);
         let mesh = spec.mesh().unwrap();
         let refinement = refine(&*mesh.source, mesh.domain, &mesh.params, &mut ()).unwrap();
-        let result = Arc::new(MeshResult::from(refinement));
+        let result = Arc::new(RunResult::from(refinement));
         let options = Options { id: Some(id.clone()), ..Options::default() };
         let body = output::encode(&result, Format::Json, &options).to_vec();
         (id, format!("{:x}", Sha256::digest(&body)))

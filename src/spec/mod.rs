@@ -18,4 +18,4 @@ mod solution;
 pub use checks::{DEFAULT_MAX_VERTICES, Limits, SpecError};
 pub use job::{JobSpec, MeshSpec, Work};
 pub use key::{ENGINE_VERSION, JobKeys, job_id, job_keys};
-pub use solution::{Coef, SolveSpec};
+pub use solution::{Function, SolveSpec};

@@ -12,20 +12,21 @@ use crate::source::Expression;
 use std::sync::Arc;
 use std::time::Duration;
 
-/// A coefficient: a constant or a parsed expression.
+/// A function of x and y as a problem's k, f, g or exact solution: a constant or a parsed
+/// expression (the wire's [`crate::api::Coefficient`], checked).
 #[derive(Debug, Clone)]
-pub enum Coef {
+pub enum Function {
     /// The same value everywhere.
     Constant(f64),
     /// An expression in x and y.
     Expression(Expression),
 }
 
-impl Coef {
+impl Function {
     fn eval(&self, x: f64, y: f64) -> f64 {
         match self {
-            Coef::Constant(c) => *c,
-            Coef::Expression(e) => e.eval_xy(x, y),
+            Function::Constant(c) => *c,
+            Function::Expression(e) => e.eval_xy(x, y),
         }
     }
 }
@@ -38,11 +39,11 @@ pub struct SolveSpec {
     /// The rectangle.
     pub domain: Rect,
     /// k outside the regions.
-    pub k: Coef,
+    pub k: Function,
     /// f outside the regions.
-    pub f: Coef,
+    pub f: Function,
     /// u on the Dirichlet sides.
-    pub g: Coef,
+    pub g: Function,
     /// Each side's condition.
     pub boundary: Boundary,
     /// The regions, in the order they apply.
@@ -50,7 +51,7 @@ pub struct SolveSpec {
     /// The B–H table of each region that has one, by region: what the cache key hashes.
     pub tables: Vec<Option<BhTable>>,
     /// The exact solution, if given.
-    pub exact: Option<Coef>,
+    pub exact: Option<Function>,
     /// The loop's stop rules and method, the time limit already capped.
     pub settings: Settings,
 }
@@ -71,16 +72,16 @@ fn coefficient(
     input: Option<Coefficient>,
     default: f64,
     limits: &Limits,
-) -> Result<Coef, SpecError> {
+) -> Result<Function, SpecError> {
     match input {
-        None => Ok(Coef::Constant(default)),
-        Some(Coefficient::Number(v)) if v.is_finite() => Ok(Coef::Constant(v + 0.0)),
+        None => Ok(Function::Constant(default)),
+        Some(Coefficient::Number(v)) if v.is_finite() => Ok(Function::Constant(v + 0.0)),
         Some(Coefficient::Number(v)) => Err(invalid(field, format!("must be finite, got {v}"))),
         Some(Coefficient::Expression(text)) => {
             let len = text.chars().count() as u64;
             at_most((field, " length"), "MESHFIT_MAX_EXPRESSION_LEN", limits.max_expression_len, len)?;
             Expression::parse(&text)
-                .map(Coef::Expression)
+                .map(Function::Expression)
                 .map_err(|error| SpecError::Coefficient { field, error })
         }
     }
@@ -282,10 +283,10 @@ impl SolveSpec {
                         ));
                     }
                 }
-                (Coef::Constant(1.0 / MU_0), Coef::Constant(0.0))
+                (Function::Constant(1.0 / MU_0), Function::Constant(0.0))
             }
         };
-        if let Coef::Constant(k) = k {
+        if let Function::Constant(k) = k {
             positive("k", k)?;
         }
         let g = coefficient("g", request.g, 0.0, limits)?;

@@ -2,7 +2,7 @@
 //! call a submission makes to decide it.
 
 use super::lease::LeaseGuard;
-use super::peers::{Acquired, Peers, Take};
+use super::peers::{Acquired, Asked, Peers, Take};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -79,7 +79,7 @@ pub(in crate::jobs) async fn claim<T>(
 /// its lease), or was asked to stop: a new request must not be given its end.
 async fn has_ended(peers: &dyn Peers, id: &str, token: &str) -> bool {
     let ended = matches!(peers.posting(id).await, Ok(Some(r)) if r.run == token && r.is_final());
-    ended || matches!(peers.asked(id).await, Ok((true, _)))
+    ended || matches!(peers.asked(id).await, Ok(Asked { cancel: true, .. }))
 }
 
 #[cfg(test)]

@@ -14,7 +14,7 @@ use crate::jobs::job::{Job, JobError, Outcome, Record, Status};
 use crate::jobs::table::{Started, Waiter};
 use crate::refine::StopReason;
 use crate::result::Stop;
-use crate::result::{MeshResult, compact};
+use crate::result::{RunResult, compact};
 use std::sync::{Arc, Weak};
 use std::time::Duration;
 use tokio::sync::broadcast;
@@ -67,7 +67,7 @@ fn failure_of(r: &Posting) -> JobError {
 /// What a look for a result found.
 pub(in crate::jobs) enum Fetched {
     /// The result, now also kept here.
-    Found(Arc<MeshResult>),
+    Found(Arc<RunResult>),
     /// The store answered: it has no such result.
     Missing,
     /// No store, or it did not answer: nothing is known.
@@ -76,7 +76,7 @@ pub(in crate::jobs) enum Fetched {
 
 impl Fetched {
     /// The result, if found.
-    pub(in crate::jobs) fn found(self) -> Option<Arc<MeshResult>> {
+    pub(in crate::jobs) fn found(self) -> Option<Arc<RunResult>> {
         match self {
             Fetched::Found(result) => Some(result),
             _ => None,

@@ -4,13 +4,13 @@
 //! final posting, so that a replica that reads the posting can fetch the result.
 
 use super::lease::Lease;
-use super::peers::{Acquired, Kept, KeptRequest, Peers, Posting, Take};
+use super::peers::{Acquired, Asked, Kept, KeptRequest, Peers, Posting, Take};
 use crate::jobs::Failure;
 use crate::jobs::inner::Inner;
 use crate::jobs::job::{Job, JobError, Outcome, Snapshot, Status};
 use crate::refine::StopReason;
 use crate::result::Stop;
-use crate::result::{MeshResult, Summary, compact};
+use crate::result::{RunResult, Summary, compact};
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::time::Instant;
@@ -106,7 +106,7 @@ async fn keep(inner: &Inner, peers: &dyn Peers, job: &Job, token: &str) {
         // only the holder's postings are written, so this one goes on quietly.
         tracing::warn!(job = %job.id, "lease lost to another replica");
     }
-    if let Ok((cancel, detach)) = peers.asked(&job.id).await {
+    if let Ok(Asked { cancel, detach }) = peers.asked(&job.id).await {
         if cancel {
             job.cancel();
         }
@@ -149,7 +149,7 @@ async fn finish(inner: &Arc<Inner>, peers: &dyn Peers, job: &Job, token: &str, s
 
 /// A result in compact form, and how the store keeps it (partial when a time limit stopped
 /// its run).
-async fn encode(id: &str, result: &Arc<MeshResult>) -> Option<(Vec<u8>, Kept)> {
+async fn encode(id: &str, result: &Arc<RunResult>) -> Option<(Vec<u8>, Kept)> {
     let kept = match result.stats.stop() {
         Stop::Mesh(StopReason::TimeLimit) => Kept::Partial,
         _ => Kept::Whole,
@@ -209,7 +209,7 @@ async fn deliver(
 }
 
 /// Stores a whole result in the store; false while the store is away (or it cannot be encoded).
-pub(super) async fn store_result(peers: &dyn Peers, id: &str, result: &Arc<MeshResult>) -> bool {
+pub(super) async fn store_result(peers: &dyn Peers, id: &str, result: &Arc<RunResult>) -> bool {
     match encode(id, result).await {
         Some((bytes, kept)) => store(peers, id, kept, &bytes).await,
         None => false,

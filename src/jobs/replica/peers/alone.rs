@@ -4,7 +4,7 @@
 //! its tested "store away" paths, and nothing it does leaves the process.
 
 use super::store::{Peers, Result, Unavailable};
-use super::wire::{Acquired, Control, Kept, KeptRequest, Message, Posting, Take};
+use super::wire::{Acquired, Asked, Control, Kept, KeptRequest, Message, Posting, Take};
 use std::time::Duration;
 use tokio::sync::broadcast;
 
@@ -96,7 +96,7 @@ impl Peers for Alone {
         none()
     }
 
-    async fn asked(&self, _: &str) -> Result<(bool, bool)> {
+    async fn asked(&self, _: &str) -> Result<Asked> {
         none()
     }
 

@@ -7,7 +7,7 @@
 //! a round trip would, so that concurrent submissions interleave.
 
 use super::store::{Peers, Result, Unavailable};
-use super::wire::{Acquired, Control, Kept, KeptRequest, Message, Posting, Take};
+use super::wire::{Acquired, Asked, Control, Kept, KeptRequest, Message, Posting, Take};
 use std::collections::{BTreeSet, HashMap};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -254,11 +254,11 @@ impl Peers for Replica {
         Ok(())
     }
 
-    async fn asked(&self, id: &str) -> Result<(bool, bool)> {
+    async fn asked(&self, id: &str) -> Result<Asked> {
         let state = self.reach(false).await?;
         let now = Instant::now();
         let marked = |what| state.marks.get(&(id.to_owned(), what)).is_some_and(|until| *until > now);
-        Ok((marked(Control::Cancel), marked(Control::Detach)))
+        Ok(Asked { cancel: marked(Control::Cancel), detach: marked(Control::Detach) })
     }
 
     async fn result(&self, id: &str, kept: Kept) -> Result<Option<Vec<u8>>> {

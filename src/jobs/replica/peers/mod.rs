@@ -26,4 +26,4 @@ mod wire;
 
 pub(in crate::jobs) use alone::Alone;
 pub use store::{Peers, Result, Unavailable};
-pub use wire::{Acquired, Control, Kept, KeptRequest, Message, Posting, Take};
+pub use wire::{Acquired, Asked, Control, Kept, KeptRequest, Message, Posting, Take};

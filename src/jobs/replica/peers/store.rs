@@ -1,7 +1,7 @@
 //! The store the replicas share, as the one trait [`Peers`] this replica's jobs talk to it
 //! through, and why an operation on it failed.
 
-use super::wire::{Acquired, Control, Kept, KeptRequest, Message, Posting, Take};
+use super::wire::{Acquired, Asked, Control, Kept, KeptRequest, Message, Posting, Take};
 use std::time::Duration;
 use tokio::sync::broadcast;
 
@@ -94,8 +94,8 @@ pub trait Peers: Send + Sync + 'static {
     /// renewal (a message can be missed, a mark cannot).
     async fn control(&self, id: &str, what: Control) -> Result<()>;
 
-    /// Whether a follower asked for job `id` to be cancelled, and to be detached.
-    async fn asked(&self, id: &str) -> Result<(bool, bool)>;
+    /// What followers asked of the run of job `id`.
+    async fn asked(&self, id: &str) -> Result<Asked>;
 
     /// The stored result `id` in compact form.
     async fn result(&self, id: &str, kept: Kept) -> Result<Option<Vec<u8>>>;

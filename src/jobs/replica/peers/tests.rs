@@ -9,7 +9,7 @@ use crate::api::JobRequest;
 use crate::jobs::dispatch::Worker;
 use crate::jobs::{Cache, Client, JobError, Jobs, Lifetime, Outcome, Pool, RequestParser, Ticket, Waiter};
 use crate::metrics::Metrics;
-use crate::result::{MeshResult, compact};
+use crate::result::{RunResult, compact};
 use crate::spec::{JobKeys, JobSpec, Limits, job_keys};
 use futures_util::future::BoxFuture;
 use std::num::NonZeroUsize;
@@ -110,14 +110,14 @@ async fn followed(a: &Node, b: &Node, lifetime: Lifetime) -> (Worker, Waiter, Wa
     (held, on_a, on_b)
 }
 
-async fn succeeded(waiter: &Waiter) -> Arc<MeshResult> {
+async fn succeeded(waiter: &Waiter) -> Arc<RunResult> {
     match waiter.job().outcome().await {
         Outcome::Succeeded(result) => result,
         other => panic!("expected a result, got {other:?}"),
     }
 }
 
-fn compact(result: &MeshResult, id: &str) -> Vec<u8> {
+fn compact(result: &RunResult, id: &str) -> Vec<u8> {
     let mut bytes = Vec::new();
     compact::write(result, id, &mut bytes).unwrap();
     bytes

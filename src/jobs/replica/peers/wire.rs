@@ -53,6 +53,15 @@ pub enum Control {
     Detach,
 }
 
+/// What followers asked of a run, marked in the store for its next renewal.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Asked {
+    /// Stop it.
+    pub cancel: bool,
+    /// Run it to the end even if its own clients leave.
+    pub detach: bool,
+}
+
 /// How a run takes a lease.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Take {
