@@ -155,8 +155,8 @@ fn group(mut rest: &str, mut base: Module, found: &mut Vec<Module>) {
 fn modules(src: &Path) -> BTreeMap<Module, String> {
     let mut all = Vec::new();
     files(src, &mut all);
-    // main.rs is the binary, another crate.
-    all.retain(|f| f != &src.join("main.rs"));
+    // src/bin/ is the binary, another crate.
+    all.retain(|f| !f.starts_with(src.join("bin")));
     let mut modules: BTreeMap<Module, String> =
         all.iter().map(|f| (module_of(src, f), code(&std::fs::read_to_string(f).unwrap()))).collect();
     // Test-only modules (`#[cfg(test)] mod x;` in their parent) are not the crate's layout.
