@@ -100,16 +100,8 @@ impl Field {
         role: Role,
         values: impl IntoIterator<Item = [f64; 2]>,
     ) -> Self {
-        Self {
-            name: name.into(),
-            key: key.into(),
-            unit: unit.into(),
-            location: Location::Cell,
-            components: 2,
-            role,
-            lines: None,
-            values: values.into_iter().flatten().collect(),
-        }
+        let values = values.into_iter().flatten().collect();
+        Self { components: 2, ..Self::cell_scalar(name, key, unit, role, values) }
     }
 
     /// How many vertices or triangles the field has values for.
