@@ -15,7 +15,7 @@ pub(crate) struct HealthArgs {
 }
 
 /// How long `meshfit health` waits for the connection and for the answer, each.
-pub(crate) const HEALTH_TIMEOUT: Duration = Duration::from_secs(3);
+const HEALTH_TIMEOUT: Duration = Duration::from_secs(3);
 
 /// One GET /healthz over a plain socket: the binary carries no HTTP client (reqwest is for
 /// tests), and the check needs no more than a status line.

@@ -74,7 +74,7 @@ pub(crate) struct MeshArgs {
     output: OutputArgs,
 }
 
-pub(crate) fn parse_domain(s: &str) -> Result<Rect, String> {
+fn parse_domain(s: &str) -> Result<Rect, String> {
     let bounds: Vec<f64> = s
         .split(',')
         .map(|b| b.trim().parse::<f64>().map_err(|_| format!("`{}` is not a number", b.trim())))
@@ -85,18 +85,18 @@ pub(crate) fn parse_domain(s: &str) -> Result<Rect, String> {
     Rect::new(a, b, c, d).map_err(|e| e.to_string())
 }
 
-pub(crate) fn parse_dtype(s: &str) -> Result<RawType, String> {
+fn parse_dtype(s: &str) -> Result<RawType, String> {
     RawType::from_name(s).ok_or_else(|| format!("`{s}` is not a sample type; use f32 or f64"))
 }
 
-pub(crate) fn parse_encoding(s: &str) -> Result<Encoding, String> {
+fn parse_encoding(s: &str) -> Result<Encoding, String> {
     Encoding::from_name(s)
         .ok_or_else(|| format!("`{s}` is not a tile encoding; use terrain-rgb or terrarium"))
 }
 
 /// The request `args` make, with the grid file's bytes if they name one: the same request the
 /// API would take, so the command line checks it by the same rules.
-pub(crate) fn mesh_request(args: &MeshArgs) -> Result<(JobRequest<'static>, Option<Vec<u8>>)> {
+fn mesh_request(args: &MeshArgs) -> Result<(JobRequest<'static>, Option<Vec<u8>>)> {
     let file = match &args.grid {
         Some(path) => {
             Some(std::fs::read(path).with_context(|| format!("cannot read grid file {}", path.display()))?)
@@ -127,13 +127,18 @@ pub(crate) fn mesh_request(args: &MeshArgs) -> Result<(JobRequest<'static>, Opti
 
 /// A request's error as the command line names it: by its flag, with a caret under the column
 /// of a bad expression.
-pub(crate) fn flag_error(e: SpecError, args: &MeshArgs) -> anyhow::Error {
+fn flag_error(e: SpecError, args: &MeshArgs) -> anyhow::Error {
     match (&e, &args.function) {
         (SpecError::Expression(x), Some(text)) => {
             anyhow::anyhow!("--function: {x}\n  {text}\n  {:>1$}", "^", x.column)
         }
         _ => match e.field() {
-            Some(field) => anyhow::Error::new(e.clone()).context(format!("--{}", field.replace('_', "-"))),
+            // The message names the request's field ("grid: …"); the flag replaces it.
+            Some(field) => {
+                let message = e.to_string();
+                let message = message.strip_prefix(&format!("{field}: ")).unwrap_or(&message);
+                anyhow::anyhow!("--{}: {message}", field.replace('_', "-"))
+            }
             None => e.into(),
         },
     }

@@ -84,14 +84,14 @@ pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
 
 /// The address a person opens for a server listening on `addr`: a wildcard address listens
 /// on every interface, loopback included.
-pub(crate) fn page_url(addr: SocketAddr) -> String {
+fn page_url(addr: SocketAddr) -> String {
     let ip = if addr.ip().is_unspecified() { "localhost".to_owned() } else { addr.ip().to_string() };
     let host = if addr.is_ipv6() && ip != "localhost" { format!("[{ip}]") } else { ip };
     format!("http://{host}:{}/", addr.port())
 }
 
 /// Ctrl-C or SIGTERM.
-pub(crate) async fn shutdown_signal() {
+async fn shutdown_signal() {
     let ctrl_c = async {
         let _ = tokio::signal::ctrl_c().await;
     };
