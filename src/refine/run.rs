@@ -34,14 +34,14 @@ pub(crate) struct Round {
 pub(super) struct Run<'a, O> {
     pub(super) params: &'a Params,
     pub(super) observer: &'a mut O,
-    pub(super) start: Instant,
-    pub(super) last_report: Instant,
-    pub(super) steps: u64,
+    start: Instant,
+    last_report: Instant,
+    steps: u64,
     pub(super) floors: Floors,
     /// Scratch stack for Lawson flips, reused so insertions do not allocate.
-    pub(super) stack: Vec<u32>,
+    stack: Vec<u32>,
     pub(super) flips: u64,
-    pub(super) retired: u64,
+    retired: u64,
     pub(super) history: History,
 }
 
@@ -184,7 +184,7 @@ impl<'a, O: Observer> Run<'a, O> {
         Some(self.insert(mesh, e, v, placement, on_flip))
     }
 
-    pub(super) fn insert(
+    fn insert(
         &mut self,
         mesh: &mut Mesh,
         e: u32,
