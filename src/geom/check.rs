@@ -81,12 +81,7 @@ impl Mesh {
         let r = self.rect;
         for (v, vertex) in self.vertices.iter().enumerate() {
             ensure!(vertex.z.is_finite(), "vertex {v} has non-finite value {}", vertex.z);
-            ensure!(
-                r.x0() <= vertex.x && vertex.x <= r.x1() && r.y0() <= vertex.y && vertex.y <= r.y1(),
-                "vertex {v} at ({}, {}) is outside {r}",
-                vertex.x,
-                vertex.y
-            );
+            ensure!(r.contains(vertex.point()), "vertex {v} at ({}, {}) is outside {r}", vertex.x, vertex.y);
             let e = self.outgoing[v];
             ensure!(
                 (e as usize) < self.half.len() && self.origin(e) == v as u32,

@@ -48,8 +48,7 @@ impl Mesh {
     pub fn constrained(rect: Rect, sides: &[[Point; 2]], budget: usize) -> Result<Self, ConstrainedError> {
         let mut cdt = ConstrainedDelaunayTriangulation::<Point2<f64>>::new();
         let mut insert = |p: Point| {
-            let inside = rect.x0() <= p.x && p.x <= rect.x1() && rect.y0() <= p.y && p.y <= rect.y1();
-            if !inside {
+            if !rect.contains(p) {
                 return Err(ConstrainedError::BadPoint { x: p.x, y: p.y });
             }
             cdt.insert(Point2::new(p.x, p.y)).map_err(|_| ConstrainedError::BadPoint { x: p.x, y: p.y })

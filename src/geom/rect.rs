@@ -128,6 +128,11 @@ impl Rect {
         ]
     }
 
+    /// Whether `p` lies in the closed rectangle, sides included (false for NaN).
+    pub fn contains(&self, p: Point) -> bool {
+        self.x0() <= p.x && p.x <= self.x1() && self.y0() <= p.y && p.y <= self.y1()
+    }
+
     /// Width × height.
     pub fn area(&self) -> f64 {
         (self.x1 - self.x0) * (self.y1 - self.y0)

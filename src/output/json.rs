@@ -45,7 +45,7 @@ pub fn encode(result: &Arc<RunResult>, options: &Options) -> Encoded {
         Part::Bytes(b"]".to_vec()),
     ];
     // The document stays small: of the fields, it carries the one the run is about.
-    if let Some(f) = result.fields.iter().position(|f| f.role == Role::Main) {
+    if let Some(f) = result.with_role(Role::Main) {
         let field = &result.fields[f];
         let mut key = b",".to_vec();
         serde_json::to_writer(&mut key, &field.key).expect("a string serializes");

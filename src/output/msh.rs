@@ -61,7 +61,7 @@ pub(super) fn encode(result: &Arc<RunResult>, _options: &Options) -> Encoded {
             Location::Point => ("NodeData", n),
             Location::Cell => ("ElementData", m),
         };
-        for f in (0..result.fields.len()).filter(|&f| result.fields[f].location == location) {
+        for f in result.at(location) {
             let field = &result.fields[f];
             // A vector in the plane is a 3-component view (x, y, 0), as Gmsh draws vectors.
             let vector = field.components > 1;

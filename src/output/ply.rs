@@ -10,7 +10,7 @@ use std::sync::Arc;
 /// The PLY file of `result`.
 pub(super) fn encode(result: &Arc<RunResult>, _options: &Options) -> Encoded {
     // A face has room for one number: the refinement's indicator, under its field's name.
-    let indicator = result.fields.iter().position(|f| f.role == Role::Indicator);
+    let indicator = result.with_role(Role::Indicator);
     let mut head = format!(
         "ply\nformat binary_little_endian 1.0\ncomment meshfit\n\
          element vertex {}\nproperty double x\nproperty double y\nproperty double z\n\

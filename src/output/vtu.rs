@@ -38,11 +38,11 @@ pub(super) fn encode(result: &Arc<RunResult>, _options: &Options) -> Encoded {
         Part::Bytes(b"</DataArray>\n".to_vec()),
     ];
     // Fields per vertex join z; fields per triangle are the cell data.
-    for f in indices(result, Location::Point) {
+    for f in result.at(Location::Point) {
         parts.extend(data_array(result, f, n));
     }
     parts.push(Part::Bytes(b"</PointData>\n".to_vec()));
-    let cell_fields = indices(result, Location::Cell);
+    let cell_fields: Vec<usize> = result.at(Location::Cell).collect();
     if !cell_fields.is_empty() {
         parts.push(Part::Bytes(b"<CellData>\n".to_vec()));
         for f in cell_fields {
@@ -77,11 +77,6 @@ pub(super) fn encode(result: &Arc<RunResult>, _options: &Options) -> Encoded {
         Part::Bytes(b"</DataArray>\n</Cells>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n".to_vec()),
     ]);
     Encoded::new(parts)
-}
-
-/// The positions in `result.fields` of the fields at `location`.
-fn indices(result: &RunResult, location: Location) -> Vec<usize> {
-    (result.fields.iter().enumerate()).filter(|(_, f)| f.location == location).map(|(i, _)| i).collect()
 }
 
 /// Field `f` of `result` as a data array of `count` values: a scalar as is, a vector in the

@@ -51,22 +51,23 @@ impl RunResult {
     /// The refinement's measure of each triangle (e(T) of a mesh of F, η_T of a solution),
     /// when the run kept one.
     pub fn indicator(&self) -> Option<&[f64]> {
-        self.fields.iter().find(|f| f.role == Role::Indicator).map(|f| &f.values[..])
-    }
-
-    /// The fields per triangle, in order.
-    pub fn cell_fields(&self) -> impl Iterator<Item = &Field> {
-        self.fields.iter().filter(|f| f.location == Location::Cell)
-    }
-
-    /// The fields per vertex beyond z, in order.
-    pub fn point_fields(&self) -> impl Iterator<Item = &Field> {
-        self.fields.iter().filter(|f| f.location == Location::Point)
+        self.with_role(Role::Indicator).map(|f| &self.fields[f].values[..])
     }
 
     /// The quantity the run is about, if it has one beyond z.
     pub fn main_field(&self) -> Option<&Field> {
-        self.fields.iter().find(|f| f.role == Role::Main)
+        self.with_role(Role::Main).map(|f| &self.fields[f])
+    }
+
+    /// The index in [`RunResult::fields`] of the first field of `role`. Writers keep indices
+    /// rather than borrows: their rows are made later, from a shared result.
+    pub fn with_role(&self, role: Role) -> Option<usize> {
+        self.fields.iter().position(|f| f.role == role)
+    }
+
+    /// The indices in [`RunResult::fields`] of the fields at `location`, in order.
+    pub fn at(&self, location: Location) -> impl Iterator<Item = usize> + '_ {
+        (0..self.fields.len()).filter(move |&f| self.fields[f].location == location)
     }
 
     /// Bytes the arrays take in memory: what a cache weighs it by.

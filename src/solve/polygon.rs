@@ -91,9 +91,8 @@ impl Polygon {
             return Err(PolygonError::TooMany(corners.len()));
         }
         let corners: Vec<Point> = corners.into_iter().map(|p| Point::new(p.x + 0.0, p.y + 0.0)).collect();
-        let inside =
-            |p: &Point| domain.x0() <= p.x && p.x <= domain.x1() && domain.y0() <= p.y && p.y <= domain.y1();
-        if let Some((corner, p)) = corners.iter().enumerate().find(|(_, p)| !inside(p)) {
+        // NaN and infinite corners fall outside a finite domain too.
+        if let Some((corner, p)) = corners.iter().enumerate().find(|(_, p)| !domain.contains(**p)) {
             return Err(PolygonError::Outside { corner, x: p.x, y: p.y });
         }
         let polygon = Self::new(corners);

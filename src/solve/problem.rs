@@ -41,7 +41,7 @@ impl Shape {
     /// inside their triangles, or through [`Shape::holds`].
     pub fn contains(&self, p: Point) -> bool {
         match self {
-            Shape::Rect(r) => r.x0() <= p.x && p.x <= r.x1() && r.y0() <= p.y && p.y <= r.y1(),
+            Shape::Rect(r) => r.contains(p),
             Shape::Polygon(_) if !self.near(p, 0.0) => false,
             Shape::Polygon(Polygon { corners, .. }) => {
                 // Crossings of a ray to +x (W. R. Franklin's PNPOLY), then the sides themselves.
@@ -143,9 +143,7 @@ impl Region {
     /// # Errors
     /// [`OutsideDomain`] when a corner of the shape lies outside `domain`.
     pub fn try_new(shape: Shape, domain: Rect) -> Result<Self, OutsideDomain> {
-        let inside =
-            |p: Point| domain.x0() <= p.x && p.x <= domain.x1() && domain.y0() <= p.y && p.y <= domain.y1();
-        if shape.sides().all(|[a, _]| inside(a)) { Ok(Self::new(shape)) } else { Err(OutsideDomain) }
+        if shape.sides().all(|[a, _]| domain.contains(a)) { Ok(Self::new(shape)) } else { Err(OutsideDomain) }
     }
 
     /// A rectangle with k and/or f.
