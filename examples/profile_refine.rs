@@ -25,7 +25,8 @@ fn main() {
         run(&surface, &params);
     }
     let result = run(&surface, &params);
-    println!("{}", serde_json::to_string(&result.stats).expect("stats serialize"));
+    let stats = meshfit::result::MeshStats::from(result.stats);
+    println!("{}", serde_json::to_string(&stats).expect("stats serialize"));
 }
 
 fn run(surface: &str, params: &Params) -> meshfit::refine::Refinement {

@@ -160,7 +160,8 @@ pub struct JobStatus {
     /// The latest progress report, once running.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub progress: Option<ProgressEvent>,
-    /// The run's stats, once succeeded.
+    /// The run's stats, once succeeded: a result's report ([`Summary`]), the
+    /// same the mesh document carries, never the engine's working counters.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stats: Option<Summary>,
     /// How long the engine ran, in milliseconds, once finished (not part of the mesh: it is

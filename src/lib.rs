@@ -49,7 +49,7 @@
 //! refine    ──▶ geom, source
 //! result    ──▶ geom, refine
 //! solve     ──▶ geom, refine, result
-//! output    ──▶ geom, refine, result
+//! output    ──▶ geom, result
 //! api       ──▶ refine, result, solve, source
 //! spec      ──▶ api, geom, refine, solve, source
 //! jobs      ──▶ api, cpu, geom, metrics, refine, result, solve, source, spec

@@ -7,8 +7,7 @@
 //! document has no line breaks, so it also fits in one server-sent event's `data` line.
 
 use super::{Encoded, Options, Part};
-use crate::refine::{ErrorEstimate, Stats};
-use crate::result::{Role, RunResult};
+use crate::result::{MeshStats, Quality, Role, RunResult};
 use serde::Serialize;
 use std::io::{self, Write};
 use std::sync::Arc;
@@ -72,9 +71,9 @@ pub fn encode(result: &Arc<RunResult>, options: &Options) -> Encoded {
 #[derive(Serialize)]
 pub struct StatsDocument<'a> {
     /// The run's counters and outcome.
-    pub stats: &'a Stats,
+    pub stats: &'a MeshStats,
     /// The E_n estimate.
-    pub error: ErrorEstimate,
+    pub error: Quality,
     /// The refinement's wall-clock time (not the estimate's), as a job's status reports it.
     pub elapsed_ms: f64,
 }

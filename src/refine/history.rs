@@ -8,10 +8,9 @@
 use super::measures::variation;
 use super::params::{Criterion, Method};
 use crate::geom::Mesh;
-use serde::{Deserialize, Serialize};
 
 /// The state of a run at one vertex count.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sample {
     /// Vertices n.
     pub vertices: usize,
@@ -20,7 +19,6 @@ pub struct Sample {
     /// The worst criterion value compared with the tolerance at this count: the largest e(T)
     /// for `error`, the largest |zᵢ − zⱼ| still to split for `variation`. Absent from a final
     /// sample at a count never checked (the budget stopped the run first).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub worst: Option<f64>,
 }
 

@@ -23,7 +23,7 @@ pub fn variation(mesh: &Mesh) -> f64 {
 }
 
 /// How well the mesh approximates F, estimated by sampling.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ErrorEstimate {
     /// E_n ≈ max |F − F_n| over the samples.
     pub max_error: f64,

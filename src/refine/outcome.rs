@@ -21,8 +21,9 @@ pub enum StopReason {
     Exhausted,
 }
 
-/// Counters and the outcome of a run.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+/// Counters and the outcome of a run: the mesher's own, which a finished result reports in
+/// its own form (`result::MeshStats`).
+#[derive(Debug, Clone, PartialEq)]
 pub struct Stats {
     /// Vertices n.
     pub vertices: usize,
@@ -31,7 +32,6 @@ pub struct Stats {
     /// V_n = max |zᵢ − zⱼ| over the edges of the final mesh.
     pub variation: f64,
     /// For the `error` criterion: the largest triangle error estimate e(T) at the end.
-    #[serde(skip_serializing_if = "Option::is_none")]
     pub max_triangle_error: Option<f64>,
     /// Edge flips made.
     pub flips: u64,
@@ -45,13 +45,11 @@ pub struct Stats {
     pub delaunay: bool,
     /// With `min_angle`: how many triangles of the final mesh have a smaller angle, their
     /// repair stopped by a size floor, the budget or the tolerance.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub below_min_angle: Option<u64>,
     /// V_n and the worst criterion value at vertex counts 4, 6, 8, 12, 16, 24, … and at the
     /// end: the run's convergence.
     pub history: Vec<Sample>,
     /// The final mesh measured against F, when the request asked (`quality`).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub quality: Option<ErrorEstimate>,
 }
 

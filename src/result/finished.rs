@@ -36,7 +36,7 @@ impl From<Refinement> for RunResult {
             vertices: r.mesh.vertices().to_vec(),
             triangles: r.mesh.triangles().collect(),
             fields: r.triangle_errors.map(triangle_errors).into_iter().collect(),
-            stats: Summary::Mesh(r.stats),
+            stats: Summary::Mesh(r.stats.into()),
             trace: None,
         }
     }

@@ -21,7 +21,9 @@ mod stats;
 
 pub use field::{Field, Lines, Location, Role};
 pub use finished::{RunResult, triangle_errors};
-pub use stats::{Physics, RegionStats, SolutionStats, SolveStats, Step, Stop, Summary};
+pub use stats::{
+    Checkpoint, MeshStats, Physics, Quality, RegionStats, SolutionStats, SolveStats, Step, Stop, Summary,
+};
 
 #[cfg(test)]
 pub(crate) mod testing {

@@ -1,9 +1,13 @@
-//! What a finished run reports: a mesh's [`Stats`] or a solution's, with what u stood for.
+//! What a finished run reports, a mesh's or a solution's, in the form the API, the JSON
+//! document and the stored results carry.
 //!
-//! A solution's report types live here, below the solver that fills them, so that a result
-//! (and every store and writer of one) knows nothing of how a solution was computed.
+//! These are the wire's report types, apart from the engine's working types: the mesher's
+//! [`Stats`] become a [`MeshStats`] once, as a run becomes a result, so renaming one of its
+//! counters is a compile error here rather than a silent change of the API or of the cache's
+//! files. A solution's report types live here too, below the solver that fills them, so
+//! that a result (and every store and writer of one) knows nothing of how it was computed.
 
-use crate::refine::{Stats, StopReason};
+use crate::refine::{ErrorEstimate, Sample, Stats, StopReason};
 use serde::{Deserialize, Serialize};
 
 /// What a result's run reports: a mesh's stats or a solution's.
@@ -11,9 +15,113 @@ use serde::{Deserialize, Serialize};
 #[serde(untagged)]
 pub enum Summary {
     /// A mesh of F.
-    Mesh(Stats),
+    Mesh(MeshStats),
     /// The solution of a boundary value problem.
     Solution(SolutionStats),
+}
+
+/// A mesh's counters and outcome, as reported.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MeshStats {
+    /// Vertices n.
+    pub vertices: usize,
+    /// Triangles (2n − h − 2).
+    pub triangles: usize,
+    /// V_n = max |zᵢ − zⱼ| over the edges of the final mesh.
+    pub variation: f64,
+    /// For the `error` criterion: the largest triangle error estimate e(T) at the end.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_triangle_error: Option<f64>,
+    /// Edge flips made.
+    pub flips: u64,
+    /// Edges retired instead of split.
+    pub retired_edges: u64,
+    /// Evaluations of F.
+    pub evaluations: u64,
+    /// Why the run stopped.
+    pub stop: StopReason,
+    /// Whether the final mesh passes the exact in-circle test on every interior edge.
+    pub delaunay: bool,
+    /// With `min_angle`: triangles of the final mesh with a smaller angle.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub below_min_angle: Option<u64>,
+    /// V_n and the worst criterion value at vertex counts 4, 6, 8, 12, 16, 24, … and at the
+    /// end: the run's convergence.
+    pub history: Vec<Checkpoint>,
+    /// The final mesh measured against F, when the request asked (`quality`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub quality: Option<Quality>,
+}
+
+/// The state of a run at one vertex count.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Checkpoint {
+    /// Vertices n.
+    pub vertices: usize,
+    /// V_n.
+    pub variation: f64,
+    /// The worst criterion value compared with the tolerance, if checked at this count.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub worst: Option<f64>,
+}
+
+/// A mesh measured against F by sampling.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Quality {
+    /// E_n ≈ max |F − F_n| over the samples.
+    pub max_error: f64,
+    /// Root mean square of F − F_n, area-weighted.
+    pub rms_error: f64,
+    /// The smallest interior angle of any triangle, in degrees.
+    pub min_angle_deg: f64,
+    /// How many points were sampled.
+    pub samples: u64,
+}
+
+impl From<Stats> for MeshStats {
+    fn from(s: Stats) -> Self {
+        // Every field named, none by `..`: a counter added to the mesher must be placed here.
+        let Stats {
+            vertices,
+            triangles,
+            variation,
+            max_triangle_error,
+            flips,
+            retired_edges,
+            evaluations,
+            stop,
+            delaunay,
+            below_min_angle,
+            history,
+            quality,
+        } = s;
+        Self {
+            vertices,
+            triangles,
+            variation,
+            max_triangle_error,
+            flips,
+            retired_edges,
+            evaluations,
+            stop,
+            delaunay,
+            below_min_angle,
+            history: history.into_iter().map(Checkpoint::from).collect(),
+            quality: quality.map(Quality::from),
+        }
+    }
+}
+
+impl From<Sample> for Checkpoint {
+    fn from(Sample { vertices, variation, worst }: Sample) -> Self {
+        Self { vertices, variation, worst }
+    }
+}
+
+impl From<ErrorEstimate> for Quality {
+    fn from(ErrorEstimate { max_error, rms_error, min_angle_deg, samples }: ErrorEstimate) -> Self {
+        Self { max_error, rms_error, min_angle_deg, samples }
+    }
 }
 
 /// A solution's stats with what u stands for.

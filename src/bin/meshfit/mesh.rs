@@ -158,8 +158,8 @@ pub(crate) fn mesh(args: &MeshArgs) -> Result<()> {
     let result = refine(source, rect, params, &mut ())?;
     if args.stats {
         let document = json::StatsDocument {
-            stats: &result.stats,
-            error: estimate_error(&result.mesh, source),
+            stats: &result.stats.clone().into(),
+            error: estimate_error(&result.mesh, source).into(),
             elapsed_ms: result.elapsed.as_secs_f64() * 1e3,
         };
         return to_stdout(|out| {
