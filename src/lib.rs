@@ -122,7 +122,7 @@ pub async fn serve(
         let cluster = cluster::Cluster::connect(url, config.redis.clone(), metrics.redis_errors.clone())
             .map_err(|e| std::io::Error::other(format!("MESHFIT_REDIS_URL: {e}")))?;
         tracing::info!(replica = cluster.replica(), "sharing results and jobs through redis");
-        jobs = jobs.shared(Arc::new(cluster), Arc::new(http::KeptRequestParser::new(config.limits)));
+        jobs = jobs.shared(Arc::new(cluster), config.limits);
     }
     // Indexes are rebuilt in milliseconds; a quarter of the result cache's budget holds plenty.
     let state = http::AppState::new(jobs.clone(), config.limits, config.body, config.cache.memory_bytes / 4);

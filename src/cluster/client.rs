@@ -5,7 +5,7 @@ use super::link::Inner;
 use super::listen;
 use crate::config::Redis;
 use crate::jobs::peers::{
-    Acquired, Asked, Control, Kept, KeptRequest, Message, Peers, Posting, Result, Take, Unavailable,
+    Acquired, Asked, Control, Kept, Message, Peers, Posting, Result, Take, Unavailable,
 };
 use redis::AsyncCommands;
 use redis::aio::ConnectionManager;
@@ -76,7 +76,7 @@ impl Cluster {
         self.while_up(&self.inner.conn)
     }
 
-    /// [`Cluster::conn`] for results and requests.
+    /// [`Cluster::conn`] for results and specs.
     fn bulk(&self) -> Result<ConnectionManager> {
         self.while_up(&self.inner.bulk)
     }
@@ -195,23 +195,13 @@ impl Peers for Cluster {
         Ok(self.note(got)?.and_then(|json| serde_json::from_str(&json).ok()))
     }
 
-    async fn keep_request(&self, id: &str, request: &KeptRequest) -> Result<bool> {
-        if request.body.len() as u64 > self.inner.settings.max_bytes {
+    async fn keep_spec(&self, id: &str, spec: &[u8]) -> Result<bool> {
+        if spec.len() as u64 > self.inner.settings.max_bytes {
             return Ok(false);
         }
-        let name = key("request", id);
         let done = redis::pipe()
             .atomic()
-            .hset_multiple(
-                &name,
-                &[
-                    ("kind", request.kind.as_bytes()),
-                    ("content_type", request.content_type.as_bytes()),
-                    ("body", &request.body[..]),
-                ],
-            )
-            .ignore()
-            .pexpire(&name, self.ttl_ms() as i64)
+            .pset_ex(key("spec", id), spec, self.ttl_ms())
             .ignore()
             .sadd(PENDING, id)
             .ignore()
@@ -220,18 +210,9 @@ impl Peers for Cluster {
         self.note(done).map(|()| true)
     }
 
-    async fn request(&self, id: &str) -> Result<Option<KeptRequest>> {
-        let got = redis::cmd("HMGET")
-            .arg(key("request", id))
-            .arg(&["kind", "content_type", "body"])
-            .query_async::<(Option<String>, Option<String>, Option<Vec<u8>>)>(&mut self.bulk()?)
-            .await;
-        Ok(match self.note(got)? {
-            (Some(kind), Some(content_type), Some(body)) => {
-                Some(KeptRequest { kind, content_type, body: body.into() })
-            }
-            _ => None,
-        })
+    async fn kept_spec(&self, id: &str) -> Result<Option<Vec<u8>>> {
+        let got = self.bulk()?.get(key("spec", id)).await;
+        self.note(got)
     }
 
     async fn pending(&self) -> Result<Vec<String>> {
@@ -248,7 +229,7 @@ impl Peers for Cluster {
         let done = redis::pipe()
             .srem(PENDING, id)
             .ignore()
-            .del(&[key("request", id), key("cancel", id), key("detach", id)])
+            .del(&[key("spec", id), key("cancel", id), key("detach", id)])
             .ignore()
             .query_async::<()>(&mut self.conn()?)
             .await;

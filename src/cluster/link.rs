@@ -10,7 +10,7 @@ use tokio::sync::broadcast;
 pub(super) struct Inner {
     /// Leases, postings, messages and the ping: small commands that must not wait.
     pub(super) conn: ConnectionManager,
-    /// Results and requests, up to `max_bytes` each: on a connection of their own, so that a
+    /// Results and specs, up to `max_bytes` each: on a connection of their own, so that a
     /// large transfer never holds a lease renewal or the ping back (a ping held past its
     /// timeout would take Redis for gone).
     pub(super) bulk: ConnectionManager,

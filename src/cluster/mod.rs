@@ -6,7 +6,7 @@
 //! is decided in `jobs`, which knows nothing of Redis.
 //!
 //! redis-rs rather than a hand-written client: its `ConnectionManager` multiplexes commands
-//! over one connection (a replica keeps two: small commands, and results and requests) and
+//! over one connection (a replica keeps two: small commands, and results and specs) and
 //! reconnects by itself after Redis comes back, which is exactly the behaviour a replica
 //! needs when Redis goes away.
 //!
@@ -16,8 +16,8 @@
 //! | `meshfit:partial:{id}` | a result a time limit stopped (never a new request's answer) | same |
 //! | `meshfit:job:{id}` | the job's [`Posting`](crate::jobs::peers::Posting) as JSON | same |
 //! | `meshfit:lease:{id}` | the token of the run holding it: replica and run number | `MESHFIT_REDIS_LEASE_MS`, renewed |
-//! | `meshfit:request:{id}` | the request body, so another replica can take the job over | same as results |
-//! | `meshfit:pending` | ids of jobs not finished, with a stored request | |
+//! | `meshfit:spec:{id}` | the job's spec in canonical form ([`crate::spec::canonical`]), so another replica can take the job over | same as results |
+//! | `meshfit:pending` | ids of jobs not finished, with a stored spec | |
 //! | `meshfit:cancel:{id}`, `meshfit:detach:{id}` | asked of the run by a replica that follows it | three leases |
 //!
 //! Only the run holding the lease writes the job's posting (a script checks the token), so a

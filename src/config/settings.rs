@@ -333,7 +333,7 @@ pub const SETTINGS: &[Setting] = &[
         flag: Some("redis-max-bytes"),
         value_name: "BYTES",
         default: Fallback::Value("268435456"),
-        help: "largest result or request kept in Redis; larger ones stay on their replica",
+        help: "largest result or job spec kept in Redis; larger ones stay on their replica",
         parse: |v, c| number(v).map(|n| c.redis.max_bytes = n),
     },
     Setting {

@@ -6,20 +6,16 @@ use super::problem::ApiError;
 use super::sse;
 use super::state::AppState;
 use crate::api::{JobRequest, JobStatus, JsonError, Links, SolveRequest};
-use crate::jobs::peers::KeptRequest;
-use crate::jobs::{
-    Client, Found, JobError, Lifetime, Outcome, Record, RequestParser, Snapshot, Status, Ticket, Waiter,
-};
+use crate::jobs::{Client, Found, JobError, Lifetime, Outcome, Record, Snapshot, Status, Ticket, Waiter};
 use crate::refine::StopReason;
 use crate::result::RunResult;
 use crate::result::Stop;
-use crate::spec::{JobKeys, JobSpec, Limits, Work, job_keys};
+use crate::spec::{JobKeys, JobSpec, Limits, job_keys};
 use axum::Extension;
 use axum::extract::{Path, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, Uri, header};
 use axum::response::{IntoResponse, Response};
 use bytes::Bytes;
-use futures_util::future::BoxFuture;
 use futures_util::stream;
 use std::sync::Arc;
 use std::time::Duration;
@@ -92,17 +88,14 @@ fn parse_body(body: JobBody, kind: Kind, limits: &Limits) -> Result<(JobKeys, Jo
     Ok((job_keys(&spec), spec))
 }
 
-/// Parses, validates and hashes a body, off the async workers when it is large; when
-/// replicas share, also gives the request as sent, for Redis to keep.
+/// Parses, validates and hashes a body, off the async workers when it is large.
 async fn prepare(
     state: &AppState,
     headers: &HeaderMap,
     body: Body,
     kind: Kind,
-) -> Result<(JobKeys, JobSpec, Option<KeptRequest>), ApiError> {
+) -> Result<(JobKeys, JobSpec), ApiError> {
     let limits = state.limits;
-    // The bytes are shared, not copied.
-    let kept = state.jobs.redis().is_some().then(|| body.bytes.clone());
     let body = JobBody::from_parts(headers, body.bytes, kind.takes()).await?;
     let inline = matches!(&body, JobBody::Json(json) if json.len() <= INLINE_BODY_BYTES);
     // A small JSON body parses in microseconds, less than a trip to the blocking pool; a grid
@@ -116,47 +109,7 @@ async fn prepare(
             .map_err(|e| ApiError::Internal(format!("request parsing panicked: {e}")))??
     };
     tracing::Span::current().record("job_id", keys.id.as_str());
-    let request = kept.map(|body| KeptRequest {
-        kind: if let Work::Solve(_) = spec.work { "solution" } else { "mesh" }.to_owned(),
-        content_type: headers
-            .get(header::CONTENT_TYPE)
-            .and_then(|v| v.to_str().ok())
-            .unwrap_or_default()
-            .to_owned(),
-        body,
-    });
-    Ok((keys, spec, request))
-}
-
-/// Reads the requests other replicas kept exactly as a client's.
-pub struct KeptRequestParser {
-    limits: Limits,
-}
-
-impl KeptRequestParser {
-    /// Reads requests against `limits`, this replica's.
-    pub fn new(limits: Limits) -> Self {
-        Self { limits }
-    }
-}
-
-impl RequestParser for KeptRequestParser {
-    fn parse(&self, request: KeptRequest) -> BoxFuture<'static, Result<(JobKeys, JobSpec), String>> {
-        let limits = self.limits;
-        Box::pin(async move {
-            let kind = if request.kind == "solution" { Kind::Solution } else { Kind::Mesh };
-            let mut headers = HeaderMap::new();
-            if let Ok(value) = HeaderValue::from_str(&request.content_type) {
-                headers.insert(header::CONTENT_TYPE, value);
-            }
-            let body =
-                JobBody::from_parts(&headers, request.body, kind.takes()).await.map_err(|e| e.detail())?;
-            crate::cpu::spawn(move || parse_body(body, kind, &limits))
-                .await
-                .map_err(|e| e.to_string())?
-                .map_err(|e| e.detail())
-        })
-    }
+    Ok((keys, spec))
 }
 
 fn wants_event_stream(headers: &HeaderMap) -> bool {
@@ -236,9 +189,9 @@ async fn create(
     let stream = wants_event_stream(&headers);
     // A format nobody writes is refused before any work is done.
     let wanted = if stream { None } else { Some(Wanted::from_request(&uri, &headers)?) };
-    let (keys, spec, request) = prepare(&state, &headers, body, kind).await?;
+    let (keys, spec) = prepare(&state, &headers, body, kind).await?;
     let id = keys.id.clone();
-    let ticket = state.jobs.submit_request(keys, spec, Lifetime::WhileWaited, client, request).await?;
+    let ticket = state.jobs.submit(keys, spec, Lifetime::WhileWaited, client).await?;
     let Some(wanted) = wanted else {
         // An answer at once is the stream's one event, id 1.
         return Ok(match ticket {
@@ -277,26 +230,23 @@ pub async fn jobs_create(
     headers: HeaderMap,
     body: Body,
 ) -> Result<Response, ApiError> {
-    let (keys, spec, request) = prepare(&state, &headers, body, Kind::Any).await?;
+    let (keys, spec) = prepare(&state, &headers, body, Kind::Any).await?;
     let id = keys.id.clone();
-    let (code, status) =
-        match state.jobs.submit_request(keys, spec, Lifetime::Detached, &client, request).await? {
-            Ticket::Cached(f) | Ticket::Prefix(f) => (StatusCode::OK, status_body(&id, &Found::Cached(f))),
-            Ticket::Failed(e) => {
-                let record = Record {
-                    status: Status::Failed,
-                    progress: None,
-                    stats: None,
-                    error: Some(e),
-                    elapsed: None,
-                    last_event: 0,
-                };
-                (StatusCode::OK, status_body(&id, &Found::Done(Arc::new(record))))
-            }
-            Ticket::Job(waiter) => {
-                (StatusCode::ACCEPTED, status_body(&id, &Found::Job(waiter.job().clone())))
-            }
-        };
+    let (code, status) = match state.jobs.submit(keys, spec, Lifetime::Detached, &client).await? {
+        Ticket::Cached(f) | Ticket::Prefix(f) => (StatusCode::OK, status_body(&id, &Found::Cached(f))),
+        Ticket::Failed(e) => {
+            let record = Record {
+                status: Status::Failed,
+                progress: None,
+                stats: None,
+                error: Some(e),
+                elapsed: None,
+                last_event: 0,
+            };
+            (StatusCode::OK, status_body(&id, &Found::Done(Arc::new(record))))
+        }
+        Ticket::Job(waiter) => (StatusCode::ACCEPTED, status_body(&id, &Found::Job(waiter.job().clone()))),
+    };
     let location = HeaderValue::from_str(&status.links.this).expect("ascii path");
     Ok((code, [(header::LOCATION, location)], axum::Json(status)).into_response())
 }

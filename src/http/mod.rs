@@ -22,6 +22,5 @@ mod sse;
 mod state;
 
 pub use extract::parse_json;
-pub use jobs::KeptRequestParser;
 pub use routes::{ROUTES, router};
 pub use state::{AppState, Locators};

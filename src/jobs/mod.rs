@@ -63,7 +63,7 @@ pub use cache::{Cache, CacheSettings, Hit};
 pub use failure::{Cause, Failure};
 pub use job::{Job, JobError, Lifetime, Outcome, Record, Snapshot, Status};
 pub use registry::{Found, Jobs};
-pub use replica::{RequestParser, peers};
+pub use replica::peers;
 pub use share::Client;
 pub use table::Waiter;
 pub use ticket::Ticket;

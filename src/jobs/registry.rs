@@ -7,15 +7,15 @@ use super::budget::Budget;
 use super::families::Families;
 use super::inner::Inner;
 use super::job::{Job, Lifetime, Record, Status};
-use super::replica::peers::{self, Alone, Control, Kept, KeptRequest, Peers};
-use super::replica::{RequestParser, follow, takeover};
+use super::replica::peers::{self, Alone, Control, Kept, Peers};
+use super::replica::{follow, takeover};
 use super::share::Client;
 use super::table::{Listing, Table, Waiter};
 use super::ticket::Ticket;
 use super::{Cache, submit};
 use crate::metrics::Metrics;
 use crate::result::RunResult;
-use crate::spec::{JobKeys, JobSpec};
+use crate::spec::{JobKeys, JobSpec, Limits};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -72,18 +72,18 @@ impl Jobs {
     }
 
     /// Shares results and jobs with the other replicas through `peers`, in place of the
-    /// store-less `peers::Alone`; `parser` reads the requests of jobs taken over. Call it before
-    /// the registry is cloned, from within the runtime.
+    /// store-less `peers::Alone`; the specs of jobs taken over are held to `limits`, this
+    /// replica's. Call it before the registry is cloned, from within the runtime.
     ///
     /// # Panics
     /// When the registry has been cloned.
     #[must_use]
-    pub fn shared(mut self, peers: Arc<dyn Peers>, parser: Arc<dyn RequestParser>) -> Self {
+    pub fn shared(mut self, peers: Arc<dyn Peers>, limits: Limits) -> Self {
         let inner = Arc::get_mut(&mut self.inner).expect("shared before the registry is cloned");
         let messages = peers.messages();
         inner.peers = peers;
         tokio::spawn(follow::dispatch(Arc::downgrade(&self.inner), messages));
-        tokio::spawn(takeover::sweep(Arc::downgrade(&self.inner), parser));
+        tokio::spawn(takeover::sweep(Arc::downgrade(&self.inner), limits));
         self
     }
 
@@ -125,7 +125,9 @@ impl Jobs {
     }
 
     /// Answers from the cache, joins an identical job, or starts a new one charged to
-    /// `client`, to run for `lifetime`.
+    /// `client`, to run for `lifetime`. When replicas share through the store, a job this
+    /// replica runs keeps its spec there, so that another replica can take it over, and a job
+    /// another replica runs is followed rather than run again.
     ///
     /// # Errors
     /// When the queue is full, the client holds its share, or the server is shutting down.
@@ -136,24 +138,7 @@ impl Jobs {
         lifetime: Lifetime,
         client: &Client,
     ) -> Result<Ticket, SubmitError> {
-        self.submit_request(keys, spec, lifetime, client, None).await
-    }
-
-    /// As [`submit`](Self::submit); when replicas share through the store, a job this replica
-    /// runs keeps `request` there, so that another replica can take it over, and a job
-    /// another replica runs is followed rather than run again.
-    ///
-    /// # Errors
-    /// As [`submit`](Self::submit).
-    pub async fn submit_request(
-        &self,
-        keys: JobKeys,
-        spec: JobSpec,
-        lifetime: Lifetime,
-        client: &Client,
-        request: Option<KeptRequest>,
-    ) -> Result<Ticket, SubmitError> {
-        submit::submit(&self.inner, keys, spec, lifetime, client, request).await
+        submit::submit(&self.inner, keys, spec, lifetime, client).await
     }
 
     /// The job, finished job or cached result with this id: on this replica, or, when
@@ -275,7 +260,7 @@ mod tests {
     use crate::api::JobRequest;
     use crate::jobs::{JobError, Outcome};
     use crate::refine::StopReason;
-    use crate::spec::{Limits, job_keys};
+    use crate::spec::job_keys;
     use std::num::NonZeroUsize;
     use std::time::Duration;
 

@@ -5,7 +5,6 @@ use super::admission::SubmitError;
 use super::inner::Inner;
 use super::job::{Job, Lifetime};
 use super::replica::lease::Lease;
-use super::replica::peers::KeptRequest;
 use super::replica::publish;
 use super::share::Client;
 use super::table::Started;
@@ -24,8 +23,9 @@ pub(super) struct Start {
     /// The lease this replica holds for the job, if replicas share: the run then publishes
     /// the job's state.
     pub(super) lease: Option<Lease>,
-    /// The request, to keep in the store for a takeover.
-    pub(super) request: Option<KeptRequest>,
+    /// Whether the run keeps the job's spec in the store for a takeover (a job taken over
+    /// has it there already).
+    pub(super) keep: bool,
 }
 
 impl Inner {
@@ -38,7 +38,7 @@ impl Inner {
         lifetime: Lifetime,
         client: &Client,
     ) -> Result<(Ticket, bool), SubmitError> {
-        let Start { id, family, seq, lease, request } = start;
+        let Start { id, family, seq, lease, keep } = start;
         self.metrics.cache_misses.inc();
         let mut admitted = None;
         let started = self.table.start(&id, lifetime, lease.is_some(), || {
@@ -61,8 +61,10 @@ impl Inner {
             self.publishing.fetch_add(1, Ordering::SeqCst);
             let inner = self.clone();
             let job = job.clone();
+            // A clone shares the spec's source and problem.
+            let keep = keep.then(|| spec.clone());
             tokio::spawn(async move {
-                publish::run(&inner, job, lease, request).await;
+                publish::run(&inner, job, lease, keep).await;
                 inner.publishing.fetch_sub(1, Ordering::SeqCst);
             });
         }

@@ -10,7 +10,7 @@ use super::job::{JobError, Lifetime, Status};
 use super::replica::claim::{Claim, claim};
 use super::replica::follow;
 use super::replica::lease::{Lease, LeaseGuard};
-use super::replica::peers::{Kept, KeptRequest};
+use super::replica::peers::Kept;
 use super::share::Client;
 use super::start::Start;
 use super::table::Joined;
@@ -21,7 +21,7 @@ use crate::spec::{JobKeys, JobSpec};
 use std::sync::Arc;
 
 /// Answers from the cache, joins an identical job, follows it on another replica, or starts a
-/// new one charged to `client`, to run for `lifetime`, keeping `request` in the store for a
+/// new one charged to `client`, to run for `lifetime`, keeping its spec in the store for a
 /// takeover when replicas share.
 pub(super) async fn submit(
     inner: &Arc<Inner>,
@@ -29,7 +29,6 @@ pub(super) async fn submit(
     spec: JobSpec,
     lifetime: Lifetime,
     client: &Client,
-    request: Option<KeptRequest>,
 ) -> Result<Ticket, SubmitError> {
     let JobKeys { id, family } = keys;
     if let Some(ticket) = cache_hit(inner, &id, &family).await {
@@ -43,7 +42,7 @@ pub(super) async fn submit(
     }
     match claim(&inner.peers, &id, || join(inner, &id, lifetime)).await {
         Ok(Claim::Run(lease)) => {
-            let start = ToRun { id, family, spec, lifetime, request };
+            let start = ToRun { id, family, spec, lifetime };
             run_leased(inner, lease, start, client).await
         }
         Ok(Claim::Follow(run)) => {
@@ -51,7 +50,7 @@ pub(super) async fn submit(
             Ok(Ticket::Job(follow::follow(inner, id, family, Some(run))))
         }
         Ok(Claim::Alone) => {
-            let start = Start { id, family, seq: 0, lease: None, request: None };
+            let start = Start { id, family, seq: 0, lease: None, keep: false };
             inner.start(start, spec, lifetime, client).map(|(ticket, _)| ticket)
         }
         Ok(Claim::Joined(ticket)) => Ok(ticket),
@@ -65,7 +64,6 @@ struct ToRun {
     family: String,
     spec: JobSpec,
     lifetime: Lifetime,
-    request: Option<KeptRequest>,
 }
 
 /// The result, cached here or in the store.
@@ -118,13 +116,13 @@ async fn run_leased(
     start: ToRun,
     client: &Client,
 ) -> Result<Ticket, SubmitError> {
-    let ToRun { id, family, spec, lifetime, request } = start;
+    let ToRun { id, family, spec, lifetime } = start;
     if let Some(ticket) = stored_elsewhere(inner, &id).await {
         return Ok(ticket);
     }
     let (announced, first_posting) = tokio::sync::oneshot::channel();
     let lease = Lease { token: guard.token().to_owned(), announced: Some(announced) };
-    let start = Start { id, family, seq: 0, lease: Some(lease), request };
+    let start = Start { id, family, seq: 0, lease: Some(lease), keep: true };
     let (ticket, started) = inner.start(start, spec, lifetime, client)?;
     if started {
         guard.disarm();

@@ -4,7 +4,7 @@
 use crate::api::DomainInput;
 use crate::geom::Rect;
 use crate::refine::{MAX_VERTICES, Params, ParamsBuilder, ParamsError};
-use crate::source::{ExprError, GridFileError};
+use crate::source::{ExprError, Expression, GridFileError};
 use std::time::Duration;
 
 /// The limits a request is checked against (from the server's config).
@@ -101,6 +101,16 @@ pub(super) fn at_most(
     Ok(())
 }
 
+/// `text` parsed as the expression of field `field`, held to the length limit.
+pub(super) fn expression(text: &str, field: &'static str, limits: &Limits) -> Result<Expression, SpecError> {
+    let len = text.chars().count() as u64;
+    at_most((field, " length"), "MESHFIT_MAX_EXPRESSION_LEN", limits.max_expression_len, len)?;
+    Expression::parse(text).map_err(|error| match field {
+        "function" => SpecError::Expression(error),
+        field => SpecError::Coefficient { field, error },
+    })
+}
+
 impl SpecError {
     /// The request field at fault as messages spell it (`regions[1].mu_r`); none when no one
     /// field is (neither `function` nor `grid` given, say).
@@ -167,5 +177,10 @@ fn pair(axis: &str, bounds: &[f64]) -> Result<[f64; 2], SpecError> {
 /// The rectangle a request names.
 pub(super) fn domain_of(d: &DomainInput) -> Result<Rect, SpecError> {
     let ([a, b], [c, e]) = (pair("x", &d.x)?, pair("y", &d.y)?);
-    Rect::new(a, b, c, e).map_err(|e| SpecError::Domain(e.to_string()))
+    Rect::new(a, b, c, e).map_err(domain_error)
+}
+
+/// A rectangle the domain type refused.
+pub(super) fn domain_error(e: crate::geom::RectError) -> SpecError {
+    SpecError::Domain(e.to_string())
 }

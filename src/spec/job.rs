@@ -1,11 +1,11 @@
 //! JobSpec: a request validated against the server's limits, in canonical form.
 
-use super::checks::{Limits, SpecError, at_most, budget, build, domain_of, grid_error};
+use super::checks::{Limits, SpecError, budget, build, domain_of, expression, grid_error};
 use super::solution::SolveSpec;
 use crate::api::{JobRequest, SolveRequest};
 use crate::geom::Rect;
-use crate::refine::{Params, Refinement, estimate_error};
-use crate::source::{Expression, GridHints, Source, decode_grid, decode_values};
+use crate::refine::{Criterion, Method, Params, Refinement, estimate_error};
+use crate::source::{GridHints, Source, decode_grid, decode_values};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -115,16 +115,7 @@ impl JobSpec {
             }
             (None, None, None) => return Err(SpecError::Source(", none given")),
             (Some(_), Some(_), None) => return Err(SpecError::Source(", not both")),
-            (Some(text), None, None) => {
-                let len = text.chars().count() as u64;
-                at_most(
-                    ("function", " length"),
-                    "MESHFIT_MAX_EXPRESSION_LEN",
-                    limits.max_expression_len,
-                    len,
-                )?;
-                Source::Expression(Expression::parse(&text).map_err(SpecError::Expression)?)
-            }
+            (Some(text), None, None) => Source::Expression(expression(&text, "function", limits)?),
             (None, Some(grid), None) => {
                 let (Some(nx), Some(ny), Some(values)) = (grid.nx, grid.ny, grid.values) else {
                     let detail = "a grid needs nx, ny and values (or send it as a file, multipart)";
@@ -147,24 +138,54 @@ impl JobSpec {
             None => file_domain.unwrap_or_else(|| source.default_domain()),
             Some(d) => domain_of(&d)?,
         };
-        let source = source.with_domain(domain);
-        let requested_time_limit = request.time_limit_ms.map(Duration::from_millis);
+        let knobs = Knobs {
+            max_vertices: request.max_vertices,
+            method: request.method.unwrap_or_default(),
+            criterion: request.criterion.unwrap_or_default(),
+            tolerance: request.tolerance,
+            min_angle: request.min_angle,
+            quality: request.quality.unwrap_or(false),
+            requested_time_limit: request.time_limit_ms.map(Duration::from_millis),
+        };
+        Self::mesh_from(source.with_domain(domain), domain, knobs, limits)
+    }
+
+    /// A mesh job of `source` on `domain`, its knobs checked against `limits`: the one
+    /// mapping to the engine's parameters, for a request and for a kept spec alike.
+    pub(super) fn mesh_from(
+        source: Source,
+        domain: Rect,
+        knobs: Knobs,
+        limits: &Limits,
+    ) -> Result<Self, SpecError> {
+        let Knobs { max_vertices, method, criterion, tolerance, min_angle, quality, requested_time_limit } =
+            knobs;
         let time_limit = requested_time_limit.map_or(limits.job_time_limit, |t| t.min(limits.job_time_limit));
-        let mut params = budget(request.max_vertices, limits)?
-            .method(request.method.unwrap_or_default())
-            .criterion(request.criterion.unwrap_or_default())
+        let mut params = budget(max_vertices, limits)?
+            .method(method)
+            .criterion(criterion)
             .time_limit(time_limit)
             .on_grid(matches!(source, Source::Grid(_)));
         // + 0.0: -0.0 is 0.0, one value and one cache key.
-        if let Some(t) = request.tolerance {
+        if let Some(t) = tolerance {
             params = params.tolerance(t + 0.0);
         }
-        if let Some(degrees) = request.min_angle {
+        if let Some(degrees) = min_angle {
             params = params.min_angle(degrees + 0.0);
         }
         let params = build(params, limits)?;
-        let quality = request.quality.unwrap_or(false);
         let mesh = MeshSpec { source: Arc::new(source), domain, params, quality };
         Ok(Self { work: Work::Mesh(mesh), requested_time_limit })
     }
+}
+
+/// A mesh request's settings past F and its rectangle, defaults filled in.
+pub(super) struct Knobs {
+    pub(super) max_vertices: Option<u64>,
+    pub(super) method: Method,
+    pub(super) criterion: Criterion,
+    pub(super) tolerance: Option<f64>,
+    pub(super) min_angle: Option<f64>,
+    pub(super) quality: bool,
+    pub(super) requested_time_limit: Option<Duration>,
 }

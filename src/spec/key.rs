@@ -1,18 +1,10 @@
-//! The job id: a SHA-256 of the spec's canonical encoding.
-//!
-//! Every field is written in a fixed order with floats by their exact bits, after defaults are
-//! filled in, so key order, `1` versus `1.0` and omitted defaults never make a new entry.
-//! std's `DefaultHasher` is not used: its docs say its output may change between releases.
+//! The job id: a SHA-256 of the spec's canonical encoding ([`canonical`]), so key order,
+//! `1` versus `1.0` and omitted defaults never make a new entry. std's `DefaultHasher` is not
+//! used: its docs say its output may change between releases.
 
-use super::job::{JobSpec, Work};
-use super::solution::{Function, SolveSpec};
-use crate::solve::Shape;
-use crate::source::Source;
+use super::canonical::{self, Sink};
+use super::job::JobSpec;
 use sha2::{Digest, Sha256};
-
-/// Bumped whenever the engine may produce a different mesh for the same request, so that a
-/// cache (in memory or on disk) never serves a mesh the current engine would not make.
-pub const ENGINE_VERSION: &str = "meshfit-engine-8";
 
 /// A job's id, and the id of its family: the requests that differ from it only in budget,
 /// tolerance or time limit, whose runs are prefixes of one another.
@@ -29,108 +21,36 @@ pub fn job_id(spec: &JobSpec) -> String {
     job_keys(spec).id
 }
 
-/// The id and family id of `spec`, from one pass over its fields (a grid is hashed once).
+/// The id and family id of `spec`: SHA-256 of its canonical encoding, and of the part a
+/// family shares, hashed as it is written (a grid is never copied whole).
 pub fn job_keys(spec: &JobSpec) -> JobKeys {
-    let mut h = Sha256::new();
-    // Each field is (name length, name, value length, value): no two specs share an encoding.
-    fn header(h: &mut Sha256, name: &str, len: usize) {
-        h.update((name.len() as u64).to_le_bytes());
-        h.update(name.as_bytes());
-        h.update((len as u64).to_le_bytes());
-    }
-    fn field(h: &mut Sha256, name: &str, bytes: &[u8]) {
-        header(h, name, bytes.len());
-        h.update(bytes);
-    }
-    field(&mut h, "engine", ENGINE_VERSION.as_bytes());
-    // The limit the client named, not the one in force: server settings never change ids.
-    let ms = spec.requested_time_limit.map_or(Vec::new(), |t| (t.as_millis() as u64).to_le_bytes().to_vec());
-    let spec = match &spec.work {
-        Work::Mesh(mesh) => mesh,
-        Work::Solve(solve) => {
-            field(&mut h, "kind", b"solution");
-            solution_fields(&mut h, solve, field);
-            field(&mut h, "time_limit_ms", &ms);
-            // No family: a smaller solution is not a prefix of a larger one.
-            let id = format!("{:x}", h.finalize());
-            return JobKeys { family: id.clone(), id };
-        }
-    };
-    match &*spec.source {
-        Source::Expression(e) => field(&mut h, "function", e.text().as_bytes()),
-        Source::Grid(g) => {
-            field(&mut h, "grid.nx", &(g.nx() as u64).to_le_bytes());
-            field(&mut h, "grid.ny", &(g.ny() as u64).to_le_bytes());
-            header(&mut h, "grid.values", 8 * g.nx() * g.ny());
-            // Streamed row by row: a large grid is never copied whole.
-            let mut row = Vec::with_capacity(8 * g.nx());
-            for j in 0..g.ny() {
-                row.clear();
-                row.extend((0..g.nx()).flat_map(|i| g.value(i, j).to_bits().to_le_bytes()));
-                h.update(&row);
-            }
-        }
-    }
-    let d = spec.domain;
-    for (name, v) in [("domain.a", d.x0()), ("domain.b", d.x1()), ("domain.c", d.y0()), ("domain.d", d.y1())]
-    {
-        field(&mut h, name, &v.to_bits().to_le_bytes());
-    }
-    let p = &spec.params;
-    field(&mut h, "method", p.method().to_string().as_bytes());
-    field(&mut h, "criterion", p.criterion().to_string().as_bytes());
-    field(&mut h, "quality", &[u8::from(spec.quality)]);
-    field(&mut h, "min_angle", &p.min_angle().map_or(Vec::new(), |a| a.to_bits().to_le_bytes().to_vec()));
-    let mut family = h.clone();
-    field(&mut family, "family", &[]);
-    field(&mut h, "max_vertices", &(p.max_vertices() as u64).to_le_bytes());
-    field(&mut h, "tolerance", &p.tolerance().map_or(Vec::new(), |t| t.to_bits().to_le_bytes().to_vec()));
-    field(&mut h, "time_limit_ms", &ms);
-    JobKeys { id: format!("{:x}", h.finalize()), family: format!("{:x}", family.finalize()) }
+    let mut hashes = Hashes { id: Sha256::new(), family: None };
+    canonical::write(spec, &mut hashes);
+    let id = format!("{:x}", hashes.id.finalize());
+    // No family for a solution: a smaller one is not a prefix of a larger one.
+    let family = hashes.family.map_or_else(|| id.clone(), |f| format!("{:x}", f.finalize()));
+    JobKeys { id, family }
 }
 
-/// The fields of a boundary value problem, in a fixed order, numbers by their bits.
-fn solution_fields(h: &mut Sha256, spec: &SolveSpec, field: fn(&mut Sha256, &str, &[u8])) {
-    let bits = |v: f64| v.to_bits().to_le_bytes();
-    let optional = |v: Option<f64>| v.map_or(Vec::new(), |v| bits(v).to_vec());
-    let coef = |h: &mut Sha256, name: &str, c: Option<&Function>| match c {
-        None => field(h, name, &[]),
-        Some(Function::Constant(v)) => field(h, name, &[&[0u8][..], &bits(*v)].concat()),
-        Some(Function::Expression(e)) => field(h, name, &[&[1u8][..], e.text().as_bytes()].concat()),
-    };
-    field(h, "physics", format!("{:?}", spec.physics).as_bytes());
-    let d = spec.domain;
-    field(h, "domain", &[d.x0(), d.x1(), d.y0(), d.y1()].map(bits).concat());
-    coef(h, "k", Some(&spec.k));
-    coef(h, "f", Some(&spec.f));
-    coef(h, "g", Some(&spec.g));
-    coef(h, "exact", spec.exact.as_ref());
-    field(h, "regions", &(spec.regions.len() as u64).to_le_bytes());
-    let b = spec.boundary;
-    field(h, "boundary", format!("{:?}", [b.left, b.right, b.bottom, b.top]).as_bytes());
-    for (r, table) in spec.regions.iter().zip(&spec.tables) {
-        let shape = match &r.shape {
-            Shape::Rect(rect) => {
-                [&[0u8][..], &[rect.x0(), rect.x1(), rect.y0(), rect.y1()].map(bits).concat()].concat()
-            }
-            Shape::Polygon(polygon) => {
-                let points = polygon.corners();
-                let corners = points.iter().flat_map(|p| [bits(p.x), bits(p.y)]).collect::<Vec<_>>().concat();
-                [&[1u8][..], &(points.len() as u64).to_le_bytes(), &corners].concat()
-            }
-        };
-        let table =
-            table.iter().flatten().flat_map(|&[h, b]| [bits(h), bits(b)]).collect::<Vec<_>>().concat();
-        let source = r.source.map_or(Vec::new(), |[x, y]| [bits(x), bits(y)].concat());
-        field(h, "region", &[shape, optional(r.k), optional(r.f)].concat());
-        field(h, "material", &[(table.len() as u64).to_le_bytes().to_vec(), table, source].concat());
+/// The id's hash, and the family's once its fields have all gone by.
+struct Hashes {
+    id: Sha256,
+    family: Option<Sha256>,
+}
+
+impl Sink for Hashes {
+    fn put(&mut self, bytes: &[u8]) {
+        self.id.update(bytes);
     }
-    let s = &spec.settings;
-    field(h, "method", s.method.to_string().as_bytes());
-    field(h, "criterion", format!("{:?}", s.indicator).as_bytes());
-    field(h, "growth", &bits(s.growth));
-    field(h, "max_vertices", &(s.max_vertices as u64).to_le_bytes());
-    field(h, "tolerance", &optional(s.tolerance));
+
+    fn family(&mut self) {
+        let mut family = self.id.clone();
+        // Then a field named "family" with no value: no spec's own encoding goes on like this.
+        family.update((b"family".len() as u64).to_le_bytes());
+        family.update(b"family");
+        family.update(0u64.to_le_bytes());
+        self.family = Some(family);
+    }
 }
 
 #[cfg(test)]
@@ -140,6 +60,7 @@ mod tests {
     use crate::output::{self, Format, Options};
     use crate::refine::refine;
     use crate::result::RunResult;
+    use crate::spec::ENGINE_VERSION;
     use crate::spec::Limits;
     use std::sync::Arc;
     use std::time::Duration;

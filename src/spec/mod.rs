@@ -8,14 +8,18 @@
 //! - `job`: [`JobSpec`], a mesh ([`MeshSpec`]) or a solution, from a JSON request or an
 //!   uploaded grid file;
 //! - `solution`: [`SolveSpec`], a boundary value problem;
+//! - `canonical`: a spec's canonical encoding, which its id hashes and replicas keep, and
+//!   the decoding of a kept one against this server's limits;
 //! - `key`: a spec's canonical hash, the job's id, under [`ENGINE_VERSION`].
 
+pub mod canonical;
 mod checks;
 mod job;
 mod key;
 mod solution;
 
+pub use canonical::ENGINE_VERSION;
 pub use checks::{DEFAULT_MAX_VERTICES, Limits, SpecError};
 pub use job::{JobSpec, MeshSpec, Work};
-pub use key::{ENGINE_VERSION, JobKeys, job_id, job_keys};
+pub use key::{JobKeys, job_id, job_keys};
 pub use solution::{Function, SolveSpec};

@@ -1,12 +1,12 @@
 //! SolveSpec: a boundary value problem request, validated and in canonical form.
 
-use super::checks::{Limits, SpecError, at_most, budget, build, domain_of};
+use super::checks::{Limits, SpecError, budget, build, domain_of, expression};
 use crate::api::{BoundaryInput, Coefficient, RegionInput, SolveRequest};
 use crate::geom::{Point, Rect};
 use crate::refine::Method;
 use crate::solve::{
-    Adapted, BhCurve, Boundary, Exact, MU_0, Physics, Problem, Region, Settings, Shape, SolveError,
-    SolveObserver, adapt,
+    Adapted, BhCurve, Boundary, Exact, Indicator, MU_0, Physics, Problem, Region, Settings, Shape,
+    SolveError, SolveObserver, adapt,
 };
 use crate::source::Expression;
 use std::sync::Arc;
@@ -77,13 +77,7 @@ fn coefficient(
         None => Ok(Function::Constant(default)),
         Some(Coefficient::Number(v)) if v.is_finite() => Ok(Function::Constant(v + 0.0)),
         Some(Coefficient::Number(v)) => Err(invalid(field, format!("must be finite, got {v}"))),
-        Some(Coefficient::Expression(text)) => {
-            let len = text.chars().count() as u64;
-            at_most((field, " length"), "MESHFIT_MAX_EXPRESSION_LEN", limits.max_expression_len, len)?;
-            Expression::parse(&text)
-                .map(Function::Expression)
-                .map_err(|error| SpecError::Coefficient { field, error })
-        }
+        Some(Coefficient::Expression(text)) => expression(&text, field, limits).map(Function::Expression),
     }
 }
 
@@ -256,6 +250,46 @@ fn boundary(input: Option<BoundaryInput>) -> Result<Boundary, SpecError> {
     Ok(boundary)
 }
 
+/// How a problem's adaptive loop runs, as a request or a kept spec names it, defaults
+/// filled in.
+pub(super) struct Steering {
+    pub(super) max_vertices: Option<u64>,
+    pub(super) tolerance: Option<f64>,
+    pub(super) method: Method,
+    pub(super) indicator: Indicator,
+    pub(super) growth: f64,
+    pub(super) requested_time_limit: Option<Duration>,
+}
+
+impl Steering {
+    /// The loop's settings, checked as a mesh's budget and tolerance are, against `limits`.
+    pub(super) fn settings(self, limits: &Limits) -> Result<Settings, SpecError> {
+        let mut params = budget(self.max_vertices, limits)?;
+        if let Some(t) = self.tolerance {
+            params = params.tolerance(t + 0.0);
+        }
+        let params = build(params, limits)?;
+        if self.method == Method::DataDependent {
+            let detail = "data-dependent is for meshes of a grid; use semi-recursive or recursive";
+            return Err(invalid("method", detail));
+        }
+        let growth = self.growth;
+        if !(growth > 1.0 && growth <= MAX_GROWTH) {
+            return Err(invalid("growth", format!("must be in (1, {MAX_GROWTH}], got {growth}")));
+        }
+        Ok(Settings {
+            max_vertices: params.max_vertices(),
+            tolerance: params.tolerance(),
+            method: self.method,
+            indicator: self.indicator,
+            growth,
+            time_limit: Some(
+                self.requested_time_limit.map_or(limits.job_time_limit, |t| t.min(limits.job_time_limit)),
+            ),
+        })
+    }
+}
+
 impl SolveSpec {
     /// Validates `request`: fills in defaults, checks limits, parses the expressions.
     ///
@@ -308,32 +342,16 @@ impl SolveSpec {
         let (regions, tables) = (request.regions.into_iter().enumerate())
             .map(|(i, r)| region(i, r, domain, physics))
             .collect::<Result<(Vec<_>, Vec<_>), _>>()?;
-        // The checks of the budget and the tolerance, as for a mesh.
-        let mut params = budget(request.max_vertices, limits)?;
-        if let Some(t) = request.tolerance {
-            params = params.tolerance(t + 0.0);
-        }
-        let params = build(params, limits)?;
-        let method = request.method.unwrap_or_default();
-        if method == Method::DataDependent {
-            let detail = "data-dependent is for meshes of a grid; use semi-recursive or recursive";
-            return Err(invalid("method", detail));
-        }
-        let growth = request.growth.unwrap_or(DEFAULT_GROWTH);
-        if !(growth > 1.0 && growth <= MAX_GROWTH) {
-            return Err(invalid("growth", format!("must be in (1, {MAX_GROWTH}], got {growth}")));
-        }
         let requested_time_limit = request.time_limit_ms.map(Duration::from_millis);
-        let settings = Settings {
-            max_vertices: params.max_vertices(),
-            tolerance: params.tolerance(),
-            method,
+        let steering = Steering {
+            max_vertices: request.max_vertices,
+            tolerance: request.tolerance,
+            method: request.method.unwrap_or_default(),
             indicator: request.criterion.unwrap_or_default(),
-            growth,
-            time_limit: Some(
-                requested_time_limit.map_or(limits.job_time_limit, |t| t.min(limits.job_time_limit)),
-            ),
+            growth: request.growth.unwrap_or(DEFAULT_GROWTH),
+            requested_time_limit,
         };
+        let settings = steering.settings(limits)?;
         let spec = Self { physics, domain, k, f, g, boundary, regions, tables, exact, settings };
         Ok((spec, requested_time_limit))
     }

@@ -77,6 +77,21 @@ impl Redis {
     }
 
     /// Kills the server at once.
+    /// Waits until job `id` is listed as pending: its spec is kept for a takeover.
+    pub async fn wait_pending(&self, id: &str) {
+        let client = redis::Client::open(self.url()).unwrap();
+        let mut conn = client.get_multiplexed_async_connection().await.unwrap();
+        for _ in 0..1200 {
+            let listed: bool =
+                redis::cmd("SISMEMBER").arg("meshfit:pending").arg(id).query_async(&mut conn).await.unwrap();
+            if listed {
+                return;
+            }
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+        panic!("job {id} was never listed as pending");
+    }
+
     pub fn stop(&mut self) {
         if let Some(mut child) = self.child.take() {
             let _ = child.kill();

@@ -111,6 +111,45 @@ async fn a_job_whose_replica_is_killed_is_taken_over_and_its_follower_sees_it_fi
     assert_eq!(serde_json::from_slice::<Value>(&bytes).unwrap(), result);
 }
 
+/// An .npy grid file of `nx`·`ny` little-endian f64 heights, rows from the bottom.
+fn npy(nx: usize, ny: usize, height: impl Fn(usize, usize) -> f64) -> Vec<u8> {
+    let header = format!("{{'descr': '<f8', 'fortran_order': False, 'shape': ({ny}, {nx}), }}");
+    let pad = 64 - (10 + header.len() + 1) % 64;
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    bytes.extend_from_slice(&((header.len() + pad + 1) as u16).to_le_bytes());
+    bytes.extend_from_slice(header.as_bytes());
+    bytes.extend(std::iter::repeat_n(b' ', pad));
+    bytes.push(b'\n');
+    bytes.extend(
+        (0..ny).flat_map(|j| (0..nx).map(move |i| (i, j))).flat_map(|(i, j)| height(i, j).to_le_bytes()),
+    );
+    bytes
+}
+
+#[tokio::test]
+async fn a_job_from_an_uploaded_grid_file_is_taken_over_from_its_kept_spec() {
+    // The replica that takes over never sees the file: it runs the spec A kept, whose
+    // decoded heights hash to the same id.
+    let Some((redis, mut a, b)) = pair(&[]).await else { return };
+    let (nx, ny) = (800, 600);
+    let file = npy(nx, ny, |i, j| ((i as f64) * 0.05).sin() * ((j as f64) * 0.07).cos() * 100.0);
+    let request = json!({"max_vertices": 400_000, "domain": {"x": [0, 800], "y": [0, 600]}});
+    let form = reqwest::multipart::Form::new()
+        .text("request", request.to_string())
+        .part("grid", reqwest::multipart::Part::bytes(file).file_name("dem.npy"));
+    let response = a.client.post(a.url("/v1/jobs")).multipart(form).send().await.unwrap();
+    assert_eq!(response.status(), 202, "a new job is accepted");
+    let id = response.json::<Value>().await.unwrap()["id"].as_str().unwrap().to_owned();
+    b.wait_status(&id, |s| s == "running").await;
+    redis.wait_pending(&id).await;
+    a.kill();
+    let status = b.wait_status(&id, |s| !matches!(s, "queued" | "running")).await;
+    assert_eq!(status["status"], "succeeded", "{status}");
+    assert_eq!(status["stats"]["vertices"], 400_000);
+    assert_eq!(b.metric("meshfit_takeovers_total").await, 1.0);
+    assert_eq!(b.metric(ENGINE_RUNS).await, 1.0);
+}
+
 #[tokio::test]
 async fn a_replica_shutting_down_hands_its_job_to_another_before_its_lease_expires() {
     // A lease longer than the client waits: only a job handed back is taken over in time.

@@ -1,16 +1,18 @@
-//! The run holding a shared job's lease tells the other replicas about it: keeps its request
+//! The run holding a shared job's lease tells the other replicas about it: keeps its spec
 //! for a takeover, stores its posting as it changes (at most every [`PUBLISH_EVERY`]), renews
 //! its lease and reads what followers ask of it, and at the end stores the result before the
 //! final posting, so that a replica that reads the posting can fetch the result.
 
 use super::lease::Lease;
-use super::peers::{Acquired, Asked, Kept, KeptRequest, Peers, Posting, Take};
+use super::peers::{Acquired, Asked, Kept, Peers, Posting, Take};
 use crate::jobs::Failure;
 use crate::jobs::inner::Inner;
 use crate::jobs::job::{Job, JobError, Outcome, Snapshot, Status};
 use crate::refine::StopReason;
 use crate::result::Stop;
 use crate::result::{RunResult, Summary, compact};
+use crate::source::Source;
+use crate::spec::{JobSpec, canonical};
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::time::Instant;
@@ -19,15 +21,10 @@ use tokio::time::Instant;
 const PUBLISH_EVERY: Duration = Duration::from_millis(100);
 
 /// Publishes job `job` for run `lease` until it finishes.
-pub(in crate::jobs) async fn run(
-    inner: &Arc<Inner>,
-    job: Arc<Job>,
-    lease: Lease,
-    request: Option<KeptRequest>,
-) {
+pub(in crate::jobs) async fn run(inner: &Arc<Inner>, job: Arc<Job>, lease: Lease, to_keep: Option<JobSpec>) {
     let (peers, token) = (&*inner.peers, lease.token.as_str());
     let mut rx = job.subscribe();
-    // The first posting first: the submission's client waits for it, and a large request
+    // The first posting first: the submission's client waits for it, and a large spec
     // would keep it waiting.
     // (A job that has ended already gets its final posting from `finish` alone.)
     let first = rx.borrow_and_update().clone();
@@ -39,14 +36,14 @@ pub(in crate::jobs) async fn run(
     if let Some(announced) = lease.announced {
         let _ = announced.send(());
     }
-    match request {
-        Some(request) => match renewing(peers, &job.id, token, peers.keep_request(&job.id, &request)).await {
+    match to_keep {
+        Some(spec) => match renewing(peers, &job.id, token, keep_spec(peers, &job.id, spec)).await {
             Ok(true) => job.mark_kept(),
             _ => {
-                tracing::info!(job = %job.id, "request not kept in redis: no other replica can take this job over")
+                tracing::info!(job = %job.id, "spec not kept in redis: no other replica can take this job over")
             }
         },
-        // A job taken over: its request is kept already.
+        // A job taken over: its spec is kept already.
         None => job.mark_kept(),
     }
     let mut renew = tokio::time::interval(peers.renew_every());
@@ -78,7 +75,21 @@ pub(in crate::jobs) async fn run(
     }
 }
 
-/// Awaits `work` while renewing run `token`'s lease. Sending a large request,
+/// Keeps job `id`'s `spec` in the store for a takeover. A grid's encoding, 8 bytes a
+/// sample, is made on the blocking pool; any other is a few hundred bytes, made here.
+async fn keep_spec(peers: &dyn Peers, id: &str, spec: JobSpec) -> super::peers::Result<bool> {
+    let bytes = if spec.mesh().is_some_and(|m| matches!(*m.source, Source::Grid(_))) {
+        match crate::cpu::spawn(move || canonical::encode(&spec)).await {
+            Ok(bytes) => bytes,
+            Err(_) => return Ok(false),
+        }
+    } else {
+        canonical::encode(&spec)
+    };
+    peers.keep_spec(id, &bytes).await
+}
+
+/// Awaits `work` while renewing run `token`'s lease. Sending a large spec,
 /// or encoding and storing a large result, can take longer than a lease: a job whose lease
 /// lapsed before it was listed as pending would look to its followers as if it ran nowhere,
 /// and one whose lease lapsed at its end would be taken over and run again.

@@ -1,11 +1,10 @@
 //! Taking over jobs whose replica died: every half lease (at least every second), each
 //! replica looks at the pending jobs, and the first to take the lease of one nobody holds
-//! runs it again from its kept request. Results are deterministic, so the clients following
+//! runs it again from its kept spec. Results are deterministic, so the clients following
 //! it get the same bytes the dead replica would have stored.
 
 use super::follow::{self, Fetched};
 use super::lease::Lease;
-use super::parser::RequestParser;
 use super::peers::{Acquired, Kept, Take};
 use super::publish;
 use crate::jobs::Failure;
@@ -13,11 +12,12 @@ use crate::jobs::inner::Inner;
 use crate::jobs::job::{Lifetime, Status};
 use crate::jobs::share::Client;
 use crate::jobs::start::Start;
+use crate::spec::{JobKeys, JobSpec, Limits, canonical, job_keys};
 use std::sync::{Arc, Weak};
 
 /// Looks for orphaned jobs until the registry is gone or closed. Also pings the store first, so
 /// that `/readyz` and `/metrics` say whether it answers even when no request needs it.
-pub(in crate::jobs) async fn sweep(inner: Weak<Inner>, parser: Arc<dyn RequestParser>) {
+pub(in crate::jobs) async fn sweep(inner: Weak<Inner>, limits: Limits) {
     loop {
         // Held only while sweeping: the registry may go between sweeps.
         let every = {
@@ -25,7 +25,7 @@ pub(in crate::jobs) async fn sweep(inner: Weak<Inner>, parser: Arc<dyn RequestPa
             if inner.admission.is_closed() {
                 return;
             }
-            sweep_once(&inner, &*parser).await;
+            sweep_once(&inner, &limits).await;
             inner.peers.sweep_every()
         };
         tokio::time::sleep(every).await;
@@ -33,7 +33,7 @@ pub(in crate::jobs) async fn sweep(inner: Weak<Inner>, parser: Arc<dyn RequestPa
 }
 
 /// One look at the pending jobs, after a ping.
-async fn sweep_once(inner: &Arc<Inner>, parser: &dyn RequestParser) {
+async fn sweep_once(inner: &Arc<Inner>, limits: &Limits) {
     let peers = &*inner.peers;
     if peers.ping().await.is_err() {
         return;
@@ -49,9 +49,9 @@ async fn sweep_once(inner: &Arc<Inner>, parser: &dyn RequestParser) {
         }
         let token = peers.token();
         if let Ok(Acquired::Won) = peers.acquire(&id, &token, Take::Over).await
-            && take_over(inner, parser, &id, token).await == Taken::Refused
+            && take_over(inner, limits, &id, token).await == Taken::Refused
         {
-            // Full here: the other jobs would be fetched, parsed and refused too. Another
+            // Full here: the other jobs would be fetched, decoded and refused too. Another
             // replica, or this one at a later sweep, takes them.
             break;
         }
@@ -69,8 +69,8 @@ enum Taken {
 
 /// Ends or runs again job `id`, whose lease run `token` has just taken: ends it if it finished
 /// after all (its replica died between storing the result and the final posting) or cannot be
-/// run here, else starts it from its kept request.
-async fn take_over(inner: &Arc<Inner>, parser: &dyn RequestParser, id: &str, token: String) -> Taken {
+/// run here, else starts it from its kept spec, held to this replica's `limits`.
+async fn take_over(inner: &Arc<Inner>, limits: &Limits, id: &str, token: String) -> Taken {
     let peers = &*inner.peers;
     let Ok(posting) = peers.posting(id).await else {
         let _ = peers.release(id, &token).await;
@@ -103,19 +103,19 @@ async fn take_over(inner: &Arc<Inner>, parser: &dyn RequestParser, id: &str, tok
             return Taken::Done;
         }
     }
-    let parsed = match peers.request(id).await {
-        Ok(Some(request)) => parser.parse(request).await,
-        Ok(None) => Err("its request is no longer kept".to_owned()),
+    let decoded = match peers.kept_spec(id).await {
+        Ok(Some(bytes)) => decode(bytes, *limits).await,
+        Ok(None) => Err("its spec is no longer kept".to_owned()),
         Err(_) => {
             let _ = peers.release(id, &token).await;
             return Taken::Done;
         }
     };
-    let (keys, spec) = match parsed {
+    let (keys, spec) = match decoded {
         Ok((keys, spec)) if keys.id == id => (keys, spec),
         outcome => {
             // Replicas with other limits, say: tell the followers rather than leave them waiting.
-            let why = outcome.err().unwrap_or_else(|| "its request gives another id here".into());
+            let why = outcome.err().unwrap_or_else(|| "its spec gives another id here".into());
             tracing::warn!(job = id, %why, "cannot take the job over");
             let failure = Failure::internal(format!("could not be taken over: {why}"));
             publish::close(
@@ -129,7 +129,7 @@ async fn take_over(inner: &Arc<Inner>, parser: &dyn RequestParser, id: &str, tok
         }
     };
     let lease = Lease { token: token.clone(), announced: None };
-    let start = Start { id: keys.id, family: keys.family, seq, lease: Some(lease), request: None };
+    let start = Start { id: keys.id, family: keys.family, seq, lease: Some(lease), keep: false };
     match inner.start(start, spec, Lifetime::Detached, &Client::from("replica:takeover".to_owned())) {
         Ok((_, true)) => {
             inner.metrics.takeovers.inc();
@@ -147,4 +147,21 @@ async fn take_over(inner: &Arc<Inner>, parser: &dyn RequestParser, id: &str, tok
             Taken::Refused
         }
     }
+}
+
+/// Kept specs up to this size are read on the async worker: a trip to the blocking pool
+/// would cost more.
+const INLINE_SPEC_BYTES: usize = 16 << 10;
+
+/// A kept spec read back, with its keys; a large one (a grid's) on the blocking pool.
+async fn decode(bytes: Vec<u8>, limits: Limits) -> Result<(JobKeys, JobSpec), String> {
+    let inline = bytes.len() <= INLINE_SPEC_BYTES;
+    let decode = move || {
+        let spec = canonical::decode(&bytes, &limits).map_err(|e| e.to_string())?;
+        Ok((job_keys(&spec), spec))
+    };
+    if inline {
+        return decode();
+    }
+    crate::cpu::spawn(decode).await.unwrap_or_else(|e| Err(format!("decoding panicked: {e}")))
 }

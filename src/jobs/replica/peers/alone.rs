@@ -4,7 +4,7 @@
 //! its tested "store away" paths, and nothing it does leaves the process.
 
 use super::store::{Peers, Result, Unavailable};
-use super::wire::{Acquired, Asked, Control, Kept, KeptRequest, Message, Posting, Take};
+use super::wire::{Acquired, Asked, Control, Kept, Message, Posting, Take};
 use std::time::Duration;
 use tokio::sync::broadcast;
 
@@ -72,11 +72,11 @@ impl Peers for Alone {
         none()
     }
 
-    async fn keep_request(&self, _: &str, _: &KeptRequest) -> Result<bool> {
+    async fn keep_spec(&self, _: &str, _: &[u8]) -> Result<bool> {
         none()
     }
 
-    async fn request(&self, _: &str) -> Result<Option<KeptRequest>> {
+    async fn kept_spec(&self, _: &str) -> Result<Option<Vec<u8>>> {
         none()
     }
 

@@ -7,7 +7,7 @@
 //! a round trip would, so that concurrent submissions interleave.
 
 use super::store::{Peers, Result, Unavailable};
-use super::wire::{Acquired, Asked, Control, Kept, KeptRequest, Message, Posting, Take};
+use super::wire::{Acquired, Asked, Control, Kept, Message, Posting, Take};
 use std::collections::{BTreeSet, HashMap};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -33,7 +33,7 @@ struct State {
     down: bool,
     leases: HashMap<String, (String, Instant)>,
     postings: HashMap<String, Posting>,
-    requests: HashMap<String, KeptRequest>,
+    specs: HashMap<String, Vec<u8>>,
     pending: BTreeSet<String>,
     /// What was asked of a job's run, until when.
     marks: HashMap<(String, Control), Instant>,
@@ -216,18 +216,18 @@ impl Peers for Replica {
         Ok(self.reach(false).await?.postings.get(id).cloned())
     }
 
-    async fn keep_request(&self, id: &str, request: &KeptRequest) -> Result<bool> {
-        if request.body.len() > self.bus.max_bytes {
+    async fn keep_spec(&self, id: &str, spec: &[u8]) -> Result<bool> {
+        if spec.len() > self.bus.max_bytes {
             return Ok(false);
         }
         let mut state = self.reach(false).await?;
-        state.requests.insert(id.to_owned(), request.clone());
+        state.specs.insert(id.to_owned(), spec.to_vec());
         state.pending.insert(id.to_owned());
         Ok(true)
     }
 
-    async fn request(&self, id: &str) -> Result<Option<KeptRequest>> {
-        Ok(self.reach(false).await?.requests.get(id).cloned())
+    async fn kept_spec(&self, id: &str) -> Result<Option<Vec<u8>>> {
+        Ok(self.reach(false).await?.specs.get(id).cloned())
     }
 
     async fn pending(&self) -> Result<Vec<String>> {
@@ -241,7 +241,7 @@ impl Peers for Replica {
     async fn forget(&self, id: &str) -> Result<()> {
         let mut state = self.reach(false).await?;
         state.pending.remove(id);
-        state.requests.remove(id);
+        state.specs.remove(id);
         state.marks.retain(|(job, _), _| job != id);
         Ok(())
     }

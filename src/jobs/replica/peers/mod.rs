@@ -2,8 +2,8 @@
 //! ([`Peers`]) through which this replica's jobs talk to it.
 //!
 //! The store holds, per job: a lease (which run may run it), the run's [`Posting`] (its state,
-//! as `GET /v1/jobs/{id}` shows it), the request it was started from (so that another replica
-//! can run it again), what followers asked of the run ([`Control`]), and finished results in
+//! as `GET /v1/jobs/{id}` shows it), its spec in canonical form (so that another replica can
+//! run it again), what followers asked of the run ([`Control`]), and finished results in
 //! compact form. Postings and controls are also sent as [`Message`]s to every replica.
 //!
 //! What a replica does with these (publish the jobs it runs, follow the ones others run, take
@@ -12,8 +12,8 @@
 //! own, with no store at all; the tests in memory, several replicas over one bus, with
 //! tokio's paused time.
 //!
-//! The files: `wire`, what replicas exchange through the store ([`Posting`], [`KeptRequest`],
-//! [`Control`], …); `store`, the trait [`Peers`] and [`Unavailable`]; `alone`, `memory` (for
+//! The files: `wire`, what replicas exchange through the store ([`Posting`], [`Control`],
+//! …); `store`, the trait [`Peers`] and [`Unavailable`]; `alone`, `memory` (for
 //! the tests), its implementations here; `tests`, the protocol's tests in memory.
 
 mod alone;
@@ -26,4 +26,4 @@ mod wire;
 
 pub(in crate::jobs) use alone::Alone;
 pub use store::{Peers, Result, Unavailable};
-pub use wire::{Acquired, Asked, Control, Kept, KeptRequest, Message, Posting, Take};
+pub use wire::{Acquired, Asked, Control, Kept, Message, Posting, Take};

@@ -1,7 +1,7 @@
 //! The store the replicas share, as the one trait [`Peers`] this replica's jobs talk to it
 //! through, and why an operation on it failed.
 
-use super::wire::{Acquired, Asked, Control, Kept, KeptRequest, Message, Posting, Take};
+use super::wire::{Acquired, Asked, Control, Kept, Message, Posting, Take};
 use std::time::Duration;
 use tokio::sync::broadcast;
 
@@ -73,12 +73,13 @@ pub trait Peers: Send + Sync + 'static {
     /// version, counts as none).
     async fn posting(&self, id: &str) -> Result<Option<Posting>>;
 
-    /// Keeps the request of job `id` and lists the job as pending, so that another replica
-    /// can take it over; says whether it was kept (not when larger than the store takes).
-    async fn keep_request(&self, id: &str, request: &KeptRequest) -> Result<bool>;
+    /// Keeps the spec of job `id`, in its canonical encoding ([`crate::spec::canonical`]),
+    /// and lists the job as pending, so that another replica can take it over; says whether
+    /// it was kept (not when larger than the store takes).
+    async fn keep_spec(&self, id: &str, spec: &[u8]) -> Result<bool>;
 
-    /// The request of job `id`, if kept.
-    async fn request(&self, id: &str) -> Result<Option<KeptRequest>>;
+    /// The spec of job `id`, if kept.
+    async fn kept_spec(&self, id: &str) -> Result<Option<Vec<u8>>>;
 
     /// The jobs listed as pending.
     async fn pending(&self) -> Result<Vec<String>>;

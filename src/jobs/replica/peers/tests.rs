@@ -3,15 +3,14 @@
 //! ([`Jobs::hold_worker`]): a job stays queued, with its lease, posting and kept request,
 //! until the test lets go. No test waits on a job being "long enough".
 
+use super::Peers;
 use super::memory::{Bus, Replica};
-use super::{KeptRequest, Peers};
 use crate::api::JobRequest;
 use crate::jobs::dispatch::Worker;
-use crate::jobs::{Cache, Client, JobError, Jobs, Lifetime, Outcome, Pool, RequestParser, Ticket, Waiter};
+use crate::jobs::{Cache, Client, JobError, Jobs, Lifetime, Outcome, Pool, Ticket, Waiter};
 use crate::metrics::Metrics;
 use crate::result::{RunResult, compact};
 use crate::spec::{JobKeys, JobSpec, Limits, job_keys};
-use futures_util::future::BoxFuture;
 use std::num::NonZeroUsize;
 use std::sync::Arc;
 use std::time::Duration;
@@ -45,15 +44,6 @@ fn id_of(body: &str) -> String {
     parsed(body.as_bytes()).unwrap().0.id
 }
 
-/// Reads kept requests as JSON mesh requests.
-struct Json;
-
-impl RequestParser for Json {
-    fn parse(&self, request: KeptRequest) -> BoxFuture<'static, Result<(JobKeys, JobSpec), String>> {
-        Box::pin(async move { parsed(&request.body) })
-    }
-}
-
 /// A replica: its registry (one worker) and its handle on the bus.
 struct Node {
     jobs: Jobs,
@@ -64,20 +54,15 @@ fn node(bus: &Bus, name: &str) -> Node {
     let peers = bus.replica(name);
     let cache = Cache::new(64 << 20, None, 0).unwrap();
     let pool = Pool { workers: NonZeroUsize::MIN, queue: 4, client_share: 1.0, memory_bytes: 8 << 30 };
-    let jobs = Jobs::new(&pool, cache, Arc::new(Metrics::default())).shared(peers.clone(), Arc::new(Json));
+    let jobs = Jobs::new(&pool, cache, Arc::new(Metrics::default())).shared(peers.clone(), limits());
     Node { jobs, peers }
 }
 
 impl Node {
     async fn submit(&self, body: &str, lifetime: Lifetime) -> Ticket {
         let (keys, spec) = parsed(body.as_bytes()).unwrap();
-        let kept = KeptRequest {
-            kind: "mesh".into(),
-            content_type: "application/json".into(),
-            body: bytes::Bytes::copy_from_slice(body.as_bytes()),
-        };
         let client = Client::from(format!("test:{lifetime:?}"));
-        let submitted = self.jobs.submit_request(keys, spec, lifetime, &client, Some(kept)).await;
+        let submitted = self.jobs.submit(keys, spec, lifetime, &client).await;
         submitted.unwrap_or_else(|e| panic!("refused: {e}"))
     }
 

@@ -1,5 +1,5 @@
-//! What replicas exchange through the store: a job's [`Posting`], the request kept for a
-//! takeover, what a follower asks of a run, how a lease is taken and what that found, how a
+//! What replicas exchange through the store: a job's [`Posting`], what a follower asks of a
+//! run, how a lease is taken and what that found, how a
 //! result is kept, and the messages every replica receives.
 
 use crate::api::ProgressEvent;
@@ -31,17 +31,6 @@ impl Posting {
     pub fn is_final(&self) -> bool {
         matches!(self.status.as_str(), "succeeded" | "failed" | "cancelled")
     }
-}
-
-/// A request as a client sent it, kept so that another replica can run the job again.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct KeptRequest {
-    /// `mesh` or `solution`: what the body was read as.
-    pub kind: String,
-    /// The body's `Content-Type`.
-    pub content_type: String,
-    /// The body.
-    pub body: bytes::Bytes,
 }
 
 /// What a follower asks of the run of a job.
