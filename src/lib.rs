@@ -24,6 +24,8 @@
 //!   Dirichlet, Neumann and periodic sides, regions that are rectangles or polygons, B–H
 //!   curves solved by Newton, magnets, region forces, a sparse Cholesky solve, error norms
 //!   against an exact solution, the adaptive loop, and each physics' derived fields.
+//! - [`tiles`]: terrain tiles for web maps: the geographic z/x/y scheme with each level's
+//!   error, a tile's WGS84 header geometry, and the quantized-mesh-1.0 format.
 //! - [`output`]: the formats (json, obj, ply, stl, vtu, msh, glb, svg, png), each streamed
 //!   from a result and looping over its fields; shared by the command line and the API.
 //! - [`spec`]: a request checked against the server's limits and mapped to the engine's
@@ -50,6 +52,7 @@
 //! result    ──▶ geom, refine
 //! solve     ──▶ geom, refine, result
 //! output    ──▶ geom, result
+//! tiles     ──▶ (nothing)
 //! api       ──▶ refine, result, solve, source
 //! spec      ──▶ api, geom, refine, solve, source
 //! jobs      ──▶ api, cpu, geom, metrics, refine, result, solve, source, spec
@@ -76,6 +79,7 @@ pub mod solve;
 pub mod source;
 pub mod spec;
 pub mod telemetry;
+pub mod tiles;
 
 use config::Config;
 use std::future::Future;

@@ -1,0 +1,20 @@
+//! Terrain tiles for web maps: the geographic tiling scheme that terrain clients (CesiumJS,
+//! cesium-native, 3DTilesRendererJS, loaders.gl) stream by z/x/y, the WGS84 geometry of a
+//! tile's header, and the quantized-mesh-1.0 format they read.
+//!
+//! - `scheme`: [`TileId`], a tile's bounds in degrees, its children and parent, each level's
+//!   geometric error, and the deepest level a DEM's resolution calls for;
+//! - `ellipsoid`: ECEF positions, a bounding sphere and the horizon occlusion point;
+//! - `quantized`: a tile's mesh as quantized-mesh-1.0, with the octvertexnormals and
+//!   metadata extensions.
+
+mod ellipsoid;
+mod quantized;
+mod scheme;
+
+pub use ellipsoid::{SEMI_MAJOR_AXIS, SEMI_MINOR_AXIS, to_ecef};
+pub use quantized::{Extensions, QUANTIZED_MAX, TileMesh, encode};
+pub use scheme::{
+    Bounds, LEVEL_ZERO_ERROR, MAX_LEVEL, TILE_SAMPLES, TileError, TileId, columns, covering,
+    degrees_per_tile, level_error, max_level, rows,
+};
