@@ -25,7 +25,8 @@
 //!   curves solved by Newton, magnets, region forces, a sparse Cholesky solve, error norms
 //!   against an exact solution, the adaptive loop, and each physics' derived fields.
 //! - [`tiles`]: terrain tiles for web maps: the geographic z/x/y scheme with each level's
-//!   error, a tile's WGS84 header geometry, and the quantized-mesh-1.0 format.
+//!   error, a tile's crack-free mesh of a DEM (its sides fixed from their own values, then
+//!   `refine`'s node insertion), its WGS84 header geometry, and quantized-mesh-1.0.
 //! - [`output`]: the formats (json, obj, ply, stl, vtu, msh, glb, svg, png), each streamed
 //!   from a result and looping over its fields; shared by the command line and the API.
 //! - [`spec`]: a request checked against the server's limits and mapped to the engine's
@@ -52,7 +53,7 @@
 //! result    ──▶ geom, refine
 //! solve     ──▶ geom, refine, result
 //! output    ──▶ geom, result
-//! tiles     ──▶ (nothing)
+//! tiles     ──▶ geom, refine, source
 //! api       ──▶ refine, result, solve, source
 //! spec      ──▶ api, geom, refine, solve, source
 //! jobs      ──▶ api, cpu, geom, metrics, refine, result, solve, source, spec

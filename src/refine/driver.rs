@@ -41,11 +41,22 @@ where
     let round = match surface.grid() {
         Some(grid) if params.criterion() == Criterion::Error && params.method() != Method::Recursive => {
             let mut run = Run::new(params, observer, floors);
-            let (stop, errors) = nodes::refine(&mut mesh, grid, &mut run, &mut sampler.evaluations);
+            let (stop, errors) = nodes::refine(&mut mesh, grid, &mut run, &mut sampler.evaluations, false);
             run.finish(&mesh, stop, Some(errors))
         }
         _ => resume(&mut mesh, &mut sampler, params, floors, observer)?,
     };
+    Ok(finished(mesh, round, params, sampler.evaluations, start))
+}
+
+/// The refinement `round` made of `mesh`, with its stats.
+pub(super) fn finished(
+    mesh: Mesh,
+    round: Round,
+    params: &Params,
+    evaluations: u64,
+    start: Instant,
+) -> Refinement {
     let max_triangle_error =
         round.triangle_errors.as_ref().map(|e: &Vec<f64>| e.iter().copied().fold(0.0, f64::max));
     let stats = Stats {
@@ -56,14 +67,14 @@ where
         max_triangle_error,
         flips: round.flips,
         retired_edges: round.retired,
-        evaluations: sampler.evaluations,
+        evaluations,
         stop: round.stop,
         delaunay: mesh.is_delaunay(),
         below_min_angle: params.min_angle().map(|degrees| angles::count_below(&mesh, degrees)),
         history: round.history,
         quality: None,
     };
-    Ok(Refinement { mesh, triangle_errors: round.triangle_errors, stats, elapsed: start.elapsed() })
+    Refinement { mesh, triangle_errors: round.triangle_errors, stats, elapsed: start.elapsed() }
 }
 
 /// Refines `mesh` as it stands until a stop rule of `params` fires (the time limit counts

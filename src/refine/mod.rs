@@ -60,6 +60,7 @@ mod outcome;
 mod params;
 mod run;
 mod sampler;
+mod sides;
 pub mod trace;
 mod variation_criterion;
 mod worst_edge;
@@ -75,6 +76,7 @@ pub use measures::{ErrorEstimate, dense_max_error, estimate_error, variation};
 pub use observer::{Observer, PROGRESS_INTERVAL, Progress};
 pub use outcome::{RefineError, Refinement, Stats, StopReason};
 pub use params::{Criterion, MAX_MIN_ANGLE, MAX_VERTICES, Method, Params, ParamsBuilder, ParamsError};
+pub use sides::{Sides, refine_with_sides};
 pub use worst_edge::{Candidate, WorstEdgeQueue};
 
 #[cfg(test)]

@@ -89,24 +89,31 @@ impl Estimates<'_> {
     }
 }
 
-/// Refines `mesh` by inserting the worst node of the worst triangle until a stop rule fires.
-/// Returns why it stopped and every triangle's e(T), by index. `evaluations` counts the node
-/// values taken as vertices (a node is read, not evaluated, but it is F's value there).
+/// Refines `mesh`, whose vertices are all grid nodes (S₄, or S₄ with nodes on its sides), by
+/// inserting the worst node of the worst triangle until a stop rule fires. With
+/// `fixed_sides`, a node on the rectangle's sides is never inserted: a triangle whose worst
+/// node is there is retired. Returns why it stopped and every triangle's e(T), by index.
+/// `evaluations` counts the node values taken as vertices (a node is read, not evaluated,
+/// but it is F's value there).
 pub(super) fn refine<O: Observer>(
     mesh: &mut Mesh,
     grid: &Grid,
     run: &mut Run<'_, O>,
     evaluations: &mut u64,
+    fixed_sides: bool,
 ) -> (StopReason, Vec<f64>) {
     run.observer.on_nodes();
     // Sized for the budget (capped for huge ones), so the run does not copy them as they grow.
     let room = run.params.max_vertices().min(1 << 24);
-    // The mesh is S4, whose corners are the grid's corner nodes (exactly, where to_grid would
-    // round them).
-    debug_assert_eq!(mesh.num_vertices(), 4, "a grid's run starts from S4");
-    let (last_i, last_j) = ((grid.nx() - 1) as f64, (grid.ny() - 1) as f64);
+    // Each vertex is a node: its exact (i, j), where to_grid would round it.
     let mut at = Vec::with_capacity(room);
-    at.extend([(0.0, 0.0), (last_i, 0.0), (last_i, last_j), (0.0, last_j)].map(|(i, j)| Point::new(i, j)));
+    at.extend(mesh.vertices().iter().map(|v| {
+        let (i, j) = grid.to_grid(Point::new(v.x, v.y));
+        debug_assert!((i - i.round()).abs() < 1e-6 && (j - j.round()).abs() < 1e-6, "a vertex off the nodes");
+        Point::new(i.round(), j.round())
+    }));
+    let (last_i, last_j) = (grid.nx() - 1, grid.ny() - 1);
+    let on_side = |(i, j): (usize, usize)| i == 0 || j == 0 || i == last_i || j == last_j;
     let mut estimates = Estimates {
         grid,
         at,
@@ -118,7 +125,9 @@ pub(super) fn refine<O: Observer>(
         estimates.estimate(mesh, t, run.observer);
     }
     run.observer.started(*evaluations);
-    let mut repairs = Repairs::new(Encroachment::Circle, run.params.min_angle());
+    // Fixed sides are never split, so nothing may ask for it.
+    let encroachment = if fixed_sides { Encroachment::Never } else { Encroachment::Circle };
+    let mut repairs = Repairs::new(encroachment, run.params.min_angle());
     // Triangles a step rewrote, measured again after it; reused so steps do not allocate.
     let mut touched: Vec<u32> = Vec::with_capacity(32);
     let stop = loop {
@@ -138,6 +147,13 @@ pub(super) fn refine<O: Observer>(
                 let (i, j) = estimates.slots[worst.t as usize].node;
                 debug_assert_ne!((i, j), NO_NODE, "a queued triangle has a node");
                 let (i, j) = (i as usize, j as usize);
+                if fixed_sides && on_side((i, j)) {
+                    // Within rounding of the tolerance there, which its side was simplified to.
+                    run.retire();
+                    run.observer.retired(mesh.origin(3 * worst.t), mesh.dest(3 * worst.t));
+                    run.observer.stepped(None, *evaluations);
+                    continue;
+                }
                 let p = grid.node(i, j);
                 (nearest_edge(mesh, worst.t, p), on_node(grid, i, j))
             }

@@ -177,11 +177,16 @@ impl<'a, O: Observer> Run<'a, O> {
     ) -> Option<Split> {
         let (a, b) = (mesh.point(mesh.origin(e)), mesh.point(mesh.dest(e)));
         let Some(placement) = place(mesh, e, v.point(), self.floors.at(a, b).1) else {
-            self.retired += 1;
-            self.history.retired();
+            self.retire();
             return None;
         };
         Some(self.insert(mesh, e, v, placement, on_flip))
+    }
+
+    /// Counts a step that made no insertion: the worst candidate was left where it is.
+    pub(super) fn retire(&mut self) {
+        self.retired += 1;
+        self.history.retired();
     }
 
     fn insert(

@@ -1,0 +1,109 @@
+//! A grid's mesh whose sides are fixed before it is refined: the nodes each side keeps are
+//! chosen from that side's values alone, inserted first, and never added to. Two meshes of
+//! neighbouring grids that share a side's nodes then share its vertices, whichever was made
+//! first: terrain tiles without cracks.
+
+use super::driver::finished;
+use super::floors::Floors;
+use super::nodes;
+use super::observer::Observer;
+use super::outcome::Refinement;
+use super::params::{Criterion, Method, Params};
+use super::run::Run;
+use crate::geom::{Mesh, Vertex};
+use crate::source::Grid;
+use std::time::Instant;
+
+/// The nodes each side of a grid keeps besides its corners, by their index along the side
+/// (column i on the south and north sides, row j on the west and east), strictly inside it.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Sides {
+    /// Row 0.
+    pub south: Vec<usize>,
+    /// Column nx − 1.
+    pub east: Vec<usize>,
+    /// Row ny − 1.
+    pub north: Vec<usize>,
+    /// Column 0.
+    pub west: Vec<usize>,
+}
+
+/// Refines `grid` by greedy node insertion (criterion `error`), starting from its corners and
+/// the nodes of `sides`, and never inserting another node on a side.
+///
+/// The sides' nodes should keep each side within the run's tolerance of its values (see
+/// `tiles`, which simplifies each side's profile to it): a triangle whose worst node lies
+/// on a side is then within the tolerance up to rounding, and is retired rather than split.
+///
+/// # Panics
+/// When `params` are not criterion `error` with method `semi-recursive` or
+/// `data-dependent` (the ones that insert nodes) and no `min_angle` (whose repairs split
+/// sides), or a side's index is not strictly inside its side.
+pub fn refine_with_sides<O: Observer>(
+    grid: &Grid,
+    sides: &Sides,
+    params: &Params,
+    observer: &mut O,
+) -> Refinement {
+    assert!(
+        params.criterion() == Criterion::Error
+            && params.method() != Method::Recursive
+            && params.min_angle().is_none(),
+        "fixed sides need criterion error by node insertion, with no angle repairs (they split sides)"
+    );
+    let start = Instant::now();
+    let (nx, ny) = (grid.nx(), grid.ny());
+    let (last_i, last_j) = (nx - 1, ny - 1);
+    let corners = [(0, 0), (last_i, 0), (last_i, last_j), (0, last_j)];
+    let mut mesh =
+        Mesh::with_capacity(grid.rect(), corners.map(|(i, j)| grid.value(i, j)), params.max_vertices());
+    let mut run = Run::new(params, observer, Floors::of_rect(grid.rect()));
+    let mut evaluations = 4;
+    // S₄'s sides run counter-clockwise, corner k to corner k + 1: south west to east, east
+    // south to north, north east to west, west north to south. Each side's nodes go in that
+    // order, each on the side's last piece.
+    let inside = |k: &usize, n: usize| (1..n - 1).contains(k);
+    let along = [
+        sides
+            .south
+            .iter()
+            .inspect(|k| assert!(inside(k, nx), "south node {k}"))
+            .map(|&i| (i, 0))
+            .collect::<Vec<_>>(),
+        sides
+            .east
+            .iter()
+            .inspect(|k| assert!(inside(k, ny), "east node {k}"))
+            .map(|&j| (last_i, j))
+            .collect(),
+        sides
+            .north
+            .iter()
+            .inspect(|k| assert!(inside(k, nx), "north node {k}"))
+            .rev()
+            .map(|&i| (i, last_j))
+            .collect(),
+        sides
+            .west
+            .iter()
+            .inspect(|k| assert!(inside(k, ny), "west node {k}"))
+            .rev()
+            .map(|&j| (0, j))
+            .collect(),
+    ];
+    for (k, nodes) in along.iter().enumerate() {
+        let end = (k as u32 + 1) % 4;
+        let mut from = k as u32;
+        for &(i, j) in nodes {
+            let e = mesh.find_edge(from, end).expect("the side's last piece is an edge");
+            let p = grid.node(i, j);
+            let vertex = Vertex { x: p.x, y: p.y, z: grid.value(i, j) };
+            let Some(split) = run.insert_vertex(&mut mesh, e, vertex, |_, _| {}) else { continue };
+            evaluations += 1;
+            from = split.vertex;
+        }
+    }
+    let (stop, errors) = nodes::refine(&mut mesh, grid, &mut run, &mut evaluations, true);
+    let round = run.finish(&mesh, stop, Some(errors));
+    finished(mesh, round, params, evaluations, start)
+}

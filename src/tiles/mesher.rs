@@ -1,0 +1,95 @@
+//! A tile's mesh from a DEM, crack-free by construction.
+//!
+//! Every level has one lattice over the globe, `samples` − 1 steps a tile side, so a tile's
+//! lattice nodes on a side are its neighbour's on the same side, at the same positions bit
+//! for bit (the spacing is a power of two of a degree). The DEM is sampled there bilinearly;
+//! outside its extent it is extended from its nearest edge.
+//!
+//! Each side's profile is simplified on its own to the tolerance (Douglas–Peucker, from the
+//! side's values alone), and the tile is refined from its corners and those side nodes by
+//! greedy node insertion, never adding a node on a side ([`refine_with_sides`]). Two tiles
+//! that share a side then share its vertices and heights, whichever was made first and on
+//! whichever machine, and every lattice node of a tile is within the tolerance of its mesh.
+
+use super::scheme::TileId;
+use crate::geom::Rect;
+use crate::refine::{Criterion, Method, Params, Sides, refine_with_sides};
+use crate::source::{Grid, Surface};
+
+/// A tile's triangles over its vertices: longitude and latitude in degrees, height in metres.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TileSurface {
+    /// (lon, lat, height) of each vertex.
+    pub vertices: Vec<[f64; 3]>,
+    /// Vertex triples, counter-clockwise seen from above.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// The mesh of `tile` over `dem` (a grid whose domain is in degrees: x longitude, y latitude)
+/// within `tolerance` metres of the DEM at every node of the tile's lattice of `steps` + 1
+/// samples a side (`steps` a power of two).
+///
+/// # Panics
+/// When `steps` is not a power of two of at least 2, or `tolerance` is not finite and ≥ 0.
+pub fn mesh_tile(dem: &Grid, tile: TileId, tolerance: f64, steps: usize) -> TileSurface {
+    assert!(steps >= 2 && steps.is_power_of_two(), "steps {steps} is not a power of two");
+    let b = tile.bounds();
+    let rect = Rect::new(b.west, b.east, b.south, b.north).expect("a tile is a proper rectangle");
+    let n = steps + 1;
+    // The lattice's positions are the grid's own nodes: read them from a grid of the shape.
+    let shape = Grid::new(n, n, vec![0.0; n * n]).expect("a lattice of at least 3 × 3").with_domain(rect);
+    let values =
+        (0..n).flat_map(|j| (0..n).map(move |i| (i, j))).map(|(i, j)| dem.eval(shape.node(i, j))).collect();
+    let lattice = Grid::new(n, n, values).expect("a DEM gives finite heights").with_domain(rect);
+    let row = |j: usize| (0..n).map(|i| lattice.value(i, j)).collect::<Vec<_>>();
+    let column = |i: usize| (0..n).map(|j| lattice.value(i, j)).collect::<Vec<_>>();
+    let sides = Sides {
+        south: simplify(&row(0), tolerance),
+        east: simplify(&column(n - 1), tolerance),
+        north: simplify(&row(n - 1), tolerance),
+        west: simplify(&column(0), tolerance),
+    };
+    let params = Params::builder(n * n)
+        .criterion(Criterion::Error)
+        .method(Method::SemiRecursive)
+        .tolerance(tolerance)
+        .on_grid(true)
+        .build()
+        .expect("a tolerance ≥ 0 and a budget of the lattice's nodes");
+    let refinement = refine_with_sides(&lattice, &sides, &params, &mut ());
+    let mesh = &refinement.mesh;
+    TileSurface {
+        vertices: mesh.vertices().iter().map(|v| [v.x, v.y, v.z]).collect(),
+        triangles: mesh.triangles().collect(),
+    }
+}
+
+/// The samples a profile keeps, besides its ends, for its linear interpolation to stay within
+/// `tolerance` of every sample (Douglas–Peucker: split at the worst sample while it is off by
+/// more), in increasing order. A function of the values alone.
+pub fn simplify(values: &[f64], tolerance: f64) -> Vec<usize> {
+    let mut kept = Vec::new();
+    let mut pending = vec![(0, values.len() - 1)];
+    while let Some((a, b)) = pending.pop() {
+        let (va, vb) = (values[a], values[b]);
+        let line = |s: usize| va + (vb - va) * ((s - a) as f64 / (b - a) as f64);
+        // The first of equally bad samples.
+        let worst = (a + 1..b).map(|s| (s, (values[s] - line(s)).abs())).fold(
+            None,
+            |best: Option<(usize, f64)>, (s, e)| {
+                if best.is_none_or(|(_, worst)| e > worst) { Some((s, e)) } else { best }
+            },
+        );
+        if let Some((s, error)) = worst
+            && error > tolerance
+        {
+            kept.push(s);
+            pending.extend([(a, s), (s, b)]);
+        }
+    }
+    kept.sort_unstable();
+    kept
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,132 @@
+use super::*;
+use crate::geom::Point;
+use proptest::prelude::*;
+
+/// A DEM of hills and a ridge over 10°–12°E, 45°–46°N, 401 × 201 samples (18 arc-seconds).
+fn dem(seed: f64) -> Grid {
+    let (nx, ny) = (401, 201);
+    let values = (0..ny)
+        .flat_map(|j| (0..nx).map(move |i| (i, j)))
+        .map(|(i, j)| {
+            let (x, y) = (f64::from(i) / 200.0, f64::from(j) / 200.0);
+            800.0
+                + 400.0 * (x * 7.0 + seed).sin() * (y * 5.0).cos()
+                + 150.0 * (-(x - y - 0.3).powi(2) * 80.0).exp()
+        })
+        .collect();
+    Grid::new(nx as usize, ny as usize, values)
+        .unwrap()
+        .with_domain(Rect::new(10.0, 12.0, 45.0, 46.0).unwrap())
+}
+
+/// The tile's mesh evaluated at `p` (inside the tile): the plane of a triangle holding it.
+fn linear(surface: &TileSurface, p: Point) -> f64 {
+    for t in &surface.triangles {
+        let [a, b, c] = t.map(|k| surface.vertices[k as usize]);
+        let det = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
+        let l1 = ((p.x - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (p.y - a[1])) / det;
+        let l2 = ((b[0] - a[0]) * (p.y - a[1]) - (p.x - a[0]) * (b[1] - a[1])) / det;
+        let l0 = 1.0 - l1 - l2;
+        if [l0, l1, l2].iter().all(|&l| l >= -1e-9) {
+            return l0 * a[2] + l1 * b[2] + l2 * c[2];
+        }
+    }
+    panic!("({}, {}) is in no triangle", p.x, p.y);
+}
+
+/// The vertices of `surface` on the line lon = `lon` (or lat = `lat`), sorted.
+fn on_line(surface: &TileSurface, test: impl Fn(&[f64; 3]) -> bool) -> Vec<[u64; 3]> {
+    let mut line: Vec<[u64; 3]> =
+        surface.vertices.iter().filter(|v| test(v)).map(|v| v.map(f64::to_bits)).collect();
+    line.sort_unstable();
+    line
+}
+
+#[test]
+fn neighbours_share_every_vertex_of_their_common_side_bit_for_bit() {
+    let dem = dem(0.0);
+    // Level 9 tiles are 0.3515625° a side; these meet at 10.546875°E and 45.3515625°N.
+    let (z, x, y) = (9, 541, 384);
+    let tile = |x, y| TileId::new(z, x, y).unwrap();
+    let tolerance = 2.0;
+    let here = mesh_tile(&dem, tile(x, y), tolerance, 64);
+    let east = mesh_tile(&dem, tile(x + 1, y), tolerance, 64);
+    let north = mesh_tile(&dem, tile(x, y + 1), tolerance, 64);
+    let b = tile(x, y).bounds();
+    let shared_east = on_line(&here, |v| v[0] == b.east);
+    assert_eq!(shared_east, on_line(&east, |v| v[0] == b.east));
+    let shared_north = on_line(&here, |v| v[1] == b.north);
+    assert_eq!(shared_north, on_line(&north, |v| v[1] == b.north));
+    // The sides are simplified, not kept whole, and not left bare.
+    assert!(shared_east.len() > 2 && shared_east.len() < 65, "{}", shared_east.len());
+    assert!(here.vertices.len() < 65 * 65 / 4, "{} vertices", here.vertices.len());
+}
+
+#[test]
+fn every_lattice_node_is_within_the_tolerance() {
+    let dem = dem(1.3);
+    let tile = TileId::new(10, 1086, 770).unwrap();
+    for tolerance in [0.5, 5.0, 40.0] {
+        let surface = mesh_tile(&dem, tile, tolerance, 32);
+        let b = tile.bounds();
+        let mut worst = 0.0f64;
+        for j in 0..=32 {
+            for i in 0..=32 {
+                let p = Point::new(
+                    b.west + (b.east - b.west) * f64::from(i) / 32.0,
+                    b.south + (b.north - b.south) * f64::from(j) / 32.0,
+                );
+                worst = worst.max((linear(&surface, p) - dem.eval(p)).abs());
+            }
+        }
+        assert!(worst <= tolerance * (1.0 + 1e-9) + 1e-9, "{worst} > {tolerance}");
+    }
+}
+
+#[test]
+fn a_tolerance_of_zero_keeps_every_node_and_a_large_one_the_corners() {
+    let dem = dem(0.4);
+    let tile = TileId::new(11, 2176, 1542).unwrap();
+    assert_eq!(mesh_tile(&dem, tile, 0.0, 8).vertices.len(), 81);
+    assert_eq!(mesh_tile(&dem, tile, 1e6, 8).vertices.len(), 4);
+}
+
+#[test]
+fn a_tile_off_the_dem_is_its_nearest_edge_extended() {
+    let dem = dem(0.0);
+    // West of the DEM (10°E): every height is the DEM's west column's.
+    let tile = TileId::new(9, 539, 385).unwrap();
+    assert!(tile.bounds().east < 10.0);
+    let surface = mesh_tile(&dem, tile, 1.0, 16);
+    for v in &surface.vertices {
+        assert_eq!(v[2], dem.eval(Point::new(10.0, v[1])));
+    }
+}
+
+#[test]
+fn simplify_keeps_what_the_tolerance_needs() {
+    let tent = [0.0, 1.0, 2.0, 3.0, 2.0, 1.0, 0.0];
+    assert_eq!(simplify(&tent, 0.5), vec![3]);
+    assert_eq!(simplify(&[5.0, 5.0, 5.0, 5.0], 0.0), Vec::<usize>::new());
+    assert_eq!(simplify(&[0.0, 1.0, 0.0, 1.0, 0.0], 0.0), vec![1, 2, 3]);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// Any DEM, any pair of side-by-side tiles: the common side's vertices agree.
+    #[test]
+    fn random_dems_give_crack_free_neighbours(seed in 0.0f64..10.0, dx in 0u32..4, dy in 0u32..2, tolerance in 0.1f64..50.0, vertical in any::<bool>()) {
+        let dem = dem(seed);
+        let (x, y) = (541 + dx, 384 + dy);
+        let a = TileId::new(9, x, y).unwrap();
+        let b = if vertical { TileId::new(9, x, y + 1).unwrap() } else { TileId::new(9, x + 1, y).unwrap() };
+        let (ma, mb) = (mesh_tile(&dem, a, tolerance, 32), mesh_tile(&dem, b, tolerance, 32));
+        let bounds = a.bounds();
+        if vertical {
+            prop_assert_eq!(on_line(&ma, |v| v[1] == bounds.north), on_line(&mb, |v| v[1] == bounds.north));
+        } else {
+            prop_assert_eq!(on_line(&ma, |v| v[0] == bounds.east), on_line(&mb, |v| v[0] == bounds.east));
+        }
+    }
+}
