@@ -19,6 +19,16 @@ use tiff::tags::Tag;
 const PIXEL_METRES: f64 = 30.0;
 const ORIGIN: (f64, f64) = (500_000.0, 4_000_000.0);
 
+/// The same for `dem-4326.tif`, in degrees of longitude and latitude (EPSG:4326), for
+/// `meshfit tiles`: one arc-second pixels, the first one's corner at 98.25°W 33.3°N, near
+/// Jacksboro, Texas (again an illustrative placement).
+const PIXEL_DEGREES: f64 = 1.0 / 3600.0;
+const ORIGIN_DEGREES: (f64, f64) = (-98.25, 33.3);
+
+/// A GeoKeyDirectory naming EPSG:4326: version 1.1.0 with two keys, GTModelTypeGeoKey =
+/// geographic and GeographicTypeGeoKey = 4326.
+const WGS84_KEYS: [u16; 12] = [1, 1, 0, 2, 1024, 0, 1, 2, 2048, 0, 1, 4326];
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples");
     let tile = std::fs::read(root.join("tiles/jacksboro-terrarium.png"))?;
@@ -38,7 +48,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     )?;
     let as_u16: Vec<u16> = heights.iter().map(|&h| h as u16).collect();
     std::fs::write(out.join("heightmap.png"), png_u16(&as_u16, nx, ny)?)?;
-    std::fs::write(out.join("dem.tif"), geotiff_f32(&as_f32, nx, ny)?)?;
+    std::fs::write(out.join("dem.tif"), geotiff_f32(&as_f32, nx, ny, PIXEL_METRES, ORIGIN, None)?)?;
+    let wgs84 = Some(&WGS84_KEYS[..]);
+    std::fs::write(
+        out.join("dem-4326.tif"),
+        geotiff_f32(&as_f32, nx, ny, PIXEL_DEGREES, ORIGIN_DEGREES, wgs84)?,
+    )?;
     println!("wrote {nx} x {ny} heights to {}", out.display());
     Ok(())
 }
@@ -75,14 +90,25 @@ fn png_u16(values: &[u16], nx: usize, ny: usize) -> Result<Vec<u8>, png::Encodin
     Ok(bytes)
 }
 
-/// A deflated f32 GeoTIFF placed by ModelPixelScale and ModelTiepoint (pixel is area).
-fn geotiff_f32(values: &[f32], nx: usize, ny: usize) -> Result<Vec<u8>, tiff::TiffError> {
+/// A deflated f32 GeoTIFF placed by ModelPixelScale (`pixel`) and ModelTiepoint (`origin`,
+/// the first pixel's corner: pixel is area), with GeoKeys `keys` when given.
+fn geotiff_f32(
+    values: &[f32],
+    nx: usize,
+    ny: usize,
+    pixel: f64,
+    origin: (f64, f64),
+    keys: Option<&[u16]>,
+) -> Result<Vec<u8>, tiff::TiffError> {
     let mut bytes = Vec::new();
     let compression = Compression::Deflate(DeflateLevel::Best);
     let mut encoder = TiffEncoder::new(Cursor::new(&mut bytes))?.with_compression(compression);
     let mut image = encoder.new_image::<colortype::Gray32Float>(nx as u32, ny as u32)?;
-    image.encoder().write_tag(Tag::ModelPixelScaleTag, &[PIXEL_METRES, PIXEL_METRES, 0.0][..])?;
-    image.encoder().write_tag(Tag::ModelTiepointTag, &[0.0, 0.0, 0.0, ORIGIN.0, ORIGIN.1, 0.0][..])?;
+    image.encoder().write_tag(Tag::ModelPixelScaleTag, &[pixel, pixel, 0.0][..])?;
+    image.encoder().write_tag(Tag::ModelTiepointTag, &[0.0, 0.0, 0.0, origin.0, origin.1, 0.0][..])?;
+    if let Some(keys) = keys {
+        image.encoder().write_tag(Tag::GeoKeyDirectoryTag, keys)?;
+    }
     image.write_data(values)?;
     Ok(bytes)
 }

@@ -415,6 +415,7 @@ fn the_quick_starts_sample_grids_hold_the_tiles_heights() {
     let raw = GridHints { nx: Some(256), ny: Some(256), dtype: Some(RawType::F32), ..GridHints::default() };
     for (name, hints) in [
         ("grids/dem.tif", GridHints::default()),
+        ("grids/dem-4326.tif", GridHints::default()),
         ("grids/heightmap.png", GridHints::default()),
         ("grids/heights.npy", GridHints::default()),
         ("grids/heights.f32", raw),
@@ -428,4 +429,131 @@ fn the_quick_starts_sample_grids_hold_the_tiles_heights() {
     let domain = decode("grids/dem.tif", GridHints::default()).domain.expect("a georeferenced file");
     let bounds = (domain.x0(), domain.x1(), domain.y0(), domain.y1());
     assert_eq!(bounds, (500_015.0, 507_665.0, 3_992_335.0, 3_999_985.0));
+    // Its twin for `meshfit tiles` is in EPSG:4326, one arc-second pixels.
+    let decoded = decode("grids/dem-4326.tif", GridHints::default());
+    assert_eq!(decoded.crs, Some(meshfit::source::Crs::Geographic(Some(4326))));
+    let domain = decoded.domain.expect("a georeferenced file");
+    assert!(
+        (domain.x0() - (-98.25 + 0.5 / 3600.0)).abs() < 1e-12
+            && (domain.y1() - (33.3 - 0.5 / 3600.0)).abs() < 1e-12
+    );
+}
+
+/// A GeoTIFF in EPSG:4326 of `nx` × `ny` f32 heights, its top-left pixel's corner at
+/// (`west`, `north`), `pixel` degrees a side.
+fn geotiff_4326(
+    name: &str,
+    (nx, ny): (u32, u32),
+    (west, north, pixel): (f64, f64, f64),
+    keys: &[u16],
+) -> PathBuf {
+    use tiff::encoder::{TiffEncoder, colortype};
+    use tiff::tags::Tag;
+    let data: Vec<f32> = (0..ny)
+        .flat_map(|row| (0..nx).map(move |column| (column, row)))
+        .map(|(i, j)| {
+            500.0 + 300.0 * ((i as f32) * 0.05).sin() * ((j as f32) * 0.07).cos() + (i * j % 13) as f32
+        })
+        .collect();
+    let mut bytes = Vec::new();
+    let mut encoder = TiffEncoder::new(std::io::Cursor::new(&mut bytes)).unwrap();
+    let mut image = encoder.new_image::<colortype::Gray32Float>(nx, ny).unwrap();
+    image.encoder().write_tag(Tag::ModelPixelScaleTag, &[pixel, pixel, 0.0][..]).unwrap();
+    image.encoder().write_tag(Tag::ModelTiepointTag, &[0.0, 0.0, 0.0, west, north, 0.0][..]).unwrap();
+    image.encoder().write_tag(Tag::GeoKeyDirectoryTag, keys).unwrap();
+    image.write_data(&data).unwrap();
+    let path = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
+    std::fs::write(&path, bytes).unwrap();
+    path
+}
+
+const WGS84_KEYS: [u16; 12] = [1, 1, 0, 2, 1024, 0, 1, 2, 2048, 0, 1, 4326];
+
+#[test]
+fn tiles_writes_a_crack_free_pyramid_and_its_layer_json() {
+    // 0.6° × 0.4° at 9 arc-seconds, near 10.2°E 45.6°N: level 11 reaches the pixel.
+    let dem = geotiff_4326("alps.tif", (241, 161), (10.2, 45.6, 0.0025), &WGS84_KEYS);
+    let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("alps-tiles");
+    let _ = std::fs::remove_dir_all(&out);
+    let run = meshfit(&["tiles", dem.to_str().unwrap(), "--out", out.to_str().unwrap(), "--max-zoom", "9"]);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let layer: Value = serde_json::from_slice(&std::fs::read(out.join("layer.json")).unwrap()).unwrap();
+    assert_eq!(layer["format"], "quantized-mesh-1.0");
+    assert_eq!((layer["scheme"].as_str(), layer["projection"].as_str()), (Some("tms"), Some("EPSG:4326")));
+    assert_eq!(layer["maxzoom"], 9);
+    let available = layer["available"].as_array().unwrap();
+    assert_eq!(available.len(), 10);
+    assert_eq!(available[0], serde_json::json!([{"startX": 0, "startY": 0, "endX": 1, "endY": 0}]));
+    // Every tile layer.json lists is on disk and decodes; neighbours at the deepest level
+    // agree on every vertex of their common side.
+    let mut written = 0;
+    let mut deepest = std::collections::BTreeMap::new();
+    for (z, ranges) in available.iter().enumerate() {
+        for range in ranges.as_array().unwrap() {
+            let n = |k: &str| range[k].as_u64().unwrap();
+            for y in n("startY")..=n("endY") {
+                for x in n("startX")..=n("endX") {
+                    let bytes = std::fs::read(out.join(format!("{z}/{x}/{y}.terrain"))).unwrap();
+                    let mesh = quantized_mesh::DecodedMesh::decode(&bytes).unwrap();
+                    assert!(!mesh.indices.is_empty());
+                    written += 1;
+                    if z == 9 {
+                        deepest.insert((x, y), mesh);
+                    }
+                }
+            }
+        }
+    }
+    assert!(written > 12, "{written} tiles");
+    let height = |m: &quantized_mesh::DecodedMesh, k: u32| {
+        let (lo, hi) = (f64::from(m.header.min_height), f64::from(m.header.max_height));
+        lo + f64::from(m.vertices.height[k as usize]) / 32767.0 * (hi - lo)
+    };
+    let mut sides = 0;
+    for (&(x, y), mesh) in &deepest {
+        if let Some(east) = deepest.get(&(x + 1, y)) {
+            let ours: Vec<u16> =
+                mesh.edge_indices.east.iter().map(|&k| mesh.vertices.v[k as usize]).collect();
+            let theirs: Vec<u16> =
+                east.edge_indices.west.iter().map(|&k| east.vertices.v[k as usize]).collect();
+            assert_eq!(ours, theirs, "tiles {x}/{y} and {}/{y} disagree on their side", x + 1);
+            for (&a, &b) in mesh.edge_indices.east.iter().zip(&east.edge_indices.west) {
+                // Each tile quantizes heights over its own range: equal within both quanta.
+                let quanta = (mesh.header.max_height - mesh.header.min_height + east.header.max_height
+                    - east.header.min_height) as f64
+                    / 32767.0;
+                assert!((height(mesh, a) - height(east, b)).abs() <= quanta);
+            }
+            sides += 1;
+        }
+    }
+    assert!(sides > 0, "some tiles at level 9 have an east neighbour");
+}
+
+#[test]
+fn tiles_refuses_a_projected_or_unreferenced_dem_naming_why() {
+    let utm = geotiff_4326(
+        "utm.tif",
+        (20, 20),
+        (500_000.0, 5_000_000.0, 30.0),
+        &[1, 1, 0, 2, 1024, 0, 1, 1, 3072, 0, 1, 32632],
+    );
+    let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("utm-tiles");
+    let err = stderr_of_failure(&["tiles", utm.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    assert!(err.contains("EPSG:32632") && err.contains("projected") && err.contains("EPSG:4326"), "{err}");
+    let plain = temp_file("plain.json", r#"{"nx": 2, "ny": 2, "values": [1, 2, 3, 4]}"#);
+    let err = stderr_of_failure(&["tiles", plain.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    assert!(err.contains("not georeferenced"), "{err}");
+    let dem = geotiff_4326("small.tif", (20, 20), (10.0, 46.0, 0.01), &WGS84_KEYS);
+    let err = stderr_of_failure(&[
+        "tiles",
+        dem.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--min-zoom",
+        "5",
+        "--max-zoom",
+        "3",
+    ]);
+    assert!(err.contains("levels 5..=3"), "{err}");
 }

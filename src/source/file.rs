@@ -70,3 +70,4 @@ pub use error::GridFileError;
 pub use hints::{Encoding, GridHints, RawType};
 pub use json::decode_values;
 pub use kind::{GridFileKind, signed_kind};
+pub use tiff::Crs;

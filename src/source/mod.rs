@@ -9,7 +9,7 @@ mod surface;
 
 pub use expr::{ExprError, ExprErrorKind, Expression};
 pub use file::{
-    DecodedGrid, Encoding, GridFileError, GridFileKind, GridHints, RawType, decode_grid, decode_values,
+    Crs, DecodedGrid, Encoding, GridFileError, GridFileKind, GridHints, RawType, decode_grid, decode_values,
     signed_kind,
 };
 pub use function::Source;

@@ -4,19 +4,25 @@
 //!
 //! - `scheme`: [`TileId`], a tile's bounds in degrees, its children and parent, each level's
 //!   geometric error, and the deepest level a DEM's resolution calls for;
+//! - `dem`: a DEM on longitude and latitude (a GeoTIFF in EPSG:4326), or why a file is not;
+//! - `pyramid`: the tiles a DEM has at each level, each tile's bytes, and `layer.json`;
 //! - `ellipsoid`: ECEF positions, a bounding sphere and the horizon occlusion point;
 //! - `mesher`: a tile's mesh from a DEM within a tolerance, its sides fixed from their own
 //!   values so that neighbours share their vertices;
 //! - `quantized`: a tile's mesh as quantized-mesh-1.0, with the octvertexnormals and
 //!   metadata extensions.
 
+mod dem;
 mod ellipsoid;
 mod mesher;
+mod pyramid;
 mod quantized;
 mod scheme;
 
+pub use dem::{Dem, DemError, WGS84};
 pub use ellipsoid::{SEMI_MAJOR_AXIS, SEMI_MINOR_AXIS, to_ecef};
 pub use mesher::{TileSurface, mesh_tile, simplify};
+pub use pyramid::{MAX_STEPS, MIN_STEPS, Pyramid, PyramidError};
 pub use quantized::{Extensions, QUANTIZED_MAX, TileMesh, encode};
 pub use scheme::{
     Bounds, LEVEL_ZERO_ERROR, MAX_LEVEL, TILE_SAMPLES, TileError, TileId, columns, covering,

@@ -5,7 +5,8 @@ use super::error::GridFileError;
 use super::hints::GridHints;
 use super::kind::{GridFileKind, sniff};
 use super::raw::decode_raw;
-use super::{json, npy, png, tiff};
+use super::tiff::{self, Crs};
+use super::{json, npy, png};
 use crate::geom::Rect;
 use crate::source::Grid;
 
@@ -19,6 +20,8 @@ pub struct DecodedGrid {
     /// The rectangle a GeoTIFF places the samples on, when it says so; apply it with
     /// [`Grid::with_domain`] unless the request names its own.
     pub domain: Option<Rect>,
+    /// The coordinate reference system of `domain`, when a GeoTIFF's keys name one.
+    pub crs: Option<Crs>,
 }
 
 /// Decodes a grid file of any supported format into a [`Grid`].
@@ -54,12 +57,12 @@ pub fn decode_grid(bytes: &[u8], hints: &GridHints, max_points: usize) -> Result
         let found = format!("a{} {kind} file", if kind == GridFileKind::Npy { "n" } else { "" });
         return Err(GridFileError::NotATile { encoding: encoding.name(), found });
     }
-    let (grid, domain) = match kind {
-        GridFileKind::Npy => (npy::decode(bytes, max_points)?, None),
-        GridFileKind::Png => (png::decode(bytes, hints.encoding, max_points)?, None),
+    let (grid, domain, crs) = match kind {
+        GridFileKind::Npy => (npy::decode(bytes, max_points)?, None, None),
+        GridFileKind::Png => (png::decode(bytes, hints.encoding, max_points)?, None, None),
         GridFileKind::Tiff => tiff::decode(bytes, max_points)?,
-        GridFileKind::Json => (json::decode(bytes, max_points)?, None),
-        GridFileKind::Raw => (decode_raw(bytes, hints, max_points)?, None),
+        GridFileKind::Json => (json::decode(bytes, max_points)?, None, None),
+        GridFileKind::Raw => (decode_raw(bytes, hints, max_points)?, None, None),
     };
-    Ok(DecodedGrid { grid, kind, domain })
+    Ok(DecodedGrid { grid, kind, domain, crs })
 }

@@ -295,6 +295,22 @@ fn geotiff_pixel_is_point_ties_the_pixel_centre() {
 }
 
 #[test]
+fn geotiff_keys_name_the_coordinate_system() {
+    use crate::source::Crs;
+    let with =
+        |keys: &[u16]| decode(&geotiff(|d| d.write_tag(Tag::GeoKeyDirectoryTag, keys).unwrap())).unwrap().crs;
+    // GTModelType geographic, GeographicType 4326 (WGS84).
+    assert_eq!(with(&[1, 1, 0, 2, 1024, 0, 1, 2, 2048, 0, 1, 4326]), Some(Crs::Geographic(Some(4326))));
+    // GTModelType projected, ProjectedCSType 32633 (UTM 33N).
+    assert_eq!(with(&[1, 1, 0, 2, 1024, 0, 1, 1, 3072, 0, 1, 32633]), Some(Crs::Projected(Some(32633))));
+    // A user-defined projected system (32767), and no model type but an EPSG key.
+    assert_eq!(with(&[1, 1, 0, 2, 1024, 0, 1, 1, 3072, 0, 1, 32767]), Some(Crs::Projected(None)));
+    assert_eq!(with(&[1, 1, 0, 1, 3072, 0, 1, 3857]), Some(Crs::Projected(Some(3857))));
+    assert_eq!(with(&[1, 1, 0, 1, 1025, 0, 1, 2]), None);
+    assert_eq!(decode(&geotiff(|_| {})).unwrap().crs, None);
+}
+
+#[test]
 fn an_axis_aligned_model_transformation_gives_the_same_domain() {
     #[rustfmt::skip]
     let matrix: [f64; 16] = [

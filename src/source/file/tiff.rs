@@ -20,6 +20,25 @@ const SUPPORTED: &str = "one band of u8, u16, u32, i8, i16, i32, f32 or f64";
 const RASTER_TYPE_KEY: u16 = 1025;
 const PIXEL_IS_POINT: u16 = 2;
 
+/// `GTModelTypeGeoKey` and its values for projected and geographic models.
+const MODEL_TYPE_KEY: u16 = 1024;
+const MODEL_PROJECTED: u16 = 1;
+const MODEL_GEOGRAPHIC: u16 = 2;
+/// `GeographicTypeGeoKey` and `ProjectedCSTypeGeoKey`: the EPSG code of each kind of model.
+const GEOGRAPHIC_TYPE_KEY: u16 = 2048;
+const PROJECTED_TYPE_KEY: u16 = 3072;
+
+/// The coordinate reference system a GeoTIFF's keys name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Crs {
+    /// Longitude and latitude in degrees, with the EPSG code of the datum's system (4326 for
+    /// WGS84), or `None` when the file defines its own.
+    Geographic(Option<u16>),
+    /// Projected coordinates in metres or feet, with the EPSG code (3857, 326xx for UTM
+    /// north…), or `None` when the file defines its own.
+    Projected(Option<u16>),
+}
+
 fn error(e: TiffError) -> GridFileError {
     match e {
         TiffError::UnsupportedError(e) => GridFileError::Unsupported { kind: KIND, detail: detail(e) },
@@ -27,7 +46,10 @@ fn error(e: TiffError) -> GridFileError {
     }
 }
 
-pub(super) fn decode(bytes: &[u8], max_points: usize) -> Result<(Grid, Option<Rect>), GridFileError> {
+pub(super) fn decode(
+    bytes: &[u8],
+    max_points: usize,
+) -> Result<(Grid, Option<Rect>, Option<Crs>), GridFileError> {
     // Reading the first directory touches only the header and the tags.
     let mut decoder = Decoder::new(Cursor::new(bytes)).map_err(error)?;
     check_colour(&mut decoder)?;
@@ -35,7 +57,9 @@ pub(super) fn decode(bytes: &[u8], max_points: usize) -> Result<(Grid, Option<Re
     let (width, height) = decoder.dimensions().map_err(error)?;
     let shape = check_size(u64::from(width), u64::from(height), max_points)?;
     let nodata = nodata(&mut decoder, is_f32)?;
-    let domain = domain(&mut decoder, shape)?;
+    let keys = decoder.find_tag_unsigned_vec::<u16>(Tag::GeoKeyDirectoryTag).map_err(error)?;
+    let domain = domain(&mut decoder, shape, keys.as_deref())?;
+    let crs = crs(keys.as_deref());
     // The decoded buffer is at most nx·ny samples of 8 bytes; the default 256 MiB cap would
     // refuse a large grid the caller allows.
     let mut limits = Limits::default();
@@ -59,7 +83,7 @@ pub(super) fn decode(bytes: &[u8], max_points: usize) -> Result<(Grid, Option<Re
         });
     }
     let grid = into_grid(KIND, shape, Rows::TopFirst, values, nodata)?;
-    Ok((grid, domain))
+    Ok((grid, domain, crs))
 }
 
 fn unsupported_type(found: &str) -> GridFileError {
@@ -153,7 +177,11 @@ fn find_numbers(decoder: &mut Decoder<Cursor<&[u8]>>, tag: Tag) -> TiffResult<Op
 /// The rectangle through the centres of the corner pixels, from ModelPixelScale and
 /// ModelTiepoint or from an axis-aligned ModelTransformation; `None` when the file has
 /// neither, or only a rotation or ground control points.
-fn domain(decoder: &mut Decoder<Cursor<&[u8]>>, shape: Shape) -> Result<Option<Rect>, GridFileError> {
+fn domain(
+    decoder: &mut Decoder<Cursor<&[u8]>>,
+    shape: Shape,
+    keys: Option<&[u16]>,
+) -> Result<Option<Rect>, GridFileError> {
     let scale = find_numbers(decoder, Tag::ModelPixelScaleTag).map_err(error)?;
     let tiepoint = find_numbers(decoder, Tag::ModelTiepointTag).map_err(error)?;
     let transform = find_numbers(decoder, Tag::ModelTransformationTag).map_err(error)?;
@@ -170,8 +198,7 @@ fn domain(decoder: &mut Decoder<Cursor<&[u8]>>, shape: Shape) -> Result<Option<R
     }
     // PixelIsArea (the default) ties the raster point to a pixel's corner; its centre is half
     // a pixel further in. PixelIsPoint ties it to the centre.
-    let keys = decoder.find_tag_unsigned_vec::<u16>(Tag::GeoKeyDirectoryTag).map_err(error)?;
-    let centre = if raster_type(keys.as_deref()) == Some(PIXEL_IS_POINT) { 0.0 } else { 0.5 };
+    let centre = if raster_type(keys) == Some(PIXEL_IS_POINT) { 0.0 } else { 0.5 };
     let x = |column: usize| x0 + (column as f64 + centre - i0) * sx;
     // Image rows run down, model y up.
     let y = |row: usize| y0 - (row as f64 + centre - j0) * sy;
@@ -179,10 +206,31 @@ fn domain(decoder: &mut Decoder<Cursor<&[u8]>>, shape: Shape) -> Result<Option<R
     Ok(Some(rect))
 }
 
-/// The value of `GTRasterTypeGeoKey` in a GeoKeyDirectory: a header of four shorts (the
-/// fourth the number of keys), then four shorts per key (id, location, count, value).
+/// The value of `GTRasterTypeGeoKey` in a GeoKeyDirectory.
 fn raster_type(keys: Option<&[u16]>) -> Option<u16> {
+    key(keys, RASTER_TYPE_KEY)
+}
+
+/// The value of short key `id` in a GeoKeyDirectory: a header of four shorts (the fourth the
+/// number of keys), then four shorts per key (id, location, count, value); location 0 means
+/// the value is the short itself.
+fn key(keys: Option<&[u16]>, id: u16) -> Option<u16> {
     let keys = keys?;
     let count = usize::from(*keys.get(3)?);
-    keys.get(4..)?.chunks_exact(4).take(count).find(|k| k[0] == RASTER_TYPE_KEY && k[1] == 0).map(|k| k[3])
+    keys.get(4..)?.chunks_exact(4).take(count).find(|k| k[0] == id && k[1] == 0).map(|k| k[3])
+}
+
+/// The system the keys name: by the model type, else by whichever EPSG key is there.
+/// 32767 is GeoTIFF's "user-defined".
+fn crs(keys: Option<&[u16]>) -> Option<Crs> {
+    let code = |id| key(keys, id).filter(|&c| c != 0 && c != 32767);
+    match key(keys, MODEL_TYPE_KEY) {
+        Some(MODEL_GEOGRAPHIC) => Some(Crs::Geographic(code(GEOGRAPHIC_TYPE_KEY))),
+        Some(MODEL_PROJECTED) => Some(Crs::Projected(code(PROJECTED_TYPE_KEY))),
+        _ => match (code(PROJECTED_TYPE_KEY), code(GEOGRAPHIC_TYPE_KEY)) {
+            (Some(p), _) => Some(Crs::Projected(Some(p))),
+            (None, Some(g)) => Some(Crs::Geographic(Some(g))),
+            (None, None) => None,
+        },
+    }
 }

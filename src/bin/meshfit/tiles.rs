@@ -1,0 +1,85 @@
+//! `meshfit tiles`: a DEM's terrain pyramid for static hosting: `layer.json` and every
+//! `z/x/y.terrain` (quantized-mesh-1.0, uncompressed), the tiles shared out over every core.
+
+use anyhow::{Context, Result, anyhow};
+use clap::Args;
+use meshfit::source::{GridHints, decode_grid};
+use meshfit::tiles::{Dem, Pyramid, TileId};
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+#[derive(Args)]
+pub(crate) struct TilesArgs {
+    /// The DEM: a GeoTIFF in EPSG:4326 (longitude and latitude on WGS84).
+    #[arg(value_name = "DEM")]
+    dem: PathBuf,
+    /// The directory to write layer.json and the z/x/y.terrain files into (made if missing).
+    #[arg(long, value_name = "DIR")]
+    out: PathBuf,
+    /// The first level below the two root tiles, which are always written.
+    #[arg(long, default_value_t = 0, value_name = "Z")]
+    min_zoom: u8,
+    /// The last level; by default where a tile's 65 samples a side reach the DEM's pixel.
+    #[arg(long, value_name = "Z")]
+    max_zoom: Option<u8>,
+    /// Each tile keeps within this fraction of its level's geometric error (Cesium's
+    /// 77,067 m / 2^z) of the DEM.
+    #[arg(long, default_value_t = 1.0, value_name = "F")]
+    error_factor: f64,
+}
+
+pub(crate) fn tiles(args: &TilesArgs) -> Result<()> {
+    let path = &args.dem;
+    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let decoded = decode_grid(&bytes, &GridHints::default(), usize::MAX)
+        .with_context(|| format!("{}", path.display()))?;
+    drop(bytes);
+    let dem = Dem::new(decoded).with_context(|| format!("{}", path.display()))?;
+    let pyramid = Pyramid::new(&dem, args.min_zoom, args.max_zoom, args.error_factor)?;
+    let tiles = pyramid.tiles();
+    std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create {}", args.out.display()))?;
+    let name = path.file_stem().map_or_else(|| "terrain".into(), |s| s.to_string_lossy().into_owned());
+    let layer = serde_json::to_vec_pretty(&pyramid.layer_json(&name))?;
+    write(&args.out.join("layer.json"), &layer)?;
+    // Tiles are independent once their sides are fixed by their own values: any order, any
+    // number of threads, the same bytes.
+    let next = AtomicUsize::new(0);
+    let failure = Mutex::new(None);
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    std::thread::scope(|scope| {
+        for _ in 0..threads {
+            scope.spawn(|| {
+                while let Some(&tile) = tiles.get(next.fetch_add(1, Ordering::Relaxed)) {
+                    if let Err(e) = write_tile(&pyramid, tile, &args.out) {
+                        failure.lock().expect("no writer panicked").get_or_insert(e);
+                        return;
+                    }
+                }
+            });
+        }
+    });
+    if let Some(e) = failure.into_inner().expect("no writer panicked") {
+        return Err(e);
+    }
+    eprintln!(
+        "{} tiles of levels 0..={} in {}; serve the directory and point a terrain provider at it",
+        tiles.len(),
+        pyramid.max_level(),
+        args.out.display()
+    );
+    Ok(())
+}
+
+fn write_tile(pyramid: &Pyramid<'_>, tile: TileId, out: &Path) -> Result<()> {
+    let bytes = pyramid
+        .tile(tile)
+        .ok_or_else(|| anyhow!("tile {}/{}/{} is not in the pyramid", tile.z, tile.x, tile.y))?;
+    let dir = out.join(tile.z.to_string()).join(tile.x.to_string());
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    write(&dir.join(format!("{}.terrain", tile.y)), &bytes)
+}
+
+fn write(path: &Path, bytes: &[u8]) -> Result<()> {
+    std::fs::write(path, bytes).with_context(|| format!("cannot write {}", path.display()))
+}

@@ -1,0 +1,94 @@
+//! A DEM as tiles read it: heights on a grid whose domain is longitude and latitude (WGS84,
+//! EPSG:4326), with its bounds and the size of a pixel.
+
+use super::scheme::Bounds;
+use crate::source::{Crs, DecodedGrid, Grid};
+
+/// A DEM on longitude and latitude.
+#[derive(Debug, Clone)]
+pub struct Dem {
+    grid: Grid,
+    bounds: Bounds,
+}
+
+/// Why a grid cannot be tiled.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DemError {
+    /// No georeferencing tags: nothing places the samples on the Earth.
+    #[error(
+        "the file is not georeferenced: terrain tiles need a GeoTIFF with ModelPixelScale and ModelTiepoint (or ModelTransformation) in EPSG:4326"
+    )]
+    NotGeoreferenced,
+    /// Georeferenced, but its keys name no coordinate system.
+    #[error("the GeoTIFF names no coordinate system (no GeoKeyDirectory): terrain tiles need EPSG:4326")]
+    NoSystem,
+    /// A projected system, which this version does not reproject.
+    #[error(
+        "the GeoTIFF is in {}, a projected system; terrain tiles need longitude and latitude: reproject it to EPSG:4326 first (gdalwarp -t_srs EPSG:4326)",
+        epsg(*.0)
+    )]
+    Projected(Option<u16>),
+    /// Longitude and latitude on another datum than WGS84.
+    #[error("the GeoTIFF is in {}, not WGS84 (EPSG:4326): reproject it first (gdalwarp -t_srs EPSG:4326)", epsg(*.0))]
+    OtherDatum(Option<u16>),
+    /// Degrees outside the globe.
+    #[error("the bounds [{west}, {east}] × [{south}, {north}] are not longitude and latitude in degrees")]
+    OffTheGlobe {
+        /// West bound.
+        west: f64,
+        /// East bound.
+        east: f64,
+        /// South bound.
+        south: f64,
+        /// North bound.
+        north: f64,
+    },
+}
+
+fn epsg(code: Option<u16>) -> String {
+    code.map_or_else(|| "a user-defined system".to_owned(), |c| format!("EPSG:{c}"))
+}
+
+/// The EPSG code of WGS84's longitude and latitude.
+pub const WGS84: u16 = 4326;
+
+impl Dem {
+    /// The DEM of a decoded GeoTIFF in EPSG:4326.
+    ///
+    /// # Errors
+    /// When the file is not georeferenced, names another system than EPSG:4326, or its
+    /// bounds are not degrees on the globe.
+    pub fn new(decoded: DecodedGrid) -> Result<Self, DemError> {
+        let domain = decoded.domain.ok_or(DemError::NotGeoreferenced)?;
+        match decoded.crs {
+            Some(Crs::Geographic(Some(WGS84))) => {}
+            None => return Err(DemError::NoSystem),
+            Some(Crs::Projected(code)) => return Err(DemError::Projected(code)),
+            Some(Crs::Geographic(code)) => return Err(DemError::OtherDatum(code)),
+        }
+        let bounds = Bounds { west: domain.x0(), south: domain.y0(), east: domain.x1(), north: domain.y1() };
+        if bounds.west < -180.0 || bounds.east > 180.0 || bounds.south < -90.0 || bounds.north > 90.0 {
+            let Bounds { west, south, east, north } = bounds;
+            return Err(DemError::OffTheGlobe { west, east, south, north });
+        }
+        Ok(Self { grid: decoded.grid.with_domain(domain), bounds })
+    }
+
+    /// The heights, on longitude (x) and latitude (y).
+    pub fn grid(&self) -> &Grid {
+        &self.grid
+    }
+
+    /// The bounds of the samples, in degrees.
+    pub fn bounds(&self) -> Bounds {
+        self.bounds
+    }
+
+    /// The finer of the two sample spacings, in degrees.
+    pub fn pixel(&self) -> f64 {
+        let b = self.bounds;
+        let dx = (b.east - b.west) / (self.grid.nx() - 1) as f64;
+        let dy = (b.north - b.south) / (self.grid.ny() - 1) as f64;
+        dx.min(dy)
+    }
+}
