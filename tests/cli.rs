@@ -557,3 +557,57 @@ fn tiles_refuses_a_projected_or_unreferenced_dem_naming_why() {
     ]);
     assert!(err.contains("levels 5..=3"), "{err}");
 }
+
+/// Whether CesiumJS is installed in tests/cesium (`npm ci --prefix tests/cesium`), or `None`
+/// to skip; `CESIUM_TESTS=required` (as in `.ci/run`) makes its absence a failure.
+fn cesium() -> Option<PathBuf> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/cesium");
+    let installed = dir.join("node_modules/@cesium/engine").is_dir()
+        && Command::new("node").arg("--version").output().is_ok_and(|o| o.status.success());
+    if !installed {
+        let required = std::env::var("CESIUM_TESTS").is_ok_and(|v| v == "required");
+        assert!(!required, "CESIUM_TESTS=required, but node or tests/cesium/node_modules is missing");
+        eprintln!("skipped: CesiumJS is not installed (npm ci --prefix tests/cesium)");
+        return None;
+    }
+    Some(dir)
+}
+
+#[test]
+fn cesium_reads_every_tile_as_written_and_sees_no_crack() {
+    let Some(cesium) = cesium() else { return };
+    let dem = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples/grids/dem-4326.tif");
+    let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("cesium-tiles");
+    let _ = std::fs::remove_dir_all(&out);
+    let run = meshfit(&["tiles", dem.to_str().unwrap(), "--out", out.to_str().unwrap(), "--max-zoom", "12"]);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let check = Command::new("node").arg(cesium.join("check.mjs")).arg(&out).output().expect("node runs");
+    assert!(check.status.success(), "CesiumJS failed: {}", String::from_utf8_lossy(&check.stderr));
+    let lines: Vec<Value> =
+        String::from_utf8(check.stdout).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    let (summary, tiles) = lines.split_last().unwrap();
+    // Every tile layer.json lists: available to Cesium, and read as the quantized-mesh crate
+    // reads it, down to the edge lists.
+    let mut quantum = 0.0f64;
+    for tile in tiles {
+        let at = |k: &str| tile[k].as_u64().unwrap();
+        let bytes = std::fs::read(out.join(format!("{}/{}/{}.terrain", at("z"), at("x"), at("y")))).unwrap();
+        let ours = quantized_mesh::DecodedMesh::decode(&bytes).unwrap();
+        assert_eq!(tile["available"], true, "{tile}");
+        assert_eq!(at("vertices") as usize, ours.vertices.u.len(), "{tile}");
+        assert_eq!(at("triangles") as usize, ours.indices.len() / 3, "{tile}");
+        let e = &ours.edge_indices;
+        assert_eq!(
+            tile["edges"],
+            serde_json::json!([e.west.len(), e.south.len(), e.east.len(), e.north.len()])
+        );
+        if at("z") == 12 {
+            quantum = quantum.max(f64::from(ours.header.max_height - ours.header.min_height) / 32767.0);
+        }
+    }
+    assert_eq!(tiles.len(), 17, "levels 0..=12 of the DEM: 2 roots, 1 tile a level to 11, 4 at 12");
+    // Across each common side Cesium's heights differ by quantization alone (each tile
+    // quantizes over its own range): no crack.
+    assert!(summary["sides"].as_u64().unwrap() > 0, "{summary}");
+    assert!(summary["gap"].as_f64().unwrap() <= quantum + 1e-9, "{summary}, a quantum is {quantum}");
+}
