@@ -481,6 +481,7 @@ fn tiles_writes_a_crack_free_pyramid_and_its_layer_json() {
     assert_eq!(layer["format"], "quantized-mesh-1.0");
     assert_eq!((layer["scheme"].as_str(), layer["projection"].as_str()), (Some("tms"), Some("EPSG:4326")));
     assert_eq!(layer["maxzoom"], 9);
+    assert_eq!(layer["extensions"], serde_json::json!(["octvertexnormals"]));
     let available = layer["available"].as_array().unwrap();
     assert_eq!(available.len(), 10);
     assert_eq!(available[0], serde_json::json!([{"startX": 0, "startY": 0, "endX": 1, "endY": 0}]));
@@ -517,6 +518,12 @@ fn tiles_writes_a_crack_free_pyramid_and_its_layer_json() {
             let theirs: Vec<u16> =
                 east.edge_indices.west.iter().map(|&k| east.vertices.v[k as usize]).collect();
             assert_eq!(ours, theirs, "tiles {x}/{y} and {}/{y} disagree on their side", x + 1);
+            // Normals come from the DEM around each vertex: the same on both sides.
+            let normal =
+                |m: &quantized_mesh::DecodedMesh, k: u32| m.extensions.normals.as_ref().unwrap()[k as usize];
+            for (&a, &b) in mesh.edge_indices.east.iter().zip(&east.edge_indices.west) {
+                assert_eq!(normal(mesh, a), normal(east, b));
+            }
             for (&a, &b) in mesh.edge_indices.east.iter().zip(&east.edge_indices.west) {
                 // Each tile quantizes heights over its own range: equal within both quanta.
                 let quanta = (mesh.header.max_height - mesh.header.min_height + east.header.max_height
@@ -596,6 +603,7 @@ fn cesium_reads_every_tile_as_written_and_sees_no_crack() {
         assert_eq!(tile["available"], true, "{tile}");
         assert_eq!(at("vertices") as usize, ours.vertices.u.len(), "{tile}");
         assert_eq!(at("triangles") as usize, ours.indices.len() / 3, "{tile}");
+        assert_eq!(at("normals") as usize, ours.vertices.u.len(), "Cesium reads a normal a vertex: {tile}");
         let e = &ours.edge_indices;
         assert_eq!(
             tile["edges"],

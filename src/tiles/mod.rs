@@ -9,12 +9,14 @@
 //! - `ellipsoid`: ECEF positions, a bounding sphere and the horizon occlusion point;
 //! - `mesher`: a tile's mesh from a DEM within a tolerance, its sides fixed from their own
 //!   values so that neighbours share their vertices;
+//! - `normals`: per-vertex normals from the DEM around each vertex (octvertexnormals);
 //! - `quantized`: a tile's mesh as quantized-mesh-1.0, with the octvertexnormals and
 //!   metadata extensions.
 
 mod dem;
 mod ellipsoid;
 mod mesher;
+mod normals;
 mod pyramid;
 mod quantized;
 mod scheme;
@@ -22,6 +24,7 @@ mod scheme;
 pub use dem::{Dem, DemError, WGS84};
 pub use ellipsoid::{SEMI_MAJOR_AXIS, SEMI_MINOR_AXIS, to_ecef};
 pub use mesher::{TileSurface, mesh_tile, simplify};
+pub use normals::normals;
 pub use pyramid::{MAX_STEPS, MIN_STEPS, Pyramid, PyramidError};
 pub use quantized::{Extensions, QUANTIZED_MAX, TileMesh, encode};
 pub use scheme::{

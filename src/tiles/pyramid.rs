@@ -3,8 +3,10 @@
 
 use super::dem::Dem;
 use super::mesher::{TileSurface, mesh_tile};
+use super::normals::normals;
 use super::quantized::{Extensions, TileMesh, encode};
 use super::scheme::{MAX_LEVEL, TileId, covering, degrees_per_tile, level_error, max_level};
+use crate::source::Grid;
 use serde_json::json;
 
 /// The finest lattice a tile is meshed on, in steps a side: low levels of a large DEM would
@@ -112,13 +114,23 @@ impl<'a> Pyramid<'a> {
         Some(mesh_tile(self.dem.grid(), tile, tolerance, self.steps(tile.z)))
     }
 
-    /// The quantized-mesh-1.0 bytes of `tile` (uncompressed), or `None` when the pyramid has
-    /// no such tile.
+    /// The quantized-mesh-1.0 bytes of `tile` (uncompressed) with its vertex normals
+    /// (`octvertexnormals`), or `None` when the pyramid has no such tile.
     pub fn tile(&self, tile: TileId) -> Option<Vec<u8>> {
         let surface = self.surface(tile)?;
+        // The level's lattice step: the same for every tile of the level, so neighbours give
+        // a shared vertex the same normal.
+        let step = degrees_per_tile(tile.z) / self.steps(tile.z) as f64;
+        let normals = if tile.bounds().overlaps(&self.dem.bounds()) {
+            normals(self.dem.grid(), &surface.vertices, step)
+        } else {
+            // A flat root tile: straight up, whatever the DEM's edge does.
+            let flat = Grid::new(2, 2, vec![0.0; 4]).expect("a 2 × 2 grid");
+            normals(&flat, &surface.vertices, step)
+        };
         let mesh =
             TileMesh { bounds: tile.bounds(), vertices: &surface.vertices, triangles: &surface.triangles };
-        Some(encode(&mesh, &Extensions::default()))
+        Some(encode(&mesh, &Extensions { normals: Some(&normals), metadata: None }))
     }
 
     /// Lattice steps a side at level `z`: as fine as the DEM's pixel, from [`MIN_STEPS`] to
@@ -150,6 +162,7 @@ impl<'a> Pyramid<'a> {
             "minzoom": 0,
             "maxzoom": self.max_level,
             "available": available,
+            "extensions": ["octvertexnormals"],
             "attribution": "",
             "generator": "meshfit",
         })

@@ -17,7 +17,9 @@ const server = http.createServer((req, res) => {
 });
 await new Promise((resolve) => server.listen(0, "127.0.0.1", resolve));
 try {
-  const provider = await CesiumTerrainProvider.fromUrl(`http://127.0.0.1:${server.address().port}/`);
+  const provider = await CesiumTerrainProvider.fromUrl(`http://127.0.0.1:${server.address().port}/`, {
+    requestVertexNormals: true,
+  });
   const scheme = provider.tilingScheme;
   const layer = JSON.parse(fs.readFileSync(path.join(dir, "layer.json"), "utf8"));
   const deepest = new Map();
@@ -33,6 +35,7 @@ try {
             z, x, y: tms, available,
             vertices: data._quantizedVertices.length / 3,
             triangles: data._indices.length / 3,
+            normals: data._encodedNormals ? data._encodedNormals.length / 2 : 0,
             edges: [data._westIndices.length, data._southIndices.length, data._eastIndices.length, data._northIndices.length],
           };
           console.log(JSON.stringify(tile));
