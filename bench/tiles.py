@@ -73,7 +73,13 @@ class Dem:
         self.south = self.lat0 - (self.ny - 1) * self.sy
 
     def bilinear(self, lon, lat):
-        """The DEM at points, clamped to its extent (as meshfit extends its edge)."""
+        """The DEM at points; beyond it, its nearest edge fading to 0 over its larger side, as
+        meshfit's tiles::mesher::height."""
+        off = np.maximum.reduce([self.west - lon, lon - self.east, self.south - lat, lat - self.north])
+        weight = np.where(off <= 0, 1.0, np.maximum(1.0 - off / max(self.east - self.west, self.north - self.south), 0.0))
+        return self._clamped(lon, lat) * weight
+
+    def _clamped(self, lon, lat):
         u = np.clip((lon - self.lon0) / self.sx, 0, self.nx - 1)
         v = np.clip((self.lat0 - lat) / self.sy, 0, self.ny - 1)
         i = np.minimum(u.astype(int), self.nx - 2)

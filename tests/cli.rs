@@ -563,6 +563,15 @@ fn tiles_refuses_a_projected_or_unreferenced_dem_naming_why() {
         "3",
     ]);
     assert!(err.contains("levels 5..=3"), "{err}");
+    let err = stderr_of_failure(&[
+        "tiles",
+        dem.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--max-zoom",
+        "30",
+    ]);
+    assert!(err.contains("more than 10000000") && err.contains("lower max level"), "{err}");
 }
 
 /// Whether CesiumJS is installed in tests/cesium (`npm ci --prefix tests/cesium`), or `None`

@@ -307,7 +307,7 @@ fn midpoint(grid: &Grid, mesh: &Mesh, e: u32) -> (Vertex, Point) {
 /// The half-edge of triangle `t` nearest `p`, by the twice-area of the triangle it makes with
 /// `p` (negative beyond the edge); among equal ones, the first. `p` goes inside `t` when it
 /// clears every edge by the area floor, and otherwise on this edge.
-fn nearest_edge(mesh: &Mesh, t: u32, p: Point) -> u32 {
+pub(super) fn nearest_edge(mesh: &Mesh, t: u32, p: Point) -> u32 {
     let area = |e: u32| signed_area_x2(mesh.point(mesh.origin(e)), mesh.point(mesh.dest(e)), p);
     (3 * t + 1..3 * t + 3).fold(3 * t, |best, e| if area(e) < area(best) { e } else { best })
 }

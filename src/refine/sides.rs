@@ -10,7 +10,8 @@ use super::observer::Observer;
 use super::outcome::Refinement;
 use super::params::{Criterion, Method, Params};
 use super::run::Run;
-use crate::geom::{Mesh, Vertex};
+use crate::geom::predicates::{Orientation, orientation};
+use crate::geom::{Mesh, Point, Vertex};
 use crate::source::Grid;
 use std::time::Instant;
 
@@ -26,6 +27,10 @@ pub struct Sides {
     pub north: Vec<usize>,
     /// Column 0.
     pub west: Vec<usize>,
+    /// Nodes (i, j) inside the grid inserted after the sides, before any refinement: a
+    /// floor on the mesh's resolution that the data alone would not ask for (a tile that must
+    /// follow the Earth's curvature).
+    pub seeds: Vec<(usize, usize)>,
 }
 
 /// Refines `grid` by greedy node insertion (criterion `error`), starting from its corners and
@@ -38,7 +43,7 @@ pub struct Sides {
 /// # Panics
 /// When `params` are not criterion `error` with method `semi-recursive` or
 /// `data-dependent` (the ones that insert nodes) and no `min_angle` (whose repairs split
-/// sides), or a side's index is not strictly inside its side.
+/// sides), or a side's indices are not strictly increasing and strictly inside its side.
 pub fn refine_with_sides<O: Observer>(
     grid: &Grid,
     sides: &Sides,
@@ -63,6 +68,11 @@ pub fn refine_with_sides<O: Observer>(
     // south to north, north east to west, west north to south. Each side's nodes go in that
     // order, each on the side's last piece.
     let inside = |k: &usize, n: usize| (1..n - 1).contains(k);
+    for (side, name) in
+        [(&sides.south, "south"), (&sides.east, "east"), (&sides.north, "north"), (&sides.west, "west")]
+    {
+        assert!(side.windows(2).all(|w| w[0] < w[1]), "the {name} side's nodes are not strictly increasing");
+    }
     let along = [
         sides
             .south
@@ -98,12 +108,33 @@ pub fn refine_with_sides<O: Observer>(
             let e = mesh.find_edge(from, end).expect("the side's last piece is an edge");
             let p = grid.node(i, j);
             let vertex = Vertex { x: p.x, y: p.y, z: grid.value(i, j) };
-            let Some(split) = run.insert_vertex(&mut mesh, e, vertex, |_, _| {}) else { continue };
+            // A lattice node is never within the area floor of a side's piece: a side node
+            // skipped would break the guarantee the sides are fixed for.
+            let split = run.insert_vertex(&mut mesh, e, vertex, |_, _| {}).expect("a side node is inserted");
             evaluations += 1;
             from = split.vertex;
+        }
+    }
+    for &(i, j) in &sides.seeds {
+        assert!(inside(&i, nx) && inside(&j, ny), "seed ({i}, {j}) is not inside the grid");
+        let p = grid.node(i, j);
+        let t = containing(&mesh, p).expect("the triangles tile the rectangle");
+        let vertex = Vertex { x: p.x, y: p.y, z: grid.value(i, j) };
+        let e = nodes::nearest_edge(&mesh, t, p);
+        if run.insert_vertex(&mut mesh, e, vertex, |_, _| {}).is_some() {
+            evaluations += 1;
         }
     }
     let (stop, errors) = nodes::refine(&mut mesh, grid, &mut run, &mut evaluations, true);
     let round = run.finish(&mesh, stop, Some(errors));
     finished(mesh, round, params, evaluations, start)
+}
+
+/// A triangle of `mesh` that holds `p`, on its sides included (exact orientation tests); a
+/// scan, for the few seeds a run starts with.
+fn containing(mesh: &Mesh, p: Point) -> Option<u32> {
+    (0..mesh.num_triangles() as u32).find(|&t| {
+        let [a, b, c] = mesh.triangle(t as usize).map(|v| mesh.point(v));
+        [(a, b), (b, c), (c, a)].iter().all(|&(u, w)| orientation(u, w, p) != Orientation::Clockwise)
+    })
 }

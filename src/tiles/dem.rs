@@ -67,7 +67,13 @@ impl Dem {
             Some(Crs::Geographic(code)) => return Err(DemError::OtherDatum(code)),
         }
         let bounds = Bounds { west: domain.x0(), south: domain.y0(), east: domain.x1(), north: domain.y1() };
-        if bounds.west < -180.0 || bounds.east > 180.0 || bounds.south < -90.0 || bounds.north > 90.0 {
+        // A nanodegree of slack: a global DEM's pixel centres may land a rounding past ±180.
+        let off = |v: f64, limit: f64| v.abs() > limit + 1e-9;
+        if off(bounds.west, 180.0)
+            || off(bounds.east, 180.0)
+            || off(bounds.south, 90.0)
+            || off(bounds.north, 90.0)
+        {
             let Bounds { west, south, east, north } = bounds;
             return Err(DemError::OffTheGlobe { west, east, south, north });
         }

@@ -3,7 +3,9 @@
 //! Every level has one lattice over the globe, `samples` − 1 steps a tile side, so a tile's
 //! lattice nodes on a side are its neighbour's on the same side, at the same positions bit
 //! for bit (the spacing is a power of two of a degree). The DEM is sampled there bilinearly;
-//! outside its extent it is extended from its nearest edge.
+//! outside its extent its nearest edge is extended, fading to [`FILL`] over one DEM size
+//! ([`height`]): the DEM's own edge samples stay right, and far from it every tile, the
+//! DEM's or not, agrees with its neighbours (the two roots, the antimeridian).
 //!
 //! Each side's profile is simplified on its own to the tolerance (Douglas–Peucker, from the
 //! side's values alone), and the tile is refined from its corners and those side nodes by
@@ -11,10 +13,29 @@
 //! that share a side then share its vertices and heights, whichever was made first and on
 //! whichever machine, and every lattice node of a tile is within the tolerance of its mesh.
 
-use super::scheme::TileId;
-use crate::geom::Rect;
+use super::ellipsoid::SEMI_MAJOR_AXIS;
+use super::scheme::{TileId, degrees_per_tile};
+use crate::geom::{Point, Rect};
 use crate::refine::{Criterion, Method, Params, Sides, refine_with_sides};
 use crate::source::{Grid, Surface};
+
+/// The height far from the DEM: the ellipsoid's surface.
+pub const FILL: f64 = 0.0;
+
+/// The DEM's height at `p` (bilinear); outside its extent, its nearest edge's height fading
+/// linearly to [`FILL`] over the DEM's larger side, measured the larger way off (in degrees).
+/// A cliff at the edge would spoil the DEM's last samples in every tile that straddles it.
+pub fn height(dem: &Grid, p: Point) -> f64 {
+    let r = dem.rect();
+    let off = (r.x0() - p.x).max(p.x - r.x1()).max(r.y0() - p.y).max(p.y - r.y1());
+    if off <= 0.0 {
+        return dem.eval(p);
+    }
+    let fade = (r.x1() - r.x0()).max(r.y1() - r.y0());
+    let weight = (1.0 - off / fade).max(0.0);
+    // Grid::eval clamps to the nearest edge.
+    FILL + (dem.eval(p) - FILL) * weight
+}
 
 /// A tile's triangles over its vertices: longitude and latitude in degrees, height in metres.
 #[derive(Debug, Clone, PartialEq)]
@@ -38,16 +59,32 @@ pub fn mesh_tile(dem: &Grid, tile: TileId, tolerance: f64, steps: usize) -> Tile
     let n = steps + 1;
     // The lattice's positions are the grid's own nodes: read them from a grid of the shape.
     let shape = Grid::new(n, n, vec![0.0; n * n]).expect("a lattice of at least 3 × 3").with_domain(rect);
-    let values =
-        (0..n).flat_map(|j| (0..n).map(move |i| (i, j))).map(|(i, j)| dem.eval(shape.node(i, j))).collect();
+    let values = (0..n)
+        .flat_map(|j| (0..n).map(move |i| (i, j)))
+        .map(|(i, j)| height(dem, shape.node(i, j)))
+        .collect();
     let lattice = Grid::new(n, n, values).expect("a DEM gives finite heights").with_domain(rect);
     let row = |j: usize| (0..n).map(|i| lattice.value(i, j)).collect::<Vec<_>>();
     let column = |i: usize| (0..n).map(|j| lattice.value(i, j)).collect::<Vec<_>>();
+    // The Earth's curvature: clients draw straight triangles between Earth-centred points,
+    // which sag below the surface by about R·θ²/4 over a cell θ radians a side. A uniform grid
+    // of k × k cells, k from the level and tolerance alone (so neighbours agree), keeps the
+    // sag within half the tolerance.
+    let cells = curvature_cells(tile, tolerance, steps);
+    let every = steps / cells;
+    let uniform: Vec<usize> = (1..cells).map(|c| c * every).collect();
+    let with_uniform = |mut kept: Vec<usize>| {
+        kept.extend(&uniform);
+        kept.sort_unstable();
+        kept.dedup();
+        kept
+    };
     let sides = Sides {
-        south: simplify(&row(0), tolerance),
-        east: simplify(&column(n - 1), tolerance),
-        north: simplify(&row(n - 1), tolerance),
-        west: simplify(&column(0), tolerance),
+        south: with_uniform(simplify(&row(0), tolerance)),
+        east: with_uniform(simplify(&column(n - 1), tolerance)),
+        north: with_uniform(simplify(&row(n - 1), tolerance)),
+        west: with_uniform(simplify(&column(0), tolerance)),
+        seeds: uniform.iter().flat_map(|&j| uniform.iter().map(move |&i| (i, j))).collect(),
     };
     let params = Params::builder(n * n)
         .criterion(Criterion::Error)
@@ -62,6 +99,18 @@ pub fn mesh_tile(dem: &Grid, tile: TileId, tolerance: f64, steps: usize) -> Tile
         vertices: mesh.vertices().iter().map(|v| [v.x, v.y, v.z]).collect(),
         triangles: mesh.triangles().collect(),
     }
+}
+
+/// Cells a side of `tile` is cut into so that the chord of a cell's diagonal sags at most
+/// half of `tolerance` below the ellipsoid: a power of two, at most `steps`.
+fn curvature_cells(tile: TileId, tolerance: f64, steps: usize) -> usize {
+    let theta = degrees_per_tile(tile.z).to_radians();
+    // R·(θ/k)²/4 ≤ tolerance/2.
+    let needed = theta / (2.0 * tolerance / SEMI_MAJOR_AXIS).sqrt();
+    if needed.is_nan() || needed >= steps as f64 {
+        return steps;
+    }
+    (needed.ceil().max(1.0) as usize).next_power_of_two().min(steps)
 }
 
 /// The samples a profile keeps, besides its ends, for its linear interpolation to stay within

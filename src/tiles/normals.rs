@@ -4,8 +4,9 @@
 //! show the seam.
 
 use super::ellipsoid::{SEMI_MAJOR_AXIS, SEMI_MINOR_AXIS};
+use super::mesher::height;
 use crate::geom::Point;
-use crate::source::{Grid, Surface};
+use crate::source::Grid;
 
 /// The unit normal, in Earth-centred (ECEF) axes, of the DEM's surface at each of `vertices`
 /// (longitude, latitude in degrees, height): the slope from central differences `step` degrees
@@ -15,7 +16,7 @@ pub fn normals(dem: &Grid, vertices: &[[f64; 3]], step: f64) -> Vec<[f64; 3]> {
     vertices
         .iter()
         .map(|&[lon, lat, _]| {
-            let height = |dlon: f64, dlat: f64| dem.eval(Point::new(lon + dlon, lat + dlat));
+            let height = |dlon: f64, dlat: f64| height(dem, Point::new(lon + dlon, lat + dlat));
             let (phi, lambda) = (lat.to_radians(), lon.to_radians());
             let (sin_phi, cos_phi) = (libm::sin(phi), libm::cos(phi));
             let (sin_lambda, cos_lambda) = (libm::sin(lambda), libm::cos(lambda));
@@ -23,7 +24,12 @@ pub fn normals(dem: &Grid, vertices: &[[f64; 3]], step: f64) -> Vec<[f64; 3]> {
             // Metres a degree east (the prime vertical's radius) and north (the meridian's).
             let east_m = (SEMI_MAJOR_AXIS / w) * cos_phi * std::f64::consts::PI / 180.0;
             let north_m = SEMI_MAJOR_AXIS * (1.0 - e2) / (w * w * w) * std::f64::consts::PI / 180.0;
-            let dz_dx = (height(step, 0.0) - height(-step, 0.0)) / (2.0 * step * east_m.max(1e-9));
+            // At a pole a degree east is no distance: only the north slope is defined.
+            let dz_dx = if east_m > 1e-6 {
+                (height(step, 0.0) - height(-step, 0.0)) / (2.0 * step * east_m)
+            } else {
+                0.0
+            };
             let dz_dy = (height(0.0, step) - height(0.0, -step)) / (2.0 * step * north_m);
             // In east, north, up; then to ECEF through the geodetic frame.
             let (e, n, u) = (-dz_dx, -dz_dy, 1.0);

@@ -6,7 +6,6 @@ use super::mesher::{TileSurface, mesh_tile};
 use super::normals::normals;
 use super::quantized::{Extensions, TileMesh, encode};
 use super::scheme::{MAX_LEVEL, TileId, covering, degrees_per_tile, level_error, max_level};
-use crate::source::Grid;
 use serde_json::json;
 
 /// The finest lattice a tile is meshed on, in steps a side: low levels of a large DEM would
@@ -15,6 +14,10 @@ pub const MAX_STEPS: usize = 1024;
 
 /// The coarsest: the 64 steps (65 samples) a level's error assumes.
 pub const MIN_STEPS: usize = 64;
+
+/// The most tiles a pyramid may have: a deep `max_level` over a wide DEM would otherwise list
+/// trillions.
+pub const MAX_TILES: u64 = 10_000_000;
 
 /// The tiles of a DEM from `min_level` to `max_level`, each within `error_factor` times its
 /// level's geometric error of the DEM.
@@ -40,6 +43,16 @@ pub enum PyramidError {
     /// Not a finite factor in (0, 1].
     #[error("the error factor must be in (0, 1], got {0}")]
     Factor(f64),
+    /// More tiles than [`MAX_TILES`].
+    #[error(
+        "levels up to {max} hold {tiles} tiles of this DEM, more than {MAX_TILES}: ask for a lower max level"
+    )]
+    TooMany {
+        /// The last level asked for.
+        max: u8,
+        /// The tiles it would make.
+        tiles: u64,
+    },
 }
 
 impl<'a> Pyramid<'a> {
@@ -62,7 +75,15 @@ impl<'a> Pyramid<'a> {
         if !(error_factor > 0.0 && error_factor <= 1.0) {
             return Err(PyramidError::Factor(error_factor));
         }
-        Ok(Self { dem, min_level, max_level, error_factor })
+        let pyramid = Self { dem, min_level, max_level, error_factor };
+        let tiles: u64 = (0..=max_level)
+            .filter_map(|z| pyramid.available(z))
+            .map(|([x0, x1], [y0, y1])| u64::from(x1 - x0 + 1) * u64::from(y1 - y0 + 1))
+            .sum();
+        if tiles > MAX_TILES {
+            return Err(PyramidError::TooMany { max: max_level, tiles });
+        }
+        Ok(pyramid)
     }
 
     /// The deepest level.
@@ -93,22 +114,12 @@ impl<'a> Pyramid<'a> {
             .collect()
     }
 
-    /// The mesh of `tile`, or `None` when the pyramid has no such tile. A root tile the DEM
-    /// does not reach is flat at height 0.
+    /// The mesh of `tile`, or `None` when the pyramid has no such tile. Beyond the DEM the
+    /// height is 0 (`FILL`): a root tile the DEM does not reach follows the ellipsoid.
     pub fn surface(&self, tile: TileId) -> Option<TileSurface> {
         let ([x0, x1], [y0, y1]) = self.available(tile.z)?;
         if !(x0..=x1).contains(&tile.x) || !(y0..=y1).contains(&tile.y) {
             return None;
-        }
-        let b = tile.bounds();
-        if !b.overlaps(&self.dem.bounds()) {
-            let vertices = vec![
-                [b.west, b.south, 0.0],
-                [b.east, b.south, 0.0],
-                [b.east, b.north, 0.0],
-                [b.west, b.north, 0.0],
-            ];
-            return Some(TileSurface { vertices, triangles: vec![[0, 1, 2], [0, 2, 3]] });
         }
         let tolerance = level_error(tile.z) * self.error_factor;
         Some(mesh_tile(self.dem.grid(), tile, tolerance, self.steps(tile.z)))
@@ -121,13 +132,7 @@ impl<'a> Pyramid<'a> {
         // The level's lattice step: the same for every tile of the level, so neighbours give
         // a shared vertex the same normal.
         let step = degrees_per_tile(tile.z) / self.steps(tile.z) as f64;
-        let normals = if tile.bounds().overlaps(&self.dem.bounds()) {
-            normals(self.dem.grid(), &surface.vertices, step)
-        } else {
-            // A flat root tile: straight up, whatever the DEM's edge does.
-            let flat = Grid::new(2, 2, vec![0.0; 4]).expect("a 2 × 2 grid");
-            normals(&flat, &surface.vertices, step)
-        };
+        let normals = normals(self.dem.grid(), &surface.vertices, step);
         let mesh =
             TileMesh { bounds: tile.bounds(), vertices: &surface.vertices, triangles: &surface.triangles };
         Some(encode(&mesh, &Extensions { normals: Some(&normals), metadata: None }))

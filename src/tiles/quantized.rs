@@ -4,9 +4,10 @@
 //! the vertices on each edge, then the extensions a client asked for.
 //!
 //! Our own writer rather than the `quantized-mesh` crate, which the tests use as a decoder:
-//! that crate switches to 32-bit indices from 65,536 vertices where readers switch above
-//! it, truncates oct-encoded normals where Cesium rounds them, and takes its header's
-//! trigonometry from the platform, so its bytes could differ between machines.
+//! that crate takes its header's trigonometry from the platform, so its bytes could differ
+//! between machines, truncates oct-encoded normals where Cesium rounds them, and writes a
+//! tile of exactly 65,536 vertices, which CesiumJS cannot read whatever its index width (it
+//! steps over 16-bit indices but reads them as 32-bit); this writer adds an unused vertex.
 
 use super::ellipsoid::{bounding_sphere, horizon_occlusion_point, to_ecef};
 use super::scheme::Bounds;
@@ -52,8 +53,17 @@ pub struct Extensions<'a> {
 /// When a triangle names a vertex past the end of `mesh.vertices`, or `extensions.normals`
 /// does not give one normal per vertex.
 pub fn encode(mesh: &TileMesh<'_>, extensions: &Extensions<'_>) -> Vec<u8> {
-    let (order, triangles) = first_use_order(mesh.vertices.len(), mesh.triangles);
-    let vertices: Vec<[f64; 3]> = order.iter().map(|&v| mesh.vertices[v as usize]).collect();
+    let (mut order, triangles) = first_use_order(mesh.vertices.len(), mesh.triangles);
+    let mut vertices: Vec<[f64; 3]> = order.iter().map(|&v| mesh.vertices[v as usize]).collect();
+    // The vertices triangles use. No tile may have exactly 64 Ki: CesiumJS steps over 16-bit
+    // indices there but reads them into a 32-bit array, so no layout reads back. One unused
+    // vertex more, named by no triangle and no edge, makes the indices 32-bit, which it reads.
+    let used = vertices.len();
+    if used == MAX_16_BIT_VERTICES {
+        let last = *order.last().expect("64 Ki vertices");
+        order.push(last);
+        vertices.push(mesh.vertices[last as usize]);
+    }
     let n = vertices.len();
     let b = mesh.bounds;
     let (min_height, max_height) = height_range(&vertices);
@@ -102,7 +112,7 @@ pub fn encode(mesh: &TileMesh<'_>, extensions: &Extensions<'_>) -> Vec<u8> {
         }
         index(&mut out, code);
     }
-    for side in edges(&b, &vertices, &u, &v) {
+    for side in edges(&b, &vertices[..used], &u[..used], &v[..used]) {
         out.extend_from_slice(&(side.len() as u32).to_le_bytes());
         for i in side {
             index(&mut out, i);

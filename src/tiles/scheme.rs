@@ -107,7 +107,11 @@ impl TileId {
 
     /// The four tiles of the next level that cover this one, south-west first, then
     /// south-east, north-west, north-east.
+    ///
+    /// # Panics
+    /// At [`MAX_LEVEL`], which has no level below.
     pub fn children(&self) -> [TileId; 4] {
+        assert!(self.z < MAX_LEVEL, "level {MAX_LEVEL} has no children");
         let (z, x, y) = (self.z + 1, 2 * self.x, 2 * self.y);
         [(x, y), (x + 1, y), (x, y + 1), (x + 1, y + 1)].map(|(x, y)| TileId { z, x, y })
     }

@@ -7,7 +7,7 @@ use meshfit::source::{GridHints, decode_grid};
 use meshfit::tiles::{Dem, Pyramid, TileId};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 #[derive(Args)]
 pub(crate) struct TilesArgs {
@@ -39,29 +39,33 @@ pub(crate) fn tiles(args: &TilesArgs) -> Result<()> {
     let pyramid = Pyramid::new(&dem, args.min_zoom, args.max_zoom, args.error_factor)?;
     let tiles = pyramid.tiles();
     std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create {}", args.out.display()))?;
-    let name = path.file_stem().map_or_else(|| "terrain".into(), |s| s.to_string_lossy().into_owned());
-    let layer = serde_json::to_vec_pretty(&pyramid.layer_json(&name))?;
-    write(&args.out.join("layer.json"), &layer)?;
     // Tiles are independent once their sides are fixed by their own values: any order, any
-    // number of threads, the same bytes.
+    // number of threads, the same bytes. The first failure stops every thread.
     let next = AtomicUsize::new(0);
+    let stop = AtomicBool::new(false);
     let failure = Mutex::new(None);
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     std::thread::scope(|scope| {
         for _ in 0..threads {
             scope.spawn(|| {
-                while let Some(&tile) = tiles.get(next.fetch_add(1, Ordering::Relaxed)) {
+                while !stop.load(Ordering::Relaxed)
+                    && let Some(&tile) = tiles.get(next.fetch_add(1, Ordering::Relaxed))
+                {
                     if let Err(e) = write_tile(&pyramid, tile, &args.out) {
-                        failure.lock().expect("no writer panicked").get_or_insert(e);
-                        return;
+                        stop.store(true, Ordering::Relaxed);
+                        failure.lock().unwrap_or_else(std::sync::PoisonError::into_inner).get_or_insert(e);
                     }
                 }
             });
         }
     });
-    if let Some(e) = failure.into_inner().expect("no writer panicked") {
+    if let Some(e) = failure.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner) {
         return Err(e);
     }
+    // layer.json last, so that it never lists a tile that is not there.
+    let name = path.file_stem().map_or_else(|| "terrain".into(), |s| s.to_string_lossy().into_owned());
+    let layer = serde_json::to_vec_pretty(&pyramid.layer_json(&name))?;
+    write(&args.out.join("layer.json"), &layer)?;
     eprintln!(
         "{} tiles of levels 0..={} in {}; serve the directory and point a terrain provider at it",
         tiles.len(),

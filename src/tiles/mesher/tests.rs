@@ -88,18 +88,66 @@ fn a_tolerance_of_zero_keeps_every_node_and_a_large_one_the_corners() {
     let dem = dem(0.4);
     let tile = TileId::new(11, 2176, 1542).unwrap();
     assert_eq!(mesh_tile(&dem, tile, 0.0, 8).vertices.len(), 81);
+    // A tolerance the data and the curvature of a level-11 tile meet with its corners alone.
     assert_eq!(mesh_tile(&dem, tile, 1e6, 8).vertices.len(), 4);
 }
 
 #[test]
-fn a_tile_off_the_dem_is_its_nearest_edge_extended() {
+fn beyond_the_dem_its_edge_fades_to_the_fill_and_sides_across_it_agree() {
     let dem = dem(0.0);
-    // West of the DEM (10°E): every height is the DEM's west column's.
-    let tile = TileId::new(9, 539, 385).unwrap();
-    assert!(tile.bounds().east < 10.0);
-    let surface = mesh_tile(&dem, tile, 1.0, 16);
-    for v in &surface.vertices {
-        assert_eq!(v[2], dem.eval(Point::new(10.0, v[1])));
+    let edge = dem.eval(Point::new(10.0, 45.5));
+    // Just west of the DEM (10°E): its edge, barely faded; two degrees off (one DEM width):
+    // the fill.
+    assert!((height(&dem, Point::new(9.99, 45.5)) - edge).abs() < 0.01 * edge.abs());
+    assert_eq!(height(&dem, Point::new(8.0, 45.5)), FILL);
+    assert_eq!(height(&dem, Point::new(-150.0, -60.0)), FILL);
+    // The tile astride the DEM's west edge and its western neighbour share their side.
+    let (astride, off) = (TileId::new(9, 540, 385).unwrap(), TileId::new(9, 539, 385).unwrap());
+    assert!(astride.bounds().west < 10.0 && astride.bounds().east > 10.0);
+    let (a, b) = (mesh_tile(&dem, astride, 1.0, 64), mesh_tile(&dem, off, 1.0, 64));
+    let side = astride.bounds().west;
+    assert_eq!(on_line(&a, |v| v[0] == side), on_line(&b, |v| v[0] == side));
+}
+
+#[test]
+fn large_tiles_follow_the_earths_curvature_within_the_tolerance() {
+    use crate::tiles::{level_error, to_ecef};
+    let dem = dem(0.0);
+    for (z, x, y) in [(0, 0, 0), (1, 3, 0), (4, 20, 11)] {
+        let tile = TileId::new(z, x, y).unwrap();
+        let tolerance = level_error(tile.z);
+        let surface = mesh_tile(&dem, tile, tolerance, 64);
+        assert!(surface.vertices.len() > 4, "level {z} is more than two triangles");
+        // Away from the DEM every height is the fill: what a client draws is the chord of each
+        // triangle between Earth-centred points. Its gap to the ellipsoid at the lattice nodes:
+        let b = tile.bounds();
+        let mut worst = 0.0f64;
+        for j in 0..=16 {
+            for i in 0..=16 {
+                let (lon, lat) = (
+                    b.west + (b.east - b.west) * f64::from(i) / 16.0,
+                    b.south + (b.north - b.south) * f64::from(j) / 16.0,
+                );
+                if dem.rect().contains(Point::new(lon, lat)) {
+                    continue;
+                }
+                for t in &surface.triangles {
+                    let [a, bb, c] = t.map(|k| surface.vertices[k as usize]);
+                    let det = (bb[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (bb[1] - a[1]);
+                    let l1 = ((lon - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (lat - a[1])) / det;
+                    let l2 = ((bb[0] - a[0]) * (lat - a[1]) - (lon - a[0]) * (bb[1] - a[1])) / det;
+                    let l0 = 1.0 - l1 - l2;
+                    if [l0, l1, l2].iter().all(|&l| l >= -1e-12) {
+                        let [pa, pb, pc] = [a, bb, c].map(|v| to_ecef(v[0], v[1], v[2]));
+                        let q: [f64; 3] = std::array::from_fn(|k| l0 * pa[k] + l1 * pb[k] + l2 * pc[k]);
+                        let p = to_ecef(lon, lat, 0.0);
+                        worst = worst.max(((0..3).map(|k| (p[k] - q[k]).powi(2)).sum::<f64>()).sqrt());
+                        break;
+                    }
+                }
+            }
+        }
+        assert!(worst <= tolerance, "level {z}: the triangles sag {worst} m, past {tolerance}");
     }
 }
 
