@@ -546,31 +546,20 @@ fn tiles_refuses_a_projected_or_unreferenced_dem_naming_why() {
         &[1, 1, 0, 2, 1024, 0, 1, 1, 3072, 0, 1, 32632],
     );
     let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("utm-tiles");
-    let err = stderr_of_failure(&["tiles", utm.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let refused = |dem: &PathBuf, extra: &[&str]| {
+        stderr_of_failure(
+            &[&["tiles", dem.to_str().unwrap(), "--out", out.to_str().unwrap()], extra].concat(),
+        )
+    };
+    let err = refused(&utm, &[]);
     assert!(err.contains("EPSG:32632") && err.contains("projected") && err.contains("EPSG:4326"), "{err}");
     let plain = temp_file("plain.json", r#"{"nx": 2, "ny": 2, "values": [1, 2, 3, 4]}"#);
-    let err = stderr_of_failure(&["tiles", plain.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let err = refused(&plain, &[]);
     assert!(err.contains("not georeferenced"), "{err}");
     let dem = geotiff_4326("small.tif", (20, 20), (10.0, 46.0, 0.01), &WGS84_KEYS);
-    let err = stderr_of_failure(&[
-        "tiles",
-        dem.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--min-zoom",
-        "5",
-        "--max-zoom",
-        "3",
-    ]);
+    let err = refused(&dem, &["--min-zoom", "5", "--max-zoom", "3"]);
     assert!(err.contains("levels 5..=3"), "{err}");
-    let err = stderr_of_failure(&[
-        "tiles",
-        dem.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--max-zoom",
-        "30",
-    ]);
+    let err = refused(&dem, &["--max-zoom", "30"]);
     assert!(err.contains("more than 10000000") && err.contains("lower max level"), "{err}");
 }
 

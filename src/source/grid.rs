@@ -128,11 +128,7 @@ impl Grid {
     #[inline]
     pub fn node(&self, i: usize, j: usize) -> Point {
         let r = self.rect;
-        let at = |k: usize, n: usize, lo: f64, hi: f64| match k {
-            _ if k == n - 1 => hi,
-            _ => lo + k as f64 * ((hi - lo) / (n - 1) as f64),
-        };
-        Point::new(at(i, self.nx, r.x0(), r.x1()), at(j, self.ny, r.y0(), r.y1()))
+        Point::new(node_coordinate(i, self.nx, r.x0(), r.x1()), node_coordinate(j, self.ny, r.y0(), r.y1()))
     }
 
     /// Continuous grid coordinates of `p`: node (i, j) is at (i, j).
@@ -143,6 +139,14 @@ impl Grid {
         let v = (p.y - r.y0()) / (r.y1() - r.y0()) * to_f64(self.ny - 1);
         (u, v)
     }
+}
+
+/// The coordinate of node `k` of `n` spread over [`lo`, `hi`]: what [`Grid::node`] gives on
+/// each axis, the last node exactly at `hi`. For a caller that needs a grid's node positions
+/// before it has the grid's values.
+#[inline]
+pub fn node_coordinate(k: usize, n: usize, lo: f64, hi: f64) -> f64 {
+    if k == n - 1 { hi } else { lo + k as f64 * ((hi - lo) / (n - 1) as f64) }
 }
 
 /// A count as an f64, the same number as `n as f64`: through i64, which x86-64 converts in

@@ -13,5 +13,5 @@ pub use file::{
     signed_kind,
 };
 pub use function::Source;
-pub use grid::{BLOCK, Grid, GridError};
+pub use grid::{BLOCK, Grid, GridError, node_coordinate};
 pub use surface::Surface;

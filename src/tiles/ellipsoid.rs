@@ -12,7 +12,7 @@ pub const SEMI_MAJOR_AXIS: f64 = 6_378_137.0;
 pub const SEMI_MINOR_AXIS: f64 = 6_356_752.314_245_179;
 
 /// WGS84's first eccentricity squared, 1 − b²/a².
-const E2: f64 = 0.006_694_379_990_141_317;
+pub(super) const E2: f64 = 0.006_694_379_990_141_317;
 
 /// The largest magnitude a horizon occlusion point is given, in ellipsoid radii: a tile
 /// that reaches around the limb (a level-0 tile spans a hemisphere) has no finite point

@@ -17,7 +17,7 @@ use super::ellipsoid::SEMI_MAJOR_AXIS;
 use super::scheme::{TileId, degrees_per_tile};
 use crate::geom::{Point, Rect};
 use crate::refine::{Criterion, Method, Params, Sides, refine_with_sides};
-use crate::source::{Grid, Surface};
+use crate::source::{Grid, Surface, node_coordinate};
 
 /// The height far from the DEM: the ellipsoid's surface.
 pub const FILL: f64 = 0.0;
@@ -57,12 +57,11 @@ pub fn mesh_tile(dem: &Grid, tile: TileId, tolerance: f64, steps: usize) -> Tile
     let b = tile.bounds();
     let rect = Rect::new(b.west, b.east, b.south, b.north).expect("a tile is a proper rectangle");
     let n = steps + 1;
-    // The lattice's positions are the grid's own nodes: read them from a grid of the shape.
-    let shape = Grid::new(n, n, vec![0.0; n * n]).expect("a lattice of at least 3 × 3").with_domain(rect);
-    let values = (0..n)
-        .flat_map(|j| (0..n).map(move |i| (i, j)))
-        .map(|(i, j)| height(dem, shape.node(i, j)))
-        .collect();
+    // The lattice's positions: the nodes the grid made of its values will have.
+    let lons: Vec<f64> = (0..n).map(|i| node_coordinate(i, n, rect.x0(), rect.x1())).collect();
+    let lats: Vec<f64> = (0..n).map(|j| node_coordinate(j, n, rect.y0(), rect.y1())).collect();
+    let values =
+        lats.iter().flat_map(|&lat| lons.iter().map(move |&lon| height(dem, Point::new(lon, lat)))).collect();
     let lattice = Grid::new(n, n, values).expect("a DEM gives finite heights").with_domain(rect);
     let row = |j: usize| (0..n).map(|i| lattice.value(i, j)).collect::<Vec<_>>();
     let column = |i: usize| (0..n).map(|j| lattice.value(i, j)).collect::<Vec<_>>();

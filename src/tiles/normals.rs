@@ -3,7 +3,7 @@
 //! that two tiles sharing a side give its vertices the same normals and the light does not
 //! show the seam.
 
-use super::ellipsoid::{SEMI_MAJOR_AXIS, SEMI_MINOR_AXIS};
+use super::ellipsoid::{E2, SEMI_MAJOR_AXIS};
 use super::mesher::height;
 use crate::geom::Point;
 use crate::source::Grid;
@@ -12,7 +12,6 @@ use crate::source::Grid;
 /// (longitude, latitude in degrees, height): the slope from central differences `step` degrees
 /// either side, in metres on the WGS84 ellipsoid at that latitude.
 pub fn normals(dem: &Grid, vertices: &[[f64; 3]], step: f64) -> Vec<[f64; 3]> {
-    let e2 = 1.0 - (SEMI_MINOR_AXIS / SEMI_MAJOR_AXIS).powi(2);
     vertices
         .iter()
         .map(|&[lon, lat, _]| {
@@ -20,10 +19,10 @@ pub fn normals(dem: &Grid, vertices: &[[f64; 3]], step: f64) -> Vec<[f64; 3]> {
             let (phi, lambda) = (lat.to_radians(), lon.to_radians());
             let (sin_phi, cos_phi) = (libm::sin(phi), libm::cos(phi));
             let (sin_lambda, cos_lambda) = (libm::sin(lambda), libm::cos(lambda));
-            let w = libm::sqrt(1.0 - e2 * sin_phi * sin_phi);
+            let w = libm::sqrt(1.0 - E2 * sin_phi * sin_phi);
             // Metres a degree east (the prime vertical's radius) and north (the meridian's).
             let east_m = (SEMI_MAJOR_AXIS / w) * cos_phi * std::f64::consts::PI / 180.0;
-            let north_m = SEMI_MAJOR_AXIS * (1.0 - e2) / (w * w * w) * std::f64::consts::PI / 180.0;
+            let north_m = SEMI_MAJOR_AXIS * (1.0 - E2) / (w * w * w) * std::f64::consts::PI / 180.0;
             // At a pole a degree east is no distance: only the north slope is defined.
             let dz_dx = if east_m > 1e-6 {
                 (height(step, 0.0) - height(-step, 0.0)) / (2.0 * step * east_m)

@@ -19,8 +19,9 @@ fn dem(seed: f64) -> Grid {
         .with_domain(Rect::new(10.0, 12.0, 45.0, 46.0).unwrap())
 }
 
-/// The tile's mesh evaluated at `p` (inside the tile): the plane of a triangle holding it.
-fn linear(surface: &TileSurface, p: Point) -> f64 {
+/// The corners of a triangle of `surface` holding `p` (in lon, lat) and `p`'s barycentric
+/// weights in it.
+fn locate(surface: &TileSurface, p: Point) -> ([[f64; 3]; 3], [f64; 3]) {
     for t in &surface.triangles {
         let [a, b, c] = t.map(|k| surface.vertices[k as usize]);
         let det = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
@@ -28,10 +29,16 @@ fn linear(surface: &TileSurface, p: Point) -> f64 {
         let l2 = ((b[0] - a[0]) * (p.y - a[1]) - (p.x - a[0]) * (b[1] - a[1])) / det;
         let l0 = 1.0 - l1 - l2;
         if [l0, l1, l2].iter().all(|&l| l >= -1e-9) {
-            return l0 * a[2] + l1 * b[2] + l2 * c[2];
+            return ([a, b, c], [l0, l1, l2]);
         }
     }
     panic!("({}, {}) is in no triangle", p.x, p.y);
+}
+
+/// The tile's mesh evaluated at `p` (inside the tile): the plane of a triangle holding it.
+fn linear(surface: &TileSurface, p: Point) -> f64 {
+    let (corners, weights) = locate(surface, p);
+    (0..3).map(|k| weights[k] * corners[k][2]).sum()
 }
 
 /// The vertices of `surface` on the line lon = `lon` (or lat = `lat`), sorted.
@@ -131,20 +138,11 @@ fn large_tiles_follow_the_earths_curvature_within_the_tolerance() {
                 if dem.rect().contains(Point::new(lon, lat)) {
                     continue;
                 }
-                for t in &surface.triangles {
-                    let [a, bb, c] = t.map(|k| surface.vertices[k as usize]);
-                    let det = (bb[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (bb[1] - a[1]);
-                    let l1 = ((lon - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (lat - a[1])) / det;
-                    let l2 = ((bb[0] - a[0]) * (lat - a[1]) - (lon - a[0]) * (bb[1] - a[1])) / det;
-                    let l0 = 1.0 - l1 - l2;
-                    if [l0, l1, l2].iter().all(|&l| l >= -1e-12) {
-                        let [pa, pb, pc] = [a, bb, c].map(|v| to_ecef(v[0], v[1], v[2]));
-                        let q: [f64; 3] = std::array::from_fn(|k| l0 * pa[k] + l1 * pb[k] + l2 * pc[k]);
-                        let p = to_ecef(lon, lat, 0.0);
-                        worst = worst.max(((0..3).map(|k| (p[k] - q[k]).powi(2)).sum::<f64>()).sqrt());
-                        break;
-                    }
-                }
+                let (corners, l) = locate(&surface, Point::new(lon, lat));
+                let [pa, pb, pc] = corners.map(|v| to_ecef(v[0], v[1], v[2]));
+                let q: [f64; 3] = std::array::from_fn(|k| l[0] * pa[k] + l[1] * pb[k] + l[2] * pc[k]);
+                let p = to_ecef(lon, lat, 0.0);
+                worst = worst.max(((0..3).map(|k| (p[k] - q[k]).powi(2)).sum::<f64>()).sqrt());
             }
         }
         assert!(worst <= tolerance, "level {z}: the triangles sag {worst} m, past {tolerance}");

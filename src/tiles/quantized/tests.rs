@@ -51,12 +51,23 @@ impl Lattice {
         TileMesh { bounds: self.bounds, vertices: &self.vertices, triangles: &self.triangles }
     }
 
+    /// Each triangle as its corners' (u, v), in the order given.
+    fn triangles_uv(&self) -> Vec<[(u16, u16); 3]> {
+        self.triangles.iter().map(|t| t.map(|k| self.uv(k))).collect()
+    }
+
     /// u and v of vertex `k`, quantized as the format says.
     fn uv(&self, k: u32) -> (u16, u16) {
         let (b, p) = (self.bounds, self.vertices[k as usize]);
         let q = |x: f64, lo: f64, hi: f64| ((x - lo) / (hi - lo) * 32767.0).round() as u16;
         (q(p[0], b.west, b.east), q(p[1], b.south, b.north))
     }
+}
+
+/// Each decoded triangle as its corners' (u, v), in the order written.
+fn corners_uv(decoded: &DecodedMesh) -> Vec<[(u16, u16); 3]> {
+    let uv = |k: u32| (decoded.vertices.u[k as usize], decoded.vertices.v[k as usize]);
+    decoded.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]].map(uv)).collect()
 }
 
 fn hills(i: u32, j: u32) -> f64 {
@@ -85,9 +96,7 @@ fn the_quantized_mesh_crate_reads_back_vertices_triangles_edges_and_extensions()
     assert_eq!(decoded.vertices.u.len(), n);
     // Each triangle, as the positions of its corners, comes back in the order given.
     let decoded_uv = |k: u32| (decoded.vertices.u[k as usize], decoded.vertices.v[k as usize]);
-    let got: Vec<_> = decoded.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]].map(decoded_uv)).collect();
-    let want: Vec<_> = lattice.triangles.iter().map(|t| t.map(|k| lattice.uv(k))).collect();
-    assert_eq!(got, want);
+    assert_eq!(corners_uv(&decoded), lattice.triangles_uv());
     // Heights within half a quantum of the range the header gives.
     let (lo, hi) = (f64::from(decoded.header.min_height), f64::from(decoded.header.max_height));
     let quantum = (hi - lo) / 32767.0;
@@ -155,18 +164,7 @@ fn past_65536_vertices_the_indices_are_32_bit_and_aligned() {
     assert_eq!((88 + 4 + 6 * n) % 4, 2, "the vertex data ends off a 4-byte boundary");
     assert_eq!(&bytes[88 + 4 + 6 * n..][..2], &[0, 0], "padding");
     let decoded = DecodedMesh::decode(&bytes).unwrap();
-    let got: Vec<_> = decoded
-        .indices
-        .chunks_exact(3)
-        .map(|t| {
-            t.iter()
-                .map(|&k| (decoded.vertices.u[k as usize], decoded.vertices.v[k as usize]))
-                .collect::<Vec<_>>()
-        })
-        .collect();
-    let want: Vec<_> =
-        lattice.triangles.iter().map(|t| t.iter().map(|&k| lattice.uv(k)).collect::<Vec<_>>()).collect();
-    assert_eq!(got, want);
+    assert_eq!(corners_uv(&decoded), lattice.triangles_uv());
 }
 
 #[test]
@@ -179,16 +177,7 @@ fn a_tile_of_exactly_65536_vertices_gets_one_more_and_32_bit_indices() {
     let n = u32::from_le_bytes(bytes[88..92].try_into().unwrap()) as usize;
     assert_eq!(n, 65_537);
     let decoded = DecodedMesh::decode(&bytes).unwrap();
-    let got: Vec<_> = (decoded.indices.chunks_exact(3))
-        .map(|t| {
-            t.iter()
-                .map(|&k| (decoded.vertices.u[k as usize], decoded.vertices.v[k as usize]))
-                .collect::<Vec<_>>()
-        })
-        .collect();
-    let want: Vec<_> =
-        lattice.triangles.iter().map(|t| t.iter().map(|&k| lattice.uv(k)).collect::<Vec<_>>()).collect();
-    assert_eq!(got, want);
+    assert_eq!(corners_uv(&decoded), lattice.triangles_uv());
     assert!(decoded.indices.iter().all(|&k| (k as usize) < 65_536), "no triangle names the extra vertex");
     let e = &decoded.edge_indices;
     assert_eq!([e.west.len(), e.south.len(), e.east.len(), e.north.len()], [256; 4], "nor does an edge");
