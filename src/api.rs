@@ -198,6 +198,64 @@ impl Links {
     }
 }
 
+/// `GET /v1/datasets/{id}`, and the body of `POST /v1/datasets`: a DEM that terrain tiles
+/// are served from.
+#[derive(Debug, Clone, Serialize)]
+pub struct DatasetInfo {
+    /// The hex SHA-256 of the uploaded file, or the name the server's settings give a file.
+    pub id: String,
+    /// `upload` (deleted with `DELETE`) or `file` (named in the server's settings).
+    pub source: &'static str,
+    /// The size of the file, in bytes.
+    pub file_bytes: u64,
+    /// Samples per row and rows.
+    pub size: [usize; 2],
+    /// The coordinate system of the samples: `EPSG:4326`.
+    pub crs: &'static str,
+    /// West, south, east and north, in degrees: the outer samples' positions.
+    pub bounds: [f64; 4],
+    /// The finer sample spacing, in degrees.
+    pub pixel_degrees: f64,
+    /// The lowest and highest height, in metres.
+    pub heights: [f64; 2],
+    /// The deepest level tiles are made at: where a tile's 65 samples a side reach the pixel.
+    pub max_zoom: u8,
+    /// Each tile of level z keeps within this times 77,067.34 m / 2^z of the DEM.
+    pub error_factor: f64,
+    /// Where to find its resources.
+    pub links: DatasetLinks,
+}
+
+/// Links of a dataset.
+#[derive(Debug, Clone, Serialize)]
+pub struct DatasetLinks {
+    /// `/v1/datasets/{id}`.
+    #[serde(rename = "self")]
+    pub this: String,
+    /// `/v1/tiles/{id}/layer.json`: what a terrain provider is pointed at.
+    pub layer: String,
+    /// `/v1/tiles/{id}/{z}/{x}/{y}.terrain`, a template.
+    pub tiles: String,
+}
+
+impl DatasetLinks {
+    /// The links of dataset `id`.
+    pub fn of(id: &str) -> Self {
+        Self {
+            this: format!("/v1/datasets/{id}"),
+            layer: format!("/v1/tiles/{id}/layer.json"),
+            tiles: format!("/v1/tiles/{id}/{{z}}/{{x}}/{{y}}.terrain"),
+        }
+    }
+}
+
+/// `GET /v1/datasets`.
+#[derive(Debug, Clone, Serialize)]
+pub struct DatasetList {
+    /// Every dataset, by id.
+    pub datasets: Vec<DatasetInfo>,
+}
+
 /// A `progress` server-sent event.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ProgressEvent {

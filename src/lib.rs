@@ -27,6 +27,8 @@
 //! - [`tiles`]: terrain tiles for web maps: the geographic z/x/y scheme with each level's
 //!   error, a tile's crack-free mesh of a DEM (its sides fixed from their own values, then
 //!   `refine`'s node insertion), its WGS84 header geometry, and quantized-mesh-1.0.
+//! - [`datasets`]: the DEMs the service makes terrain tiles of (uploaded, or files its
+//!   settings name), held under the memory budget, and the tiles made, gzipped, in a cache.
 //! - [`output`]: the formats (json, obj, ply, stl, vtu, msh, glb, svg, png), each streamed
 //!   from a result and looping over its fields; shared by the command line and the API.
 //! - [`spec`]: a request checked against the server's limits and mapped to the engine's
@@ -57,10 +59,11 @@
 //! api       ──▶ refine, result, solve, source
 //! spec      ──▶ api, geom, refine, solve, source
 //! jobs      ──▶ api, cpu, geom, metrics, refine, result, solve, source, spec
+//! datasets  ──▶ jobs, source, spec, tiles
 //! cluster   ──▶ config, jobs
-//! config    ──▶ jobs, refine, spec
+//! config    ──▶ datasets, jobs, refine, spec
 //! telemetry ──▶ config
-//! http      ──▶ api, config, cpu, geom, jobs, metrics, output, refine, result, source, spec
+//! http      ──▶ api, config, cpu, datasets, geom, jobs, metrics, output, refine, result, source, spec, tiles
 //! ```
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -69,6 +72,7 @@ pub mod api;
 pub mod cluster;
 pub mod config;
 pub mod cpu;
+pub mod datasets;
 pub mod geom;
 pub mod http;
 pub mod jobs;
@@ -129,8 +133,16 @@ pub async fn serve(
         tracing::info!(replica = cluster.replica(), "sharing results and jobs through redis");
         jobs = jobs.shared(Arc::new(cluster), config.limits);
     }
+    // The files the settings name are read once, before the first request.
+    let datasets = datasets::Datasets::new(config.datasets.clone(), jobs.budget().clone());
+    let opening = datasets.clone();
+    tokio::task::spawn_blocking(move || opening.open_files())
+        .await
+        .map_err(std::io::Error::other)?
+        .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidInput, e))?;
     // Indexes are rebuilt in milliseconds; a quarter of the result cache's budget holds plenty.
-    let state = http::AppState::new(jobs.clone(), config.limits, config.body, config.cache.memory_bytes / 4);
+    let locator_bytes = config.cache.memory_bytes / 4;
+    let state = http::AppState::new(jobs.clone(), datasets, config.limits, config.body, locator_bytes);
     let app = http::router(state, &config);
     let on_signal = jobs.clone();
     let grace = config.shutdown_grace;

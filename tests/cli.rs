@@ -481,7 +481,7 @@ fn tiles_writes_a_crack_free_pyramid_and_its_layer_json() {
     assert_eq!(layer["format"], "quantized-mesh-1.0");
     assert_eq!((layer["scheme"].as_str(), layer["projection"].as_str()), (Some("tms"), Some("EPSG:4326")));
     assert_eq!(layer["maxzoom"], 9);
-    assert_eq!(layer["extensions"], serde_json::json!(["octvertexnormals"]));
+    assert_eq!(layer["extensions"], serde_json::json!(["octvertexnormals", "metadata"]));
     let available = layer["available"].as_array().unwrap();
     assert_eq!(available.len(), 10);
     assert_eq!(available[0], serde_json::json!([{"startX": 0, "startY": 0, "endX": 1, "endY": 0}]));

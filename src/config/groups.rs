@@ -1,6 +1,7 @@
 //! The settings as the service takes them: [`Config`], grouped by the part of the service
 //! that takes each group, with its safe defaults.
 
+use crate::datasets::DatasetSettings;
 use crate::jobs::{CacheSettings, Pool};
 use crate::spec::Limits;
 use ipnet::IpNet;
@@ -52,6 +53,10 @@ pub struct Config {
     pub callers: Callers,
     /// The Redis replicas share results and jobs through.
     pub redis: Redis,
+    /// DEMs for terrain tiles: files named at start-up, room for uploads, the tiles' error and
+    /// cache (`MESHFIT_DATASET`, `MESHFIT_DATASET_BYTES`, `MESHFIT_TILE_ERROR_FACTOR`,
+    /// `MESHFIT_TILE_CACHE_BYTES`).
+    pub datasets: DatasetSettings,
 }
 
 /// Connections: how many are served at once, and how long they may take.
@@ -188,6 +193,7 @@ impl Default for Config {
                 max_bytes: 256 << 20,
                 lease: Duration::from_secs(10),
             },
+            datasets: DatasetSettings::default(),
         }
     }
 }

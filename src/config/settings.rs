@@ -57,6 +57,11 @@ impl Setting {
         format!("{}: {} [default: {}]", self.name, self.help, self.default)
     }
 
+    /// Whether the value is a comma-separated list, whose flag may also be given once per item.
+    pub fn is_list(&self) -> bool {
+        matches!(self.name, "MESHFIT_DATASET" | "MESHFIT_CORS_ORIGINS" | "MESHFIT_TRUSTED_PROXIES")
+    }
+
     /// Whether the value is a secret: a bad one is reported by name, never echoed.
     pub(super) fn is_secret(&self) -> bool {
         matches!(self.name, "MESHFIT_API_KEYS" | "MESHFIT_REDIS_URL")
@@ -345,6 +350,61 @@ pub const SETTINGS: &[Setting] = &[
         parse: |v, c| millis(v, 30).map(|d| c.redis.lease = d),
     },
     Setting {
+        name: "MESHFIT_DATASET",
+        flag: Some("dataset"),
+        value_name: "NAME=PATH",
+        default: Fallback::Described("none"),
+        help: "GeoTIFF DEMs (EPSG:4326) to serve terrain tiles of, each under its name: `NAME=PATH`, comma-separated, or the flag given once for each",
+        parse: |v, c| {
+            let named = |item: &str| {
+                let (name, path) = item.split_once('=')?;
+                is_dataset_name(name.trim()).then(|| (name.trim().to_owned(), PathBuf::from(path.trim())))
+            };
+            let files = comma_separated(
+                v,
+                named,
+                "expected NAME=PATH, comma-separated; a name is 1 to 64 letters, digits, `-` or `_`, not 64 hex digits",
+            )?;
+            let mut names: Vec<&str> = files.iter().map(|(n, _)| n.as_str()).collect();
+            names.sort_unstable();
+            if let Some(twice) = names.windows(2).find(|w| w[0] == w[1]) {
+                return Err(format!("the name `{}` is given twice", twice[0]));
+            }
+            c.datasets.files = files;
+            Ok(())
+        },
+    },
+    Setting {
+        name: "MESHFIT_DATASET_BYTES",
+        flag: Some("dataset-bytes"),
+        value_name: "BYTES",
+        default: Fallback::Value("1073741824"),
+        help: "memory uploaded datasets may hold, decoded (8 bytes a sample); past it, 507 until one is deleted",
+        parse: |v, c| number(v).map(|n| c.datasets.max_bytes = n),
+    },
+    Setting {
+        name: "MESHFIT_TILE_ERROR_FACTOR",
+        flag: Some("tile-error-factor"),
+        value_name: "FRACTION",
+        default: Fallback::Value("1"),
+        help: "each terrain tile of level z keeps within this times Cesium's 77,067.34 m / 2^z of its DEM; smaller is finer",
+        parse: |v, c| match v.parse::<f64>() {
+            Ok(x) if x > 0.0 && x <= 1.0 => {
+                c.datasets.error_factor = x;
+                Ok(())
+            }
+            _ => Err("expected a number in (0, 1], e.g. 0.5".to_owned()),
+        },
+    },
+    Setting {
+        name: "MESHFIT_TILE_CACHE_BYTES",
+        flag: Some("tile-cache-bytes"),
+        value_name: "BYTES",
+        default: Fallback::Value("268435456"),
+        help: "memory for terrain tiles made (gzipped), part of the memory budget",
+        parse: |v, c| number(v).map(|n| c.datasets.tile_cache_bytes = n),
+    },
+    Setting {
         name: "MESHFIT_LOG_FORMAT",
         flag: Some("log-format"),
         value_name: "FORMAT",
@@ -389,6 +449,15 @@ pub fn listen_addr(v: &str) -> Result<SocketAddr, &'static str> {
         return Err(EXPECTED);
     }
     v.to_socket_addrs().ok().and_then(|mut addrs| addrs.next()).ok_or("the host name does not resolve")
+}
+
+/// Whether `name` may name a dataset: it goes into URLs, and is never taken for an uploaded
+/// dataset's id (64 hex digits).
+fn is_dataset_name(name: &str) -> bool {
+    let hex = name.len() == 64 && name.bytes().all(|b| b.is_ascii_hexdigit());
+    (1..=64).contains(&name.len())
+        && !hex
+        && name.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_')
 }
 
 /// Adds each non-blank key; every key must be long enough to be a secret.

@@ -137,6 +137,8 @@ fn each_parser_sets_its_own_setting() {
         "MESHFIT_LOG_FORMAT" => "json",
         "MESHFIT_API_KEYS" => "key-0123456789abcdef",
         "MESHFIT_MEMORY_BYTES" => "68719476736",
+        "MESHFIT_DATASET" => "alps=/data/alps.tif",
+        "MESHFIT_TILE_ERROR_FACTOR" => "0.5",
         _ => "12345",
     };
     let defaults = Config::default();

@@ -2,7 +2,8 @@
 //!
 //! - `routes`: [`router`], every route to its handler, and the layers, outside-in;
 //! - `state`: [`AppState`], what every handler can reach;
-//! - `jobs`, `evaluate`, `health`, `page`: the handlers, by resource;
+//! - `jobs`, `evaluate`, `tiles`, `health`, `page`: the handlers, by resource (`tiles` holds
+//!   datasets and their terrain tiles);
 //! - `extract`, `negotiate`, `head`, [`access`]: what a request carries, and what it may do;
 //! - [`problem`]: every error as an RFC 9457 problem document; `sse`: the event streams;
 //! - [`conn`]: the connections themselves, their cap and timeouts.
@@ -20,6 +21,7 @@ pub mod problem;
 mod routes;
 mod sse;
 mod state;
+mod tiles;
 
 pub use extract::parse_json;
 pub use routes::{ROUTES, router};

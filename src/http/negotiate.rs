@@ -178,7 +178,8 @@ pub async fn result_response(
     Ok(response)
 }
 
-fn not_modified(headers: &HeaderMap, tag: &HeaderValue) -> bool {
+/// Whether `If-None-Match` names `tag` (or `*`): the client has these bytes.
+pub(super) fn not_modified(headers: &HeaderMap, tag: &HeaderValue) -> bool {
     let tag = tag.to_str().expect("our tags are ascii");
     headers
         .get_all(header::IF_NONE_MATCH)

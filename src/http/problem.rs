@@ -1,9 +1,10 @@
 //! ApiError: every failure the API reports, written as RFC 9457 `application/problem+json`.
 
 use crate::api::{JsonError, pointer};
+use crate::datasets::DatasetError;
 use crate::jobs::{Cause, Failure, JobError, SubmitError};
 use crate::output::Format;
-use crate::spec::SpecError;
+use crate::spec::{SpecError, grid_error};
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use serde_json::{Map, Value, json};
@@ -82,6 +83,16 @@ pub enum ApiError {
     /// 503 `redis-unavailable`, with `Retry-After`: the job runs on another replica, or may,
     /// and Redis, through which replicas reach each other, does not answer.
     Unreachable,
+    /// A dataset or a tile: 422 `invalid-grid` or `limit-exceeded` for a file that does not
+    /// decode, 422 `invalid-dem` for a grid that is no DEM on the globe, 404 `not-found`,
+    /// 409 `dataset-configured`, 507 `datasets-full`.
+    Dataset(DatasetError),
+}
+
+impl From<DatasetError> for ApiError {
+    fn from(e: DatasetError) -> Self {
+        ApiError::Dataset(e)
+    }
 }
 
 impl From<SpecError> for ApiError {
@@ -287,6 +298,22 @@ impl ApiError {
                 "The job's replica cannot be reached",
                 "the job is not known here and may run on another replica, or runs on another replica, and Redis, through which replicas reach each other, does not answer now; retry shortly".into(),
             ),
+            ApiError::Dataset(e) => match e {
+                DatasetError::File(file) => return ApiError::Spec(grid_error(file.clone())).parts(),
+                DatasetError::Dem(_) => (unprocessable, "invalid-dem", "Not a DEM on longitude and latitude", e.to_string()),
+                DatasetError::NotFound(_) | DatasetError::NoTile(_) => {
+                    (StatusCode::NOT_FOUND, "not-found", "Not found", e.to_string())
+                }
+                DatasetError::Configured(_) => {
+                    (StatusCode::CONFLICT, "dataset-configured", "Dataset is named in the settings", e.to_string())
+                }
+                DatasetError::Full { limit, .. } => {
+                    ext.insert("limit".into(), json!({"name": "MESHFIT_DATASET_BYTES", "value": limit}));
+                    (StatusCode::INSUFFICIENT_STORAGE, "datasets-full", "Datasets take their whole allowance", e.to_string())
+                }
+                // Answered as the budget's 503 by the handler, which knows when to retry.
+                DatasetError::OverBudget(o) => return ApiError::OverBudget(o.needed, o.available, 1).parts(),
+            },
             ApiError::Internal(_) => (
                 StatusCode::INTERNAL_SERVER_ERROR,
                 "internal",

@@ -2,6 +2,7 @@
 //! bound on large bodies parsed at once.
 
 use crate::config::BodyLimits;
+use crate::datasets::Datasets;
 use crate::jobs::Jobs;
 use crate::result::RunResult;
 use crate::result::locate::Locator;
@@ -28,6 +29,8 @@ fn locators(bytes: u64) -> Locators {
 pub struct AppState {
     /// The job registry.
     pub jobs: Jobs,
+    /// The DEMs terrain tiles are made of, and the tiles made.
+    pub datasets: Datasets,
     /// Request limits.
     pub limits: Limits,
     /// Point-location indexes of results recently evaluated.
@@ -41,9 +44,9 @@ pub struct AppState {
 
 impl AppState {
     /// The state of a server whose point-location indexes take at most `locator_bytes`.
-    pub fn new(jobs: Jobs, limits: Limits, body: BodyLimits, locator_bytes: u64) -> Self {
+    pub fn new(jobs: Jobs, datasets: Datasets, limits: Limits, body: BodyLimits, locator_bytes: u64) -> Self {
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
         let parsers = Arc::new(tokio::sync::Semaphore::new(cores.saturating_sub(1).max(1)));
-        Self { jobs, limits, locators: locators(locator_bytes), body, parsers }
+        Self { jobs, datasets, limits, locators: locators(locator_bytes), body, parsers }
     }
 }

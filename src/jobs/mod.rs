@@ -56,8 +56,8 @@ mod worker;
 
 pub use admission::{Pool, SubmitError};
 pub use budget::{
-    Budget, Charge, OverBudget, SOLUTION_BYTES_PER_VERTEX, available_memory, cli_mesh_bytes_per_vertex,
-    default_limit as default_memory_bytes,
+    Budget, Charge, GRID_BYTES_PER_POINT, OverBudget, SOLUTION_BYTES_PER_VERTEX, available_memory,
+    cli_mesh_bytes_per_vertex, default_limit as default_memory_bytes,
 };
 pub use cache::{Cache, CacheSettings, Hit};
 pub use failure::{Cause, Failure};

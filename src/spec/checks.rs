@@ -153,7 +153,7 @@ pub(super) fn build(params: ParamsBuilder, limits: &Limits) -> Result<Params, Sp
 }
 
 /// A grid that does not decode: over the limit, or malformed (naming the value at fault).
-pub(super) fn grid_error(e: GridFileError) -> SpecError {
+pub fn grid_error(e: GridFileError) -> SpecError {
     match e {
         GridFileError::TooManyPoints { requested, allowed, .. } => SpecError::Limit {
             name: "grid",

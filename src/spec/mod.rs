@@ -19,7 +19,7 @@ mod key;
 mod solution;
 
 pub use canonical::ENGINE_VERSION;
-pub use checks::{DEFAULT_MAX_VERTICES, Limits, SpecError};
+pub use checks::{DEFAULT_MAX_VERTICES, Limits, SpecError, grid_error};
 pub use job::{JobSpec, MeshSpec, Work};
 pub use key::{JobKeys, job_id, job_keys};
 pub use solution::{Function, SolveSpec};

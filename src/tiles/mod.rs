@@ -25,7 +25,7 @@ pub use dem::{Dem, DemError, WGS84};
 pub use ellipsoid::{SEMI_MAJOR_AXIS, SEMI_MINOR_AXIS, to_ecef};
 pub use mesher::{TileSurface, mesh_tile, simplify};
 pub use normals::normals;
-pub use pyramid::{MAX_STEPS, MAX_TILES, MIN_STEPS, Pyramid, PyramidError};
+pub use pyramid::{MAX_STEPS, MAX_TILES, METADATA_LEVELS, MIN_STEPS, Pyramid, PyramidError, Wanted};
 pub use quantized::{Extensions, QUANTIZED_MAX, TileMesh, encode};
 pub use scheme::{
     Bounds, LEVEL_ZERO_ERROR, MAX_LEVEL, TILE_SAMPLES, TileError, TileId, columns, covering,

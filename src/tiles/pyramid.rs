@@ -19,6 +19,26 @@ pub const MIN_STEPS: usize = 64;
 /// trillions.
 pub const MAX_TILES: u64 = 10_000_000;
 
+/// Levels whose tiles tell, in their metadata, which tiles exist in the next this-many levels
+/// of their subtree (layer.json's `metadataAvailability`, as Cesium World Terrain has it): 0,
+/// 10, 20.
+pub const METADATA_LEVELS: u8 = 10;
+
+/// The extensions a tile is written with, as its client asked.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub struct Wanted {
+    /// Oct-encoded vertex normals (`octvertexnormals`).
+    pub normals: bool,
+    /// The availability of the tiles below (`metadata`), in tiles of levels that are
+    /// multiples of [`METADATA_LEVELS`].
+    pub metadata: bool,
+}
+
+impl Wanted {
+    /// Every extension layer.json lists.
+    pub const ALL: Wanted = Wanted { normals: true, metadata: true };
+}
+
 /// The tiles of a DEM from `min_level` to `max_level`, each within `error_factor` times its
 /// level's geometric error of the DEM.
 #[derive(Debug, Clone)]
@@ -125,17 +145,36 @@ impl<'a> Pyramid<'a> {
         Some(mesh_tile(self.dem.grid(), tile, tolerance, self.steps(tile.z)))
     }
 
-    /// The quantized-mesh-1.0 bytes of `tile` (uncompressed) with its vertex normals
-    /// (`octvertexnormals`), or `None` when the pyramid has no such tile.
-    pub fn tile(&self, tile: TileId) -> Option<Vec<u8>> {
+    /// The quantized-mesh-1.0 bytes of `tile` (uncompressed) with the extensions `wanted`, or
+    /// `None` when the pyramid has no such tile.
+    pub fn tile(&self, tile: TileId, wanted: Wanted) -> Option<Vec<u8>> {
         let surface = self.surface(tile)?;
         // The level's lattice step: the same for every tile of the level, so neighbours give
         // a shared vertex the same normal.
         let step = degrees_per_tile(tile.z) / self.steps(tile.z) as f64;
-        let normals = normals(self.dem.grid(), &surface.vertices, step);
+        let normals = wanted.normals.then(|| normals(self.dem.grid(), &surface.vertices, step));
+        let metadata =
+            (wanted.metadata && tile.z.is_multiple_of(METADATA_LEVELS)).then(|| self.metadata(tile));
         let mesh =
             TileMesh { bounds: tile.bounds(), vertices: &surface.vertices, triangles: &surface.triangles };
-        Some(encode(&mesh, &Extensions { normals: Some(&normals), metadata: None }))
+        Some(encode(&mesh, &Extensions { normals: normals.as_deref(), metadata: metadata.as_deref() }))
+    }
+
+    /// The metadata extension's JSON for `tile`: which tiles of its subtree exist in each of
+    /// the next [`METADATA_LEVELS`] levels, the first entry for level `z + 1`.
+    fn metadata(&self, tile: TileId) -> String {
+        let below = (1..=METADATA_LEVELS).map(|k| {
+            // Levels past the pyramid's are not available, and their columns need not fit u32.
+            let Some(([ax0, ax1], [ay0, ay1])) = self.available(tile.z + k) else { return json!([]) };
+            let (x0, y0) = (tile.x << k, tile.y << k);
+            let (x1, y1) = (x0 + (1 << k) - 1, y0 + (1 << k) - 1);
+            if ax0 <= x1 && x0 <= ax1 && ay0 <= y1 && y0 <= ay1 {
+                json!([range([x0.max(ax0), x1.min(ax1)], [y0.max(ay0), y1.min(ay1)])])
+            } else {
+                json!([])
+            }
+        });
+        json!({ "available": below.collect::<Vec<_>>() }).to_string()
     }
 
     /// Lattice steps a side at level `z`: as fine as the DEM's pixel, from [`MIN_STEPS`] to
@@ -146,11 +185,13 @@ impl<'a> Pyramid<'a> {
     }
 
     /// The `layer.json` of the pyramid (tilejson 2.1.0, as Cesium's terrain provider reads it):
-    /// its tiles' URL template under the same directory, scheme, levels and availability.
+    /// its tiles' URL template under the same directory, scheme, levels and availability,
+    /// both whole (`available`, which most clients read) and level by level from the tiles'
+    /// metadata (`metadataAvailability`, which CesiumJS then reads instead).
     pub fn layer_json(&self, name: &str) -> serde_json::Value {
         let available: Vec<_> = (0..=self.max_level)
             .map(|z| match self.available(z) {
-                Some(([x0, x1], [y0, y1])) => json!([{"startX": x0, "startY": y0, "endX": x1, "endY": y1}]),
+                Some((x, y)) => json!([range(x, y)]),
                 None => json!([]),
             })
             .collect();
@@ -167,9 +208,15 @@ impl<'a> Pyramid<'a> {
             "minzoom": 0,
             "maxzoom": self.max_level,
             "available": available,
-            "extensions": ["octvertexnormals"],
+            "extensions": ["octvertexnormals", "metadata"],
+            "metadataAvailability": METADATA_LEVELS,
             "attribution": "",
             "generator": "meshfit",
         })
     }
+}
+
+/// A range of tiles as tilejson writes it, columns and rows inclusive.
+fn range([x0, x1]: [u32; 2], [y0, y1]: [u32; 2]) -> serde_json::Value {
+    json!({"startX": x0, "startY": y0, "endX": x1, "endY": y1})
 }

@@ -1,6 +1,7 @@
 //! `spawn_app()`: a real server on 127.0.0.1:0 with small limits, and request helpers.
 
 use meshfit::config::{BodyLimits, Callers, Config, Connections, Redis};
+use meshfit::datasets::DatasetSettings;
 use meshfit::jobs::{CacheSettings, Pool};
 use meshfit::spec::Limits;
 use reqwest::{Client, Response};
@@ -53,6 +54,7 @@ pub fn test_config() -> Config {
             max_bytes: 64 << 20,
             lease: Duration::from_secs(10),
         },
+        datasets: DatasetSettings::default(),
     }
 }
 

@@ -13,4 +13,5 @@ mod quickstart;
 mod results;
 mod service;
 mod solutions;
+mod tiles;
 mod uploads;

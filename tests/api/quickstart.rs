@@ -56,6 +56,8 @@ async fn the_readme_quick_start_runs_as_written_and_says_what_the_readme_says() 
         r#"{"status":"ok"}"#,
         "openapi: 3.1",
         "HTTP/1.1 202 Accepted",
+        r#""source":"upload","file_bytes":93240,"size":[256,256]"#,
+        r#""format":"quantized-mesh-1.0""#,
     ] {
         assert!(stdout.contains(said), "the quick start no longer prints {said:?}:\n{stdout}");
     }
@@ -77,6 +79,9 @@ async fn the_readme_quick_start_runs_as_written_and_says_what_the_readme_says() 
     ] {
         assert!(file(name).starts_with(starts), "{name}");
     }
+    // The terrain tile, unzipped by curl, with the normals and no metadata (level 14).
+    let tile = quantized_mesh::DecodedMesh::decode(&file("tile.terrain")).expect("a quantized-mesh tile");
+    assert!(tile.extensions.normals.is_some() && tile.extensions.metadata.is_none());
     for (name, holds) in [
         ("mesh.obj", "\nf "),
         ("heightmap.obj", "\nf "),

@@ -1,13 +1,15 @@
-// CesiumJS itself reading a tile pyramid: serves DIR on a loopback port, opens it with
-// CesiumTerrainProvider (layer.json, then each tile as a client asks for it), and prints one
-// JSON line per tile with what Cesium decoded, then the largest height gap Cesium sees across
-// the common side of neighbours at the deepest level. Usage: node check.mjs DIR
+// CesiumJS itself reading a tile pyramid: serves DIR on a loopback port (or reads a server's
+// layer at URL, which ends in /), opens it with CesiumTerrainProvider (layer.json, then each
+// tile as a client asks for it), and prints one JSON line per tile with what Cesium decoded,
+// then the largest height gap Cesium sees across the common side of neighbours at the
+// deepest level. Usage: node check.mjs DIR|URL
 import http from "node:http";
 import fs from "node:fs";
 import path from "node:path";
 import { CesiumTerrainProvider } from "@cesium/engine";
 
 const dir = process.argv[2];
+const remote = dir.startsWith("http://");
 const server = http.createServer((req, res) => {
   const file = path.join(dir, decodeURIComponent(new URL(req.url, "http://localhost").pathname));
   fs.readFile(file, (err, data) => {
@@ -15,13 +17,12 @@ const server = http.createServer((req, res) => {
     res.end(err ? undefined : data);
   });
 });
-await new Promise((resolve) => server.listen(0, "127.0.0.1", resolve));
+if (!remote) await new Promise((resolve) => server.listen(0, "127.0.0.1", resolve));
 try {
-  const provider = await CesiumTerrainProvider.fromUrl(`http://127.0.0.1:${server.address().port}/`, {
-    requestVertexNormals: true,
-  });
+  const base = remote ? dir : `http://127.0.0.1:${server.address().port}/`;
+  const provider = await CesiumTerrainProvider.fromUrl(base, { requestVertexNormals: true });
   const scheme = provider.tilingScheme;
-  const layer = JSON.parse(fs.readFileSync(path.join(dir, "layer.json"), "utf8"));
+  const layer = await (await fetch(`${base}layer.json`)).json();
   const deepest = new Map();
   for (let z = 0; z <= layer.maxzoom; z++) {
     for (const range of layer.available[z]) {
@@ -60,5 +61,5 @@ try {
   }
   console.log(JSON.stringify({ sides, gap }));
 } finally {
-  server.close();
+  if (!remote) server.close();
 }

@@ -16,8 +16,15 @@ pub(crate) struct ServeArgs {
 
 impl clap::FromArgMatches for ServeArgs {
     fn from_arg_matches(matches: &clap::ArgMatches) -> Result<Self, clap::Error> {
-        let given =
-            SETTINGS.iter().filter_map(|s| Some((s, matches.get_one::<String>(s.flag?)?.clone()))).collect();
+        // A list's flag given more than once is the list its variable writes: `--dataset a=x
+        // --dataset b=y` is `MESHFIT_DATASET=a=x,b=y`.
+        let given = SETTINGS
+            .iter()
+            .filter_map(|s| {
+                let values: Vec<&String> = matches.get_many::<String>(s.flag?)?.collect();
+                Some((s, values.iter().map(|v| v.as_str()).collect::<Vec<_>>().join(",")))
+            })
+            .collect();
         Ok(Self { given })
     }
 
@@ -35,7 +42,8 @@ impl clap::Args for ServeArgs {
     fn augment_args(command: clap::Command) -> clap::Command {
         SETTINGS.iter().fold(command, |command, s| match s.flag {
             Some(flag) => {
-                command.arg(clap::Arg::new(flag).long(flag).value_name(s.value_name).help(s.flag_help()))
+                let arg = clap::Arg::new(flag).long(flag).value_name(s.value_name).help(s.flag_help());
+                command.arg(if s.is_list() { arg.action(clap::ArgAction::Append) } else { arg })
             }
             None => command,
         })

@@ -4,7 +4,7 @@
 use anyhow::{Context, Result, anyhow};
 use clap::Args;
 use meshfit::source::{GridHints, decode_grid};
-use meshfit::tiles::{Dem, Pyramid, TileId};
+use meshfit::tiles::{Dem, Pyramid, TileId, Wanted};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -77,7 +77,7 @@ pub(crate) fn tiles(args: &TilesArgs) -> Result<()> {
 
 fn write_tile(pyramid: &Pyramid<'_>, tile: TileId, out: &Path) -> Result<()> {
     let bytes = pyramid
-        .tile(tile)
+        .tile(tile, Wanted::ALL)
         .ok_or_else(|| anyhow!("tile {}/{}/{} is not in the pyramid", tile.z, tile.x, tile.y))?;
     let dir = out.join(tile.z.to_string()).join(tile.x.to_string());
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;

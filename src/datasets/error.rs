@@ -1,0 +1,40 @@
+//! Why a dataset or a tile cannot be had.
+
+use crate::jobs::OverBudget;
+use crate::source::GridFileError;
+use crate::tiles::DemError;
+
+/// Why a dataset cannot be added, found or removed, or a tile made.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DatasetError {
+    /// The file is not a grid file that decodes.
+    #[error("the DEM file: {0}")]
+    File(#[from] GridFileError),
+    /// A grid, but not a DEM that tiles can be made of.
+    #[error("{0}")]
+    Dem(#[from] DemError),
+    /// No dataset has this id.
+    #[error("no dataset `{0}`; upload a GeoTIFF with POST /v1/datasets (curl -F grid=@dem.tif)")]
+    NotFound(String),
+    /// The dataset has no such tile.
+    #[error("{0}")]
+    NoTile(String),
+    /// A dataset the settings name cannot be deleted through the API.
+    #[error("dataset `{0}` is a file named in this server's settings (MESHFIT_DATASET); it is removed there")]
+    Configured(String),
+    /// Uploaded datasets would hold more than `MESHFIT_DATASET_BYTES`.
+    #[error(
+        "this DEM takes {needed} bytes decoded and uploaded datasets may hold {limit} (MESHFIT_DATASET_BYTES), of which {held} are held: delete a dataset first"
+    )]
+    Full {
+        /// Bytes the DEM takes decoded.
+        needed: u64,
+        /// Bytes uploaded datasets hold now.
+        held: u64,
+        /// The limit.
+        limit: u64,
+    },
+    /// The memory budget has no room for the DEM, or a tile.
+    #[error("the memory budget has {} bytes free, and {} are needed", .0.available, .0.needed)]
+    OverBudget(OverBudget),
+}

@@ -1,0 +1,235 @@
+//! [`Datasets`]: the DEMs this server serves tiles of, by id, and the cache of tiles made.
+
+use super::dataset::{Dataset, Origin, digest};
+use super::error::DatasetError;
+use crate::jobs::{Budget, Charge, GRID_BYTES_PER_POINT};
+use crate::source::{GridHints, decode_grid};
+use crate::tiles::{Dem, TileId, Wanted};
+use bytes::Bytes;
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::{Arc, PoisonError, RwLock};
+
+/// How datasets are kept and served: the server's settings for them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DatasetSettings {
+    /// Files served under a name from start-up (`MESHFIT_DATASET`).
+    pub files: Vec<(String, PathBuf)>,
+    /// Bytes uploaded datasets may hold decoded (`MESHFIT_DATASET_BYTES`).
+    pub max_bytes: u64,
+    /// Each tile within this fraction of its level's error (`MESHFIT_TILE_ERROR_FACTOR`).
+    pub error_factor: f64,
+    /// Memory for tiles made, gzipped (`MESHFIT_TILE_CACHE_BYTES`), charged to the budget.
+    pub tile_cache_bytes: u64,
+}
+
+impl Default for DatasetSettings {
+    fn default() -> Self {
+        Self { files: Vec::new(), max_bytes: 1 << 30, error_factor: 1.0, tile_cache_bytes: 256 << 20 }
+    }
+}
+
+/// A tile as cached: gzipped, with its share of the memory budget.
+struct Cached {
+    gzip: Bytes,
+    _charge: Charge,
+}
+
+/// A tile's cache key: the dataset's file (so a dataset deleted and uploaded again finds its
+/// tiles), the tile and its extensions.
+type Key = (String, TileId, Wanted);
+
+/// The datasets, shared by every handler.
+#[derive(Clone)]
+pub struct Datasets {
+    inner: Arc<Inner>,
+}
+
+struct Inner {
+    by_id: RwLock<BTreeMap<String, Arc<Dataset>>>,
+    tiles: moka::sync::Cache<Key, Arc<Cached>>,
+    budget: Arc<Budget>,
+    settings: DatasetSettings,
+}
+
+impl Datasets {
+    /// No datasets yet; the files of `settings` are read by [`Datasets::open_files`].
+    pub fn new(settings: DatasetSettings, budget: Arc<Budget>) -> Self {
+        let tiles = moka::sync::Cache::builder()
+            .max_capacity(settings.tile_cache_bytes)
+            .weigher(|_: &Key, tile: &Arc<Cached>| u32::try_from(tile.gzip.len()).unwrap_or(u32::MAX))
+            .support_invalidation_closures()
+            .build();
+        Self { inner: Arc::new(Inner { by_id: RwLock::default(), tiles, budget, settings }) }
+    }
+
+    /// Reads and decodes each file the settings name: blocking work, done once at start-up.
+    ///
+    /// # Errors
+    /// The first file that cannot be read or is not a DEM in EPSG:4326, or does not fit the
+    /// memory budget, named with its path.
+    pub fn open_files(&self) -> Result<(), String> {
+        for (name, path) in &self.inner.settings.files {
+            let at = || format!("MESHFIT_DATASET: {name}={}", path.display());
+            let bytes = std::fs::read(path).map_err(|e| format!("{}: cannot read it: {e}", at()))?;
+            let dem = dem(&bytes, usize::MAX).map_err(|e| format!("{}: {e}", at()))?;
+            let charge = self.charge(&dem).map_err(|e| format!("{}: {e}", at()))?;
+            let dataset = Dataset::new(
+                name.clone(),
+                Origin::File(path.clone()),
+                digest(&bytes),
+                bytes.len() as u64,
+                dem,
+                self.inner.settings.error_factor,
+                Some(charge),
+            );
+            self.write().insert(name.clone(), Arc::new(dataset));
+        }
+        Ok(())
+    }
+
+    /// Adds the DEM in `file` (a GeoTIFF in EPSG:4326 of at most `max_points` samples), or
+    /// finds it: its id is the file's hash. True when it is new. CPU work for a large file.
+    ///
+    /// # Errors
+    /// When the file does not decode, is not such a DEM, or does not fit the datasets' limit
+    /// or the memory budget.
+    pub fn upload(&self, file: &[u8], max_points: usize) -> Result<(Arc<Dataset>, bool), DatasetError> {
+        let id = digest(file);
+        if let Some(found) = self.get(&id) {
+            return Ok((found, false));
+        }
+        let dem = dem(file, max_points)?;
+        let needed = bytes_of(&dem);
+        let held: u64 = self.uploads().iter().map(|d| bytes_of(d.dem())).sum();
+        let limit = self.inner.settings.max_bytes;
+        if held.saturating_add(needed) > limit {
+            return Err(DatasetError::Full { needed, held, limit });
+        }
+        let charge = self.charge(&dem)?;
+        let error_factor = self.inner.settings.error_factor;
+        let dataset = Dataset::new(
+            id.clone(),
+            Origin::Upload,
+            id.clone(),
+            file.len() as u64,
+            dem,
+            error_factor,
+            Some(charge),
+        );
+        // Two uploads of one file at once: the first in is the dataset, the other's charge goes.
+        let mut by_id = self.write();
+        let entry = by_id.entry(id);
+        let created = matches!(entry, std::collections::btree_map::Entry::Vacant(_));
+        Ok((entry.or_insert_with(|| Arc::new(dataset)).clone(), created))
+    }
+
+    /// The dataset `id`.
+    pub fn get(&self, id: &str) -> Option<Arc<Dataset>> {
+        self.inner.by_id.read().unwrap_or_else(PoisonError::into_inner).get(id).cloned()
+    }
+
+    /// Every dataset, by id.
+    pub fn list(&self) -> Vec<Arc<Dataset>> {
+        self.inner.by_id.read().unwrap_or_else(PoisonError::into_inner).values().cloned().collect()
+    }
+
+    /// Removes the uploaded dataset `id` and its cached tiles.
+    ///
+    /// # Errors
+    /// When there is none, or it is a file the settings name.
+    pub fn remove(&self, id: &str) -> Result<(), DatasetError> {
+        let mut by_id = self.write();
+        match by_id.get(id).map(|d| d.origin()) {
+            None => return Err(DatasetError::NotFound(id.to_owned())),
+            Some(Origin::File(_)) => return Err(DatasetError::Configured(id.to_owned())),
+            Some(Origin::Upload) => {}
+        }
+        let removed = by_id.remove(id).expect("looked up under the same lock");
+        drop(by_id);
+        let digest = removed.digest().to_owned();
+        // Only fails when the cache was built without closures, which it is not.
+        let _ = self.inner.tiles.invalidate_entries_if(move |(d, _, _), _| *d == digest);
+        Ok(())
+    }
+
+    /// The cached gzip of `tile` of `dataset` with `wanted`, if it was made lately.
+    pub fn cached(&self, dataset: &Dataset, tile: TileId, wanted: Wanted) -> Option<Bytes> {
+        let key = (dataset.digest().to_owned(), tile, wanted);
+        self.inner.tiles.get(&key).map(|c| c.gzip.clone())
+    }
+
+    /// Makes `tile` of `dataset` with `wanted`, gzipped, and caches it if the memory budget
+    /// has room. CPU work: tens of milliseconds, more for a deep tile of a fine DEM.
+    ///
+    /// # Errors
+    /// [`DatasetError::NoTile`] when the dataset's pyramid has no such tile.
+    pub fn make(&self, dataset: &Dataset, tile: TileId, wanted: Wanted) -> Result<Bytes, DatasetError> {
+        let pyramid = dataset.pyramid();
+        let bytes =
+            pyramid.tile(tile, wanted).ok_or_else(|| DatasetError::NoTile(not_available(dataset, tile)))?;
+        let gzip = Bytes::from(gzip(&bytes));
+        if let Ok(charge) = self.inner.budget.charge(gzip.len() as u64) {
+            let key = (dataset.digest().to_owned(), tile, wanted);
+            self.inner.tiles.insert(key, Arc::new(Cached { gzip: gzip.clone(), _charge: charge }));
+        }
+        Ok(gzip)
+    }
+
+    /// Says why `tile` is not one `dataset` serves, or nothing when it is.
+    pub fn check(&self, dataset: &Dataset, tile: TileId) -> Result<(), DatasetError> {
+        let ([x0, x1], [y0, y1]) = dataset.pyramid().available(tile.z).unwrap_or(([1, 0], [1, 0]));
+        if (x0..=x1).contains(&tile.x) && (y0..=y1).contains(&tile.y) {
+            Ok(())
+        } else {
+            Err(DatasetError::NoTile(not_available(dataset, tile)))
+        }
+    }
+
+    fn uploads(&self) -> Vec<Arc<Dataset>> {
+        self.list().into_iter().filter(|d| *d.origin() == Origin::Upload).collect()
+    }
+
+    fn charge(&self, dem: &Dem) -> Result<Charge, DatasetError> {
+        self.inner.budget.charge(bytes_of(dem)).map_err(DatasetError::OverBudget)
+    }
+
+    fn write(&self) -> std::sync::RwLockWriteGuard<'_, BTreeMap<String, Arc<Dataset>>> {
+        self.inner.by_id.write().unwrap_or_else(PoisonError::into_inner)
+    }
+}
+
+/// The DEM in `file`, of at most `max_points` samples.
+fn dem(file: &[u8], max_points: usize) -> Result<Dem, DatasetError> {
+    Ok(Dem::new(decode_grid(file, &GridHints::default(), max_points)?)?)
+}
+
+/// The bytes a DEM's heights take decoded.
+fn bytes_of(dem: &Dem) -> u64 {
+    (dem.grid().nx() * dem.grid().ny()) as u64 * GRID_BYTES_PER_POINT
+}
+
+/// `bytes` gzipped, as a client that sends `Accept-Encoding: gzip` takes them.
+fn gzip(bytes: &[u8]) -> Vec<u8> {
+    let mut encoder =
+        flate2::write::GzEncoder::new(Vec::with_capacity(bytes.len() / 2), flate2::Compression::default());
+    encoder.write_all(bytes).expect("writing to a Vec");
+    encoder.finish().expect("writing to a Vec")
+}
+
+/// Why `tile` is not served, with the tiles its level has.
+fn not_available(dataset: &Dataset, tile: TileId) -> String {
+    let TileId { z, x, y } = tile;
+    match dataset.pyramid().available(z) {
+        Some(([x0, x1], [y0, y1])) => format!(
+            "tile {z}/{x}/{y} is not available: level {z} of dataset `{}` has x in {x0}..={x1} and y in {y0}..={y1}",
+            dataset.id()
+        ),
+        None => format!(
+            "tile {z}/{x}/{y} is not available: dataset `{}` has levels 0..={}",
+            dataset.id(),
+            dataset.max_level()
+        ),
+    }
+}
