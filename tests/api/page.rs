@@ -5,7 +5,7 @@
 //! makes a missing browser a failure. `UPDATE_SCREENSHOT=1` also writes the screenshot
 //! to docs/page.png, the one in the README.
 
-use crate::helpers::{TestApp, spawn_app, spawn_with};
+use crate::helpers::{TestApp, spawn_with};
 use fantoccini::{Client, ClientBuilder, Locator};
 use futures_util::FutureExt;
 use serde_json::{Value, json};
@@ -139,7 +139,8 @@ async fn screenshot(client: &Client, name: &str) -> Vec<u8> {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_page_runs_a_shared_address_draws_the_mesh_and_shows_the_apis_stats() {
     let Some((_driver, client)) = browser().await else { return };
-    let app = spawn_app().await;
+    // Grids as large as the example DEM, which the terrain tab uploads.
+    let app = spawn_with(crate::helpers::configured(|c| c.limits.max_grid_points = 1 << 20)).await;
     let mut keys = meshfit::config::ApiKeys::default();
     keys.insert(KEY);
     let keyed = spawn_with(crate::helpers::configured(|c| c.callers.api_keys = keys)).await;
@@ -149,6 +150,7 @@ async fn the_page_runs_a_shared_address_draws_the_mesh_and_shows_the_apis_stats(
         bad_expression(&app, &client).await;
         grid_file(&app, &client).await;
         boundary_value_problem(&app, &client).await;
+        terrain(&app, &client).await;
         api_key(&keyed, &client).await;
     })
     .catch_unwind()
@@ -365,6 +367,36 @@ async fn grid_file(app: &TestApp, client: &Client) {
     assert!(notice.text().await.unwrap().contains(&id), "the notice names the job");
     let (ink, _) = canvas_ink(client, "flat").await;
     assert!(ink > 100_000, "the shared job is drawn: {ink} pixels");
+}
+
+async fn terrain(app: &TestApp, client: &Client) {
+    client.goto(&app.url("/")).await.unwrap();
+    wait_until(client, "body[data-state=done]").await;
+    client.find(Locator::Id("tab-terrain")).await.unwrap().click().await.unwrap();
+    // A projected GeoTIFF is refused where the file is picked, naming its system.
+    let examples = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/grids");
+    let input = client.find(Locator::Id("dem-file")).await.unwrap();
+    input.send_keys(examples.join("dem.tif").to_str().unwrap()).await.unwrap();
+    client.find(Locator::Id("dem-upload")).await.unwrap().click().await.unwrap();
+    wait_until(client, "body[data-state=failed]").await;
+    let error = client.find(Locator::Css(r#".field-error[data-for="dem"]"#)).await.unwrap();
+    assert!(error.text().await.unwrap().contains("EPSG:"), "the problem is shown by the file input");
+    // A DEM in EPSG:4326 becomes a dataset: its layer's address and the lines to paste.
+    input.clear().await.unwrap();
+    input.send_keys(examples.join("dem-4326.tif").to_str().unwrap()).await.unwrap();
+    client.find(Locator::Id("dem-upload")).await.unwrap().click().await.unwrap();
+    wait_until(client, "body[data-state=done] #terrain-result:not([hidden])").await;
+    let listed: Value = app.get("/v1/datasets").await.json().await.unwrap();
+    let id = listed["datasets"][0]["id"].as_str().unwrap().to_owned();
+    let layer = app.url(&format!("/v1/tiles/{id}/layer.json"));
+    let link = client.find(Locator::Id("layer-url")).await.unwrap();
+    assert_eq!(link.attr("href").await.unwrap().as_deref(), Some(layer.as_str()));
+    let snippet = client.find(Locator::Id("cesium-snippet")).await.unwrap().text().await.unwrap();
+    assert!(snippet.contains(&format!("CesiumTerrainProvider.fromUrl(\"{layer}\"")), "{snippet}");
+    let curl = client.find(Locator::Id("terrain-curl")).await.unwrap().text().await.unwrap();
+    assert!(curl.contains("-F grid=@'dem-4326.tif'"), "{curl}");
+    let levels = client.find(Locator::Css("#dataset tr[data-stat=levels] td:last-child")).await.unwrap();
+    assert_eq!(levels.text().await.unwrap(), "0 to 14");
 }
 
 async fn boundary_value_problem(app: &TestApp, client: &Client) {

@@ -6,10 +6,10 @@ import { $, view } from "./state.js";
 // Shows tab `which` ("mesh" or "solve") and its form.
 export function showTab(which) {
   view.kind = which === "solve" ? "solution" : "mesh";
-  $("tab-mesh").setAttribute("aria-selected", String(which !== "solve"));
-  $("tab-solve").setAttribute("aria-selected", String(which === "solve"));
-  $("mesh-form").hidden = which === "solve";
-  $("solve-form").hidden = which !== "solve";
+  for (const tab of ["mesh", "solve", "terrain"]) {
+    $(`tab-${tab}`).setAttribute("aria-selected", String(which === tab));
+    $(`${tab}-form`).hidden = which !== tab;
+  }
 }
 
 // The mesh request the form describes; `bad` collects field errors found before sending.
@@ -96,7 +96,7 @@ export function showError(field, text) {
   const p = document.querySelector(`.field-error[data-for="${field}"]`) || $("general-error");
   p.textContent = text;
   const input = { function: $("function"), grid: $("grid-file"), problem: $("problem"),
-    max_vertices: $("max_vertices"), tolerance: $("tolerance"), domain: $("x0") }[field];
+    max_vertices: $("max_vertices"), tolerance: $("tolerance"), domain: $("x0"), dem: $("dem-file") }[field];
   if (input) input.classList.add("invalid");
   return input;
 }

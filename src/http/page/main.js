@@ -14,6 +14,7 @@ import { loadErrors } from "./downloads.js";
 import { frame, scheduleDraw, turn } from "./viewer.js";
 import { MAGNET, problemJson } from "./solutions.js";
 import { drawConvergence } from "./plots.js";
+import { uploadDem } from "./terrain.js";
 
 // Switches to tab `which` with an empty picture.
 function selectTab(which) {
@@ -137,6 +138,14 @@ function regionDrag() {
 function wire() {
   $("tab-mesh").addEventListener("click", () => selectTab("mesh"));
   $("tab-solve").addEventListener("click", () => selectTab("solve"));
+  $("tab-terrain").addEventListener("click", () => selectTab("terrain"));
+  $("terrain-form").addEventListener("submit", (e) => {
+    e.preventDefault();
+    clearErrors();
+    const file = $("dem-file").files[0];
+    if (!file) return showError("dem", "pick a GeoTIFF first");
+    uploadDem(file);
+  });
   for (const b of document.querySelectorAll(".view")) b.addEventListener("click", () => selectView(b.dataset.view));
   $("mesh-form").addEventListener("submit", (e) => {
     e.preventDefault();
