@@ -222,6 +222,11 @@ pub struct DatasetInfo {
     pub max_zoom: u8,
     /// Each tile of level z keeps within this times 77,067.34 m / 2^z of the DEM.
     pub error_factor: f64,
+    /// In the answer to an upload, with replicas: whether the file was kept in the store, so
+    /// that every replica serves it (false when larger than `MESHFIT_REDIS_MAX_BYTES`, or
+    /// when Redis did not answer: then only the replica it was sent to does).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub shared: Option<bool>,
     /// Where to find its resources.
     pub links: DatasetLinks,
 }

@@ -127,14 +127,17 @@ pub async fn serve(
     .await
     .map_err(std::io::Error::other)??;
     let mut jobs = jobs::Jobs::new(&config.pool, cache, metrics.clone());
+    let mut peers: Option<Arc<dyn jobs::peers::Peers>> = None;
     if let Some(url) = &config.redis.url {
         let cluster = cluster::Cluster::connect(url, config.redis.clone(), metrics.redis_errors.clone())
             .map_err(|e| std::io::Error::other(format!("MESHFIT_REDIS_URL: {e}")))?;
-        tracing::info!(replica = cluster.replica(), "sharing results and jobs through redis");
-        jobs = jobs.shared(Arc::new(cluster), config.limits);
+        tracing::info!(replica = cluster.replica(), "sharing results, jobs and datasets through redis");
+        let cluster: Arc<dyn jobs::peers::Peers> = Arc::new(cluster);
+        jobs = jobs.shared(cluster.clone(), config.limits);
+        peers = Some(cluster);
     }
     // The files the settings name are read once, before the first request.
-    let datasets = datasets::Datasets::new(config.datasets.clone(), jobs.budget().clone());
+    let datasets = datasets::Datasets::new(config.datasets.clone(), jobs.budget().clone(), peers);
     let opening = datasets.clone();
     tokio::task::spawn_blocking(move || opening.open_files())
         .await

@@ -1,11 +1,11 @@
 //! [`Cluster`]: the replica's handle on Redis, and its [`Peers`] implementation.
 
-use super::keys::{ACQUIRE, CONTROL, EVENTS, PENDING, POST, RELEASE, RENEW, key, result_key};
+use super::keys::{ACQUIRE, CONTROL, DROPPED, EVENTS, PENDING, POST, RELEASE, RENEW, key, result_key};
 use super::link::Inner;
 use super::listen;
 use crate::config::Redis;
 use crate::jobs::peers::{
-    Acquired, Asked, Control, Kept, Message, Peers, Posting, Result, Take, Unavailable,
+    Acquired, Asked, Control, Kept, Message, Peers, Posting, Result, Shelf, Take, Unavailable,
 };
 use redis::AsyncCommands;
 use redis::aio::ConnectionManager;
@@ -133,6 +133,31 @@ impl Peers for Cluster {
     async fn result(&self, id: &str, kept: Kept) -> Result<Option<Vec<u8>>> {
         let got = self.bulk()?.get(result_key(kept, id)).await;
         self.note(got)
+    }
+
+    async fn keep_file(&self, shelf: Shelf, id: &str, bytes: &[u8]) -> Result<bool> {
+        if bytes.len() as u64 > self.inner.settings.max_bytes {
+            return Ok(false);
+        }
+        let set = self.bulk()?.pset_ex::<_, _, ()>(key(shelf.name(), id), bytes, self.ttl_ms()).await;
+        self.note(set).map(|()| true)
+    }
+
+    async fn file(&self, shelf: Shelf, id: &str) -> Result<Option<Vec<u8>>> {
+        let ttl = redis::Expiry::PX(self.ttl_ms());
+        let got = self.bulk()?.get_ex(key(shelf.name(), id), ttl).await;
+        self.note(got)
+    }
+
+    async fn drop_file(&self, shelf: Shelf, id: &str) -> Result<()> {
+        let done = redis::pipe()
+            .del(key(shelf.name(), id))
+            .ignore()
+            .publish(DROPPED, listen::dropped(shelf, id))
+            .ignore()
+            .query_async::<()>(&mut self.conn()?)
+            .await;
+        self.note(done)
     }
 
     async fn keep_result(&self, id: &str, kept: Kept, bytes: &[u8]) -> Result<bool> {

@@ -6,6 +6,7 @@ use crate::jobs::peers::Kept;
 pub(super) const EVENTS: &str = "meshfit:events";
 pub(super) const CONTROL: &str = "meshfit:control";
 pub(super) const PENDING: &str = "meshfit:pending";
+pub(super) const DROPPED: &str = "meshfit:dropped";
 
 pub(super) fn key(kind: &str, id: &str) -> String {
     format!("meshfit:{kind}:{id}")

@@ -1,9 +1,9 @@
 //! The one subscription of a replica: postings and control messages from every replica, handed
 //! out through a broadcast channel; reconnects by itself.
 
-use super::keys::{CONTROL, EVENTS};
+use super::keys::{CONTROL, DROPPED, EVENTS};
 use super::link::Inner;
-use crate::jobs::peers::{Control, Message};
+use crate::jobs::peers::{Control, Message, Shelf};
 use futures_util::StreamExt;
 use std::sync::Weak;
 use std::time::Duration;
@@ -22,6 +22,11 @@ pub(super) fn control(id: &str, what: Control) -> String {
     format!("{verb} {id}")
 }
 
+/// The payload of a dropped file: its shelf, a space, its id.
+pub(super) fn dropped(shelf: Shelf, id: &str) -> String {
+    format!("{} {id}", shelf.name())
+}
+
 fn parse(channel: &str, payload: &str) -> Option<Message> {
     let (head, rest) = payload.split_once(' ')?;
     match channel {
@@ -34,6 +39,7 @@ fn parse(channel: &str, payload: &str) -> Option<Message> {
             };
             Some(Message::Control(rest.to_owned(), what))
         }
+        DROPPED => Some(Message::Dropped(Shelf::named(head)?, rest.to_owned())),
         _ => None,
     }
 }
@@ -45,7 +51,7 @@ pub(super) async fn run(client: redis::Client, inner: Weak<Inner>) {
     loop {
         let subscribed = async {
             let mut pubsub = client.get_async_pubsub().await?;
-            pubsub.subscribe(&[EVENTS, CONTROL]).await?;
+            pubsub.subscribe(&[EVENTS, CONTROL, DROPPED]).await?;
             Ok::<_, redis::RedisError>(pubsub)
         };
         let attempt = tokio::time::timeout(Duration::from_secs(2), subscribed).await;
@@ -98,6 +104,11 @@ mod tests {
             let Some(Message::Control(id, got)) = parse(CONTROL, &control("abc", what)) else { panic!() };
             assert_eq!((id.as_str(), got), ("abc", what));
         }
+        for shelf in [Shelf::Dataset, Shelf::Tile] {
+            let Some(Message::Dropped(got, id)) = parse(DROPPED, &dropped(shelf, "abc")) else { panic!() };
+            assert_eq!((got, id.as_str()), (shelf, "abc"));
+        }
+        assert!(parse(DROPPED, "shelf abc").is_none());
         assert!(parse(CONTROL, "explode abc").is_none());
         assert!(parse(EVENTS, "abc {not json").is_none());
         assert!(parse("other", &control("abc", Control::Cancel)).is_none());

@@ -13,9 +13,22 @@ pub enum DatasetError {
     /// A grid, but not a DEM that tiles can be made of.
     #[error("{0}")]
     Dem(#[from] DemError),
-    /// No dataset has this id.
-    #[error("no dataset `{0}`; upload a GeoTIFF with POST /v1/datasets (curl -F grid=@dem.tif)")]
-    NotFound(String),
+    /// No dataset has this id (on any replica, when `shared`).
+    #[error(
+        "no dataset `{id}`{}; upload a GeoTIFF with POST /v1/datasets (curl -F grid=@dem.tif)",
+        if *shared { " on any replica (an upload larger than MESHFIT_REDIS_MAX_BYTES stays on the replica it was sent to)" } else { "" }
+    )]
+    NotFound {
+        /// The id asked for.
+        id: String,
+        /// Whether replicas share datasets through a store, which was asked too.
+        shared: bool,
+    },
+    /// The dataset is not here, and the store replicas share does not answer.
+    #[error(
+        "dataset `{0}` is not known here, and Redis, through which replicas share datasets, does not answer"
+    )]
+    Unreachable(String),
     /// The dataset has no such tile.
     #[error("{0}")]
     NoTile(String),

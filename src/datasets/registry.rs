@@ -2,6 +2,7 @@
 
 use super::dataset::{Dataset, Origin, digest};
 use super::error::DatasetError;
+use crate::jobs::peers::{Message, Peers, Shelf};
 use crate::jobs::{Budget, Charge, GRID_BYTES_PER_POINT};
 use crate::source::{GridHints, decode_grid};
 use crate::tiles::{Dem, TileId, Wanted};
@@ -9,7 +10,8 @@ use bytes::Bytes;
 use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::PathBuf;
-use std::sync::{Arc, PoisonError, RwLock};
+use std::sync::{Arc, PoisonError, RwLock, Weak};
+use tokio::sync::{Semaphore, broadcast};
 
 /// How datasets are kept and served: the server's settings for them.
 #[derive(Debug, Clone, PartialEq)]
@@ -51,17 +53,41 @@ struct Inner {
     tiles: moka::sync::Cache<Key, Arc<Cached>>,
     budget: Arc<Budget>,
     settings: DatasetSettings,
+    /// The store other replicas share uploads and tiles through, if any.
+    peers: Option<Arc<dyn Peers>>,
+    /// Uploads decoded and tiles made at once: one fewer than the cores (at least one), so
+    /// that a map zoomed in on cold tiles cannot take every core from the async workers.
+    work: Arc<Semaphore>,
 }
 
 impl Datasets {
-    /// No datasets yet; the files of `settings` are read by [`Datasets::open_files`].
-    pub fn new(settings: DatasetSettings, budget: Arc<Budget>) -> Self {
+    /// No datasets yet; the files of `settings` are read by [`Datasets::open_files`]. With
+    /// `peers`, uploads and tiles are shared with the other replicas, and a dataset deleted on
+    /// any of them is dropped here too (so this needs a tokio runtime).
+    pub fn new(settings: DatasetSettings, budget: Arc<Budget>, peers: Option<Arc<dyn Peers>>) -> Self {
         let tiles = moka::sync::Cache::builder()
             .max_capacity(settings.tile_cache_bytes)
             .weigher(|_: &Key, tile: &Arc<Cached>| u32::try_from(tile.gzip.len()).unwrap_or(u32::MAX))
             .support_invalidation_closures()
             .build();
-        Self { inner: Arc::new(Inner { by_id: RwLock::default(), tiles, budget, settings }) }
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let work = Arc::new(Semaphore::new(cores.saturating_sub(1).max(1)));
+        let messages = peers.as_ref().map(|p| p.messages());
+        let inner = Arc::new(Inner { by_id: RwLock::default(), tiles, budget, settings, peers, work });
+        if let Some(messages) = messages {
+            tokio::spawn(forget_dropped(Arc::downgrade(&inner), messages));
+        }
+        Self { inner }
+    }
+
+    /// The store other replicas share datasets through, if any.
+    pub(super) fn peers(&self) -> Option<&Arc<dyn Peers>> {
+        self.inner.peers.as_ref()
+    }
+
+    /// The bound on uploads decoded and tiles made at once.
+    pub(super) fn work(&self) -> &Arc<Semaphore> {
+        &self.inner.work
     }
 
     /// Reads and decodes each file the settings name: blocking work, done once at start-up.
@@ -95,7 +121,11 @@ impl Datasets {
     /// # Errors
     /// When the file does not decode, is not such a DEM, or does not fit the datasets' limit
     /// or the memory budget.
-    pub fn upload(&self, file: &[u8], max_points: usize) -> Result<(Arc<Dataset>, bool), DatasetError> {
+    pub(super) fn upload(
+        &self,
+        file: &[u8],
+        max_points: usize,
+    ) -> Result<(Arc<Dataset>, bool), DatasetError> {
         let id = digest(file);
         if let Some(found) = self.get(&id) {
             return Ok((found, false));
@@ -135,14 +165,14 @@ impl Datasets {
         self.inner.by_id.read().unwrap_or_else(PoisonError::into_inner).values().cloned().collect()
     }
 
-    /// Removes the uploaded dataset `id` and its cached tiles.
+    /// Removes the uploaded dataset `id` and its cached tiles from this replica.
     ///
     /// # Errors
-    /// When there is none, or it is a file the settings name.
-    pub fn remove(&self, id: &str) -> Result<(), DatasetError> {
+    /// When there is none here, or it is a file the settings name.
+    pub(super) fn remove(&self, id: &str) -> Result<(), DatasetError> {
         let mut by_id = self.write();
         match by_id.get(id).map(|d| d.origin()) {
-            None => return Err(DatasetError::NotFound(id.to_owned())),
+            None => return Err(DatasetError::NotFound { id: id.to_owned(), shared: false }),
             Some(Origin::File(_)) => return Err(DatasetError::Configured(id.to_owned())),
             Some(Origin::Upload) => {}
         }
@@ -155,26 +185,36 @@ impl Datasets {
     }
 
     /// The cached gzip of `tile` of `dataset` with `wanted`, if it was made lately.
-    pub fn cached(&self, dataset: &Dataset, tile: TileId, wanted: Wanted) -> Option<Bytes> {
+    pub(super) fn cached(&self, dataset: &Dataset, tile: TileId, wanted: Wanted) -> Option<Bytes> {
         let key = (dataset.digest().to_owned(), tile, wanted);
         self.inner.tiles.get(&key).map(|c| c.gzip.clone())
     }
 
-    /// Makes `tile` of `dataset` with `wanted`, gzipped, and caches it if the memory budget
-    /// has room. CPU work: tens of milliseconds, more for a deep tile of a fine DEM.
+    /// Makes `tile` of `dataset` with `wanted`, gzipped, and caches it. CPU work: tens of
+    /// milliseconds, more for a deep tile of a fine DEM.
     ///
     /// # Errors
     /// [`DatasetError::NoTile`] when the dataset's pyramid has no such tile.
-    pub fn make(&self, dataset: &Dataset, tile: TileId, wanted: Wanted) -> Result<Bytes, DatasetError> {
+    pub(super) fn make(
+        &self,
+        dataset: &Dataset,
+        tile: TileId,
+        wanted: Wanted,
+    ) -> Result<Bytes, DatasetError> {
         let pyramid = dataset.pyramid();
         let bytes =
             pyramid.tile(tile, wanted).ok_or_else(|| DatasetError::NoTile(not_available(dataset, tile)))?;
         let gzip = Bytes::from(gzip(&bytes));
+        self.keep(dataset, tile, wanted, gzip.clone());
+        Ok(gzip)
+    }
+
+    /// Caches a tile's gzip, if the memory budget has room.
+    pub(super) fn keep(&self, dataset: &Dataset, tile: TileId, wanted: Wanted, gzip: Bytes) {
         if let Ok(charge) = self.inner.budget.charge(gzip.len() as u64) {
             let key = (dataset.digest().to_owned(), tile, wanted);
-            self.inner.tiles.insert(key, Arc::new(Cached { gzip: gzip.clone(), _charge: charge }));
+            self.inner.tiles.insert(key, Arc::new(Cached { gzip, _charge: charge }));
         }
-        Ok(gzip)
     }
 
     /// Says why `tile` is not one `dataset` serves, or nothing when it is.
@@ -197,6 +237,24 @@ impl Datasets {
 
     fn write(&self) -> std::sync::RwLockWriteGuard<'_, BTreeMap<String, Arc<Dataset>>> {
         self.inner.by_id.write().unwrap_or_else(PoisonError::into_inner)
+    }
+}
+
+/// Drops, on this replica, each dataset another replica deleted, until the datasets are gone.
+async fn forget_dropped(inner: Weak<Inner>, mut messages: broadcast::Receiver<Message>) {
+    loop {
+        let message = match messages.recv().await {
+            Ok(m) => m,
+            Err(broadcast::error::RecvError::Lagged(_)) => continue,
+            Err(broadcast::error::RecvError::Closed) => return,
+        };
+        let Some(inner) = inner.upgrade() else { return };
+        if let Message::Dropped(Shelf::Dataset, id) = message {
+            // Not here, or a file named in this replica's settings: nothing to drop.
+            if (Datasets { inner }).remove(&id).is_ok() {
+                tracing::info!(dataset = %id, "dataset deleted on another replica");
+            }
+        }
     }
 }
 

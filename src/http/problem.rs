@@ -91,7 +91,12 @@ pub enum ApiError {
 
 impl From<DatasetError> for ApiError {
     fn from(e: DatasetError) -> Self {
-        ApiError::Dataset(e)
+        match e {
+            // With their Retry-After.
+            DatasetError::Unreachable(_) => ApiError::Unreachable,
+            DatasetError::OverBudget(o) => ApiError::OverBudget(o.needed, o.available, 1),
+            e => ApiError::Dataset(e),
+        }
     }
 }
 
@@ -296,12 +301,13 @@ impl ApiError {
                 StatusCode::SERVICE_UNAVAILABLE,
                 "redis-unavailable",
                 "The job's replica cannot be reached",
-                "the job is not known here and may run on another replica, or runs on another replica, and Redis, through which replicas reach each other, does not answer now; retry shortly".into(),
+                "the job or dataset is not known here and may be on another replica (or the job runs on another replica), and Redis, through which replicas reach each other, does not answer now; retry shortly".into(),
             ),
             ApiError::Dataset(e) => match e {
                 DatasetError::File(file) => return ApiError::Spec(grid_error(file.clone())).parts(),
                 DatasetError::Dem(_) => (unprocessable, "invalid-dem", "Not a DEM on longitude and latitude", e.to_string()),
-                DatasetError::NotFound(_) | DatasetError::NoTile(_) => {
+                DatasetError::Unreachable(_) => return ApiError::Unreachable.parts(),
+                DatasetError::NotFound { .. } | DatasetError::NoTile(_) => {
                     (StatusCode::NOT_FOUND, "not-found", "Not found", e.to_string())
                 }
                 DatasetError::Configured(_) => {
@@ -311,7 +317,7 @@ impl ApiError {
                     ext.insert("limit".into(), json!({"name": "MESHFIT_DATASET_BYTES", "value": limit}));
                     (StatusCode::INSUFFICIENT_STORAGE, "datasets-full", "Datasets take their whole allowance", e.to_string())
                 }
-                // Answered as the budget's 503 by the handler, which knows when to retry.
+                // Made the variants above by `From`, which sets their Retry-After.
                 DatasetError::OverBudget(o) => return ApiError::OverBudget(o.needed, o.available, 1).parts(),
             },
             ApiError::Internal(_) => (

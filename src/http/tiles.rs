@@ -7,12 +7,11 @@ use super::negotiate::not_modified;
 use super::problem::ApiError;
 use super::state::AppState;
 use crate::api::{DatasetInfo, DatasetLinks, DatasetList};
-use crate::datasets::{Dataset, DatasetError, Origin};
+use crate::datasets::{Added, Dataset, DatasetError, Origin};
 use crate::tiles::{TileId, Wanted};
 use axum::extract::{Path, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, Uri, header};
 use axum::response::{IntoResponse, Response};
-use bytes::Bytes;
 use std::io::Read;
 use std::sync::Arc;
 
@@ -45,20 +44,13 @@ pub async fn datasets_create(
             });
         }
     };
-    let datasets = state.datasets.clone();
-    let max_points = state.limits.max_grid_points;
-    let _permit = state.parsers.acquire().await.map_err(|e| ApiError::Internal(e.to_string()))?;
-    let (dataset, created) = crate::cpu::spawn(move || datasets.upload(&file, max_points))
-        .await
-        .map_err(|e| ApiError::Internal(format!("reading the DEM panicked: {e}")))?
-        .map_err(|e| match e {
-            DatasetError::OverBudget(o) => {
-                ApiError::OverBudget(o.needed, o.available, state.jobs.retry_after())
-            }
-            e => e.into(),
-        })?;
-    tracing::info!(dataset = dataset.id(), created, "dataset uploaded");
-    let info = describe(&dataset);
+    let added = state.datasets.add(file, state.limits.max_grid_points).await.map_err(|e| match e {
+        DatasetError::OverBudget(o) => ApiError::OverBudget(o.needed, o.available, state.jobs.retry_after()),
+        e => e.into(),
+    })?;
+    let Added { dataset, created, shared } = added;
+    tracing::info!(dataset = dataset.id(), created, ?shared, "dataset uploaded");
+    let info = DatasetInfo { shared, ..describe(&dataset) };
     let location = HeaderValue::from_str(&info.links.this).expect("hex ids");
     let status = if created { StatusCode::CREATED } else { StatusCode::OK };
     Ok((status, [(header::LOCATION, location)], axum::Json(info)).into_response())
@@ -74,15 +66,15 @@ pub async fn datasets_show(
     State(state): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<axum::Json<DatasetInfo>, ApiError> {
-    Ok(axum::Json(describe(&*find(&state, &id)?)))
+    Ok(axum::Json(describe(&*find(&state, &id).await?)))
 }
 
-/// `DELETE /v1/datasets/{id}`: an uploaded dataset and its cached tiles.
+/// `DELETE /v1/datasets/{id}`: an uploaded dataset and its cached tiles, on every replica.
 pub async fn datasets_delete(
     State(state): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<StatusCode, ApiError> {
-    state.datasets.remove(&id)?;
+    state.datasets.delete(&id).await?;
     Ok(StatusCode::NO_CONTENT)
 }
 
@@ -92,7 +84,7 @@ pub async fn tiles_layer(
     Path(id): Path<String>,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    let dataset = find(&state, &id)?;
+    let dataset = find(&state, &id).await?;
     let tag = HeaderValue::from_str(&dataset.layer_etag()).expect("hex tags");
     let mut response = if not_modified(&headers, &tag) {
         StatusCode::NOT_MODIFIED.into_response()
@@ -113,7 +105,7 @@ pub async fn tiles_tile(
     uri: Uri,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    let dataset = find(&state, &id)?;
+    let dataset = find(&state, &id).await?;
     let tile = tile_id(&z, &x, &file)?;
     state.datasets.check(&dataset, tile)?;
     let wanted = extensions(&uri, &headers)?;
@@ -121,17 +113,14 @@ pub async fn tiles_tile(
     let mut response = if not_modified(&headers, &tag) {
         StatusCode::NOT_MODIFIED.into_response()
     } else {
-        let (gzip, hit) = match state.datasets.cached(&dataset, tile, wanted) {
-            Some(gzip) => (gzip, true),
-            None => (make(&state, dataset.clone(), tile, wanted).await?, false),
-        };
+        let (gzip, made) = state.datasets.tile(&dataset, tile, wanted).await?;
         let mut response = if takes_gzip(&headers) {
             ([(header::CONTENT_ENCODING, "gzip")], gzip).into_response()
         } else {
             gunzip(&gzip)?.into_response()
         };
         response.headers_mut().insert(header::CONTENT_TYPE, media_type(wanted));
-        response.headers_mut().insert("x-cache", HeaderValue::from_static(if hit { "hit" } else { "miss" }));
+        response.headers_mut().insert("x-cache", HeaderValue::from_static(made.name()));
         response
     };
     let h = response.headers_mut();
@@ -142,22 +131,8 @@ pub async fn tiles_tile(
     Ok(response)
 }
 
-/// Makes a tile on the blocking pool, as many at once as requests are parsed.
-async fn make(
-    state: &AppState,
-    dataset: Arc<Dataset>,
-    tile: TileId,
-    wanted: Wanted,
-) -> Result<Bytes, ApiError> {
-    let _permit = state.parsers.acquire().await.map_err(|e| ApiError::Internal(e.to_string()))?;
-    let datasets = state.datasets.clone();
-    Ok(crate::cpu::spawn(move || datasets.make(&dataset, tile, wanted))
-        .await
-        .map_err(|e| ApiError::Internal(format!("making a tile panicked: {e}")))??)
-}
-
-fn find(state: &AppState, id: &str) -> Result<Arc<Dataset>, ApiError> {
-    state.datasets.get(id).ok_or_else(|| DatasetError::NotFound(id.to_owned()).into())
+async fn find(state: &AppState, id: &str) -> Result<Arc<Dataset>, ApiError> {
+    Ok(state.datasets.find(id, state.limits.max_grid_points).await?)
 }
 
 /// The tile a path names: `{z}/{x}/{y}.terrain`, each a whole number.
@@ -269,6 +244,7 @@ fn describe(dataset: &Dataset) -> DatasetInfo {
         heights: dataset.heights(),
         max_zoom: dataset.max_level(),
         error_factor: dataset.error_factor(),
+        shared: None,
         links: DatasetLinks::of(dataset.id()),
     }
 }

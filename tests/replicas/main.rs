@@ -256,3 +256,65 @@ async fn replicas_keep_serving_while_redis_is_down_and_share_again_when_it_retur
     assert!(mesh(&a, &after).await.1 == mesh(&b, &after).await.1, "shared again");
     assert_eq!(b.metric(ENGINE_RUNS).await, 1.0, "B ran only the job of the outage");
 }
+
+/// The quick start's DEM in EPSG:4326, as a multipart upload.
+fn dem_upload() -> reqwest::multipart::Form {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/grids/dem-4326.tif");
+    let part = reqwest::multipart::Part::bytes(std::fs::read(path).unwrap()).file_name("dem-4326.tif");
+    reqwest::multipart::Form::new().part("grid", part)
+}
+
+#[tokio::test]
+async fn a_dataset_uploaded_to_one_replica_is_served_and_deleted_by_another() {
+    let Some((_redis, a, b)) = pair(&[]).await else { return };
+    let created = a.client.post(a.url("/v1/datasets")).multipart(dem_upload()).send().await.unwrap();
+    assert_eq!(created.status(), 201);
+    let info: Value = created.json().await.unwrap();
+    assert_eq!(info["shared"], true, "kept in Redis for the other replicas");
+    let id = info["id"].as_str().unwrap().to_owned();
+    // B was never sent the file: it reads it from Redis and describes it alike.
+    let seen: Value = b.get(&format!("/v1/datasets/{id}")).await.json().await.unwrap();
+    assert_eq!(
+        (&seen["size"], &seen["max_zoom"], &seen["heights"]),
+        (&info["size"], &info["max_zoom"], &info["heights"])
+    );
+    let layer = format!("/v1/tiles/{id}/layer.json");
+    assert_eq!(a.get(&layer).await.bytes().await.unwrap(), b.get(&layer).await.bytes().await.unwrap());
+    // A tile made on A is read by B from Redis, byte for byte, with the same tag.
+    let path = format!("/v1/tiles/{id}/0/0/0.terrain?extensions=octvertexnormals-metadata");
+    let tile = |r: &Replica| r.client.get(r.url(&path)).header("accept-encoding", "gzip").send();
+    let made = tile(&a).await.unwrap();
+    assert_eq!(made.headers()["x-cache"], "miss");
+    let read = tile(&b).await.unwrap();
+    assert_eq!(read.headers()["x-cache"], "shared");
+    assert_eq!(read.headers()["etag"], made.headers()["etag"]);
+    assert_eq!(read.bytes().await.unwrap(), made.bytes().await.unwrap());
+    // Deleted on B, it is gone from A too (told by a message).
+    let deleted = b.client.delete(b.url(&format!("/v1/datasets/{id}"))).send().await.unwrap();
+    assert_eq!(deleted.status(), 204);
+    let mut gone = false;
+    for _ in 0..200 {
+        if a.get(&format!("/v1/datasets/{id}")).await.status() == 404 {
+            gone = true;
+            break;
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+    }
+    assert!(gone, "A still serves a dataset deleted on B");
+    assert_eq!(b.get(&format!("/v1/datasets/{id}")).await.status(), 404);
+}
+
+#[tokio::test]
+async fn a_dataset_larger_than_redis_keeps_is_served_by_its_replica_and_the_other_says_why_not() {
+    let Some((_redis, a, b)) = pair(&[("MESHFIT_REDIS_MAX_BYTES", "50000")]).await else { return };
+    let created = a.client.post(a.url("/v1/datasets")).multipart(dem_upload()).send().await.unwrap();
+    assert_eq!(created.status(), 201);
+    let info: Value = created.json().await.unwrap();
+    assert_eq!(info["shared"], false, "93 KB is more than Redis keeps here");
+    let id = info["id"].as_str().unwrap();
+    assert_eq!(a.get(&format!("/v1/tiles/{id}/layer.json")).await.status(), 200);
+    let missing = b.get(&format!("/v1/tiles/{id}/layer.json")).await;
+    assert_eq!(missing.status(), 404);
+    let problem: Value = missing.json().await.unwrap();
+    assert!(problem["detail"].as_str().unwrap().contains("MESHFIT_REDIS_MAX_BYTES"), "{problem}");
+}

@@ -266,7 +266,7 @@ pub(in crate::jobs) async fn dispatch(inner: Weak<Inner>, mut messages: broadcas
             Err(broadcast::error::RecvError::Closed) => return,
         };
         let Some(inner) = inner.upgrade() else { return };
-        let (Message::Posted(id, _) | Message::Control(id, _)) = &message;
+        let (Message::Posted(id, _) | Message::Control(id, _)) = &message else { continue };
         let Some(job) = inner.table.live(id) else { continue };
         match message {
             Message::Posted(..) if job.follows => job.wake(),

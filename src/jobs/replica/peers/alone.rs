@@ -4,7 +4,7 @@
 //! its tested "store away" paths, and nothing it does leaves the process.
 
 use super::store::{Peers, Result, Unavailable};
-use super::wire::{Acquired, Asked, Control, Kept, Message, Posting, Take};
+use super::wire::{Acquired, Asked, Control, Kept, Message, Posting, Shelf, Take};
 use std::time::Duration;
 use tokio::sync::broadcast;
 
@@ -105,6 +105,18 @@ impl Peers for Alone {
     }
 
     async fn keep_result(&self, _: &str, _: Kept, _: &[u8]) -> Result<bool> {
+        none()
+    }
+
+    async fn keep_file(&self, _: Shelf, _: &str, _: &[u8]) -> Result<bool> {
+        none()
+    }
+
+    async fn file(&self, _: Shelf, _: &str) -> Result<Option<Vec<u8>>> {
+        none()
+    }
+
+    async fn drop_file(&self, _: Shelf, _: &str) -> Result<()> {
         none()
     }
 }

@@ -7,7 +7,7 @@
 //! a round trip would, so that concurrent submissions interleave.
 
 use super::store::{Peers, Result, Unavailable};
-use super::wire::{Acquired, Asked, Control, Kept, Message, Posting, Take};
+use super::wire::{Acquired, Asked, Control, Kept, Message, Posting, Shelf, Take};
 use std::collections::{BTreeSet, HashMap};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -38,6 +38,7 @@ struct State {
     /// What was asked of a job's run, until when.
     marks: HashMap<(String, Control), Instant>,
     results: HashMap<(String, Kept), Vec<u8>>,
+    files: HashMap<(Shelf, String), Vec<u8>>,
 }
 
 impl State {
@@ -272,5 +273,23 @@ impl Peers for Replica {
         let mut state = self.reach(false).await?;
         state.results.insert((id.to_owned(), kept), bytes.to_vec());
         Ok(true)
+    }
+
+    async fn keep_file(&self, shelf: Shelf, id: &str, bytes: &[u8]) -> Result<bool> {
+        if bytes.len() > self.bus.max_bytes {
+            return Ok(false);
+        }
+        self.reach(false).await?.files.insert((shelf, id.to_owned()), bytes.to_vec());
+        Ok(true)
+    }
+
+    async fn file(&self, shelf: Shelf, id: &str) -> Result<Option<Vec<u8>>> {
+        Ok(self.reach(false).await?.files.get(&(shelf, id.to_owned())).cloned())
+    }
+
+    async fn drop_file(&self, shelf: Shelf, id: &str) -> Result<()> {
+        self.reach(false).await?.files.remove(&(shelf, id.to_owned()));
+        self.send(Message::Dropped(shelf, id.to_owned()));
+        Ok(())
     }
 }

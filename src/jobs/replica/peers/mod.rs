@@ -4,7 +4,8 @@
 //! The store holds, per job: a lease (which run may run it), the run's [`Posting`] (its state,
 //! as `GET /v1/jobs/{id}` shows it), its spec in canonical form (so that another replica can
 //! run it again), what followers asked of the run ([`Control`]), and finished results in
-//! compact form. Postings and controls are also sent as [`Message`]s to every replica.
+//! compact form. Postings and controls are also sent as [`Message`]s to every replica. Beside
+//! jobs it keeps files on [`Shelf`]s: uploaded datasets and the terrain tiles made of them.
 //!
 //! What a replica does with these (publish the jobs it runs, follow the ones others run, take
 //! over those whose replica died) is decided in `publish`, `follow` and `takeover`, against this
@@ -26,4 +27,4 @@ mod wire;
 
 pub(in crate::jobs) use alone::Alone;
 pub use store::{Peers, Result, Unavailable};
-pub use wire::{Acquired, Asked, Control, Kept, Message, Posting, Take};
+pub use wire::{Acquired, Asked, Control, Kept, Message, Posting, Shelf, Take};

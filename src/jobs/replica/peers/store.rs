@@ -1,7 +1,7 @@
 //! The store the replicas share, as the one trait [`Peers`] this replica's jobs talk to it
 //! through, and why an operation on it failed.
 
-use super::wire::{Acquired, Asked, Control, Kept, Message, Posting, Take};
+use super::wire::{Acquired, Asked, Control, Kept, Message, Posting, Shelf, Take};
 use std::time::Duration;
 use tokio::sync::broadcast;
 
@@ -104,4 +104,14 @@ pub trait Peers: Send + Sync + 'static {
     /// Stores result `id` in compact form, unless it is larger than the store takes; says
     /// whether it was stored.
     async fn keep_result(&self, id: &str, kept: Kept, bytes: &[u8]) -> Result<bool>;
+
+    /// Keeps file `id` on `shelf` for the store's time to live, unless it is larger than the
+    /// store takes; says whether it was kept.
+    async fn keep_file(&self, shelf: Shelf, id: &str, bytes: &[u8]) -> Result<bool>;
+
+    /// File `id` on `shelf`, if kept; reading it starts its time to live again.
+    async fn file(&self, shelf: Shelf, id: &str) -> Result<Option<Vec<u8>>>;
+
+    /// Drops file `id` from `shelf` and tells every replica ([`Message::Dropped`]).
+    async fn drop_file(&self, shelf: Shelf, id: &str) -> Result<()>;
 }

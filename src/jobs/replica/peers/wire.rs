@@ -86,4 +86,30 @@ pub enum Message {
     Posted(String, Box<Posting>),
     /// The run of job `id` is asked to act.
     Control(String, Control),
+    /// File `id` was dropped from a shelf: replicas holding a copy drop theirs.
+    Dropped(Shelf, String),
+}
+
+/// Files the store keeps beside jobs, which any replica may need.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Shelf {
+    /// An uploaded dataset's file, by the dataset's id.
+    Dataset,
+    /// A terrain tile, gzipped, by its entity tag.
+    Tile,
+}
+
+impl Shelf {
+    /// Its name in keys and messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Shelf::Dataset => "dataset",
+            Shelf::Tile => "tile",
+        }
+    }
+
+    /// The shelf named `name`.
+    pub fn named(name: &str) -> Option<Shelf> {
+        [Shelf::Dataset, Shelf::Tile].into_iter().find(|s| s.name() == name)
+    }
 }
