@@ -59,7 +59,7 @@
 //! api       ──▶ refine, result, solve, source
 //! spec      ──▶ api, geom, refine, solve, source
 //! jobs      ──▶ api, cpu, geom, metrics, refine, result, solve, source, spec
-//! datasets  ──▶ jobs, source, spec, tiles
+//! datasets  ──▶ cpu, jobs, source, spec, tiles
 //! cluster   ──▶ config, jobs
 //! config    ──▶ datasets, jobs, refine, spec
 //! telemetry ──▶ config

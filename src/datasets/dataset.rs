@@ -113,6 +113,7 @@ impl Dataset {
     fn tag(&self, parts: &[&[u8]]) -> String {
         let mut hash = Sha256::new();
         hash.update(crate::spec::ENGINE_VERSION.as_bytes());
+        hash.update(crate::tiles::TILES_VERSION.as_bytes());
         hash.update(self.digest.as_bytes());
         hash.update(self.error_factor.to_bits().to_le_bytes());
         parts.iter().for_each(|p| hash.update(p));

@@ -41,7 +41,8 @@ where
     let round = match surface.grid() {
         Some(grid) if params.criterion() == Criterion::Error && params.method() != Method::Recursive => {
             let mut run = Run::new(params, observer, floors);
-            let (stop, errors) = nodes::refine(&mut mesh, grid, &mut run, &mut sampler.evaluations, false);
+            let (stop, errors) =
+                nodes::refine(&mut mesh, grid, &mut run, &mut sampler.evaluations, false, None);
             run.finish(&mesh, stop, Some(errors))
         }
         _ => resume(&mut mesh, &mut sampler, params, floors, observer)?,

@@ -29,6 +29,15 @@ use crate::source::{BLOCK, Grid, Surface};
 /// No node: a triangle whose nodes F_n matches. (An `Option` would make a slot 24 bytes.)
 const NO_NODE: (u32, u32) = (u32::MAX, u32::MAX);
 
+/// Set in a slot's i: the node is a sample of the data the grid was resampled from
+/// ([`Estimates::probe`]), not a grid node. Columns stay far below it (2^31 would be 16 GiB
+/// a row).
+const SAMPLE: u32 = 1 << 31;
+
+/// How far inside the grid's sides, in node spacings, a sample must lie to be inserted: one
+/// nearer would go onto the side, which a tile never splits.
+const SAMPLE_CLEARANCE: f64 = 0.01;
+
 /// What is known of one triangle slot: e(T) and the node where it is reached.
 #[derive(Debug, Clone, Copy)]
 struct Slot {
@@ -41,6 +50,9 @@ struct Slot {
 /// Triangle errors and the queue over those above zero.
 struct Estimates<'g> {
     grid: &'g Grid,
+    /// The data `grid` was resampled from, if any (a DEM under a terrain tile's lattice): the
+    /// error is measured at its samples too.
+    samples: Option<&'g Grid>,
     /// Each vertex's position in grid units: a node's exact (i, j), so that F_n there is its
     /// value up to the plane's rounding, which the corner rule below takes out.
     at: Vec<Point>,
@@ -64,13 +76,39 @@ impl Estimates<'_> {
     /// nodes, and its error is 0.
     fn measure(&self, mesh: &Mesh, corners: [u32; 3]) -> Slot {
         let in_grid = corners.map(|v| self.at[v as usize]);
-        let worst = worst_node(self.grid, in_grid, corners.map(|v| mesh.vertex(v).z), 0.0);
+        let z = corners.map(|v| mesh.vertex(v).z);
+        let worst = worst_node(self.grid, in_grid, z, 0.0);
         let node = worst.node(self.grid);
         let is_corner =
             |(i, j): (u32, u32)| in_grid.iter().any(|p| p.x == f64::from(i) && p.y == f64::from(j));
-        match node.filter(|&node| !is_corner(node)) {
+        let slot = match node.filter(|&node| !is_corner(node)) {
             None => Slot { error: 0.0, node: NO_NODE },
             Some(node) => Slot { error: worst.error, node },
+        };
+        match self.samples {
+            Some(samples) => self.probe(mesh, samples, corners, z, slot),
+            None => slot,
+        }
+    }
+
+    /// `slot`, or, where a sample of the data the grid was resampled from is off by more, that
+    /// error and the sample itself, to be inserted with its own value: a grid that resamples
+    /// the data between its samples cannot match them at its nodes alone. A sample within
+    /// [`SAMPLE_CLEARANCE`] of the grid's sides is left to them (a tile never splits a side,
+    /// whose nodes keep it within the tolerance): the grid's worst node stands.
+    fn probe(&self, mesh: &Mesh, samples: &Grid, corners: [u32; 3], z: [f64; 3], slot: Slot) -> Slot {
+        let in_samples = corners.map(|v| {
+            let (u, w) = samples.to_grid(mesh.point(v));
+            Point::new(u, w)
+        });
+        let worst = worst_node(samples, in_samples, z, slot.error);
+        let Some((si, sj)) = worst.node(samples) else { return slot };
+        let (u, w) = self.grid.to_grid(samples.node(si as usize, sj as usize));
+        let clear = |k: f64, n: usize| k >= SAMPLE_CLEARANCE && k <= (n - 1) as f64 - SAMPLE_CLEARANCE;
+        if si < SAMPLE && clear(u, self.grid.nx()) && clear(w, self.grid.ny()) {
+            Slot { error: worst.error, node: (si | SAMPLE, sj) }
+        } else {
+            slot
         }
     }
 
@@ -92,7 +130,9 @@ impl Estimates<'_> {
 /// Refines `mesh`, whose vertices are all grid nodes (S₄, or S₄ with nodes on its sides), by
 /// inserting the worst node of the worst triangle until a stop rule fires. With
 /// `fixed_sides`, a node on the rectangle's sides is never inserted: a triangle whose worst
-/// node is there is retired. Returns why it stopped and every triangle's e(T), by index.
+/// node is there is retired. With `samples` (the data `grid` was resampled from), e(T) is
+/// also measured at their samples, and reached by the grid node nearest the worst one
+/// ([`Estimates::probe`]). Returns why it stopped and every triangle's e(T), by index.
 /// `evaluations` counts the node values taken as vertices (a node is read, not evaluated,
 /// but it is F's value there).
 pub(super) fn refine<O: Observer>(
@@ -101,6 +141,7 @@ pub(super) fn refine<O: Observer>(
     run: &mut Run<'_, O>,
     evaluations: &mut u64,
     fixed_sides: bool,
+    samples: Option<&Grid>,
 ) -> (StopReason, Vec<f64>) {
     run.observer.on_nodes();
     // Sized for the budget (capped for huge ones), so the run does not copy them as they grow.
@@ -116,6 +157,7 @@ pub(super) fn refine<O: Observer>(
     let on_side = |(i, j): (usize, usize)| i == 0 || j == 0 || i == last_i || j == last_j;
     let mut estimates = Estimates {
         grid,
+        samples,
         at,
         queue: WorstTriangleQueue::with_capacity(2 * room),
         slots: Vec::with_capacity(2 * room),
@@ -146,16 +188,23 @@ pub(super) fn refine<O: Observer>(
                 let worst = estimates.queue.pop().expect("the queue's top");
                 let (i, j) = estimates.slots[worst.t as usize].node;
                 debug_assert_ne!((i, j), NO_NODE, "a queued triangle has a node");
-                let (i, j) = (i as usize, j as usize);
-                if fixed_sides && on_side((i, j)) {
-                    // Within rounding of the tolerance there, which its side was simplified to.
-                    run.retire();
-                    run.observer.retired(mesh.origin(3 * worst.t), mesh.dest(3 * worst.t));
-                    run.observer.stepped(None, *evaluations);
-                    continue;
+                if let Some(samples) = samples
+                    && i & SAMPLE != 0
+                {
+                    let (vertex, in_grid) = on_sample(grid, samples, (i & !SAMPLE) as usize, j as usize);
+                    (nearest_edge(mesh, worst.t, vertex.point()), (vertex, in_grid))
+                } else {
+                    let (i, j) = (i as usize, j as usize);
+                    if fixed_sides && on_side((i, j)) {
+                        // Within rounding of the tolerance there, which its side was simplified to.
+                        run.retire();
+                        run.observer.retired(mesh.origin(3 * worst.t), mesh.dest(3 * worst.t));
+                        run.observer.stepped(None, *evaluations);
+                        continue;
+                    }
+                    let p = grid.node(i, j);
+                    (nearest_edge(mesh, worst.t, p), on_node(grid, i, j))
                 }
-                let p = grid.node(i, j);
-                (nearest_edge(mesh, worst.t, p), on_node(grid, i, j))
             }
         };
         run.observer.selected(mesh, mesh.origin(e), mesh.dest(e));
@@ -295,6 +344,13 @@ fn side_split(grid: &Grid, mesh: &Mesh, h: u32) -> (Vertex, Point) {
 fn on_node(grid: &Grid, i: usize, j: usize) -> (Vertex, Point) {
     let p = grid.node(i, j);
     (Vertex { x: p.x, y: p.y, z: grid.value(i, j) }, Point::new(i as f64, j as f64))
+}
+
+/// Sample (i, j) of `samples` as a vertex with its value, and its position in `grid`'s units.
+fn on_sample(grid: &Grid, samples: &Grid, i: usize, j: usize) -> (Vertex, Point) {
+    let p = samples.node(i, j);
+    let (u, w) = grid.to_grid(p);
+    (Vertex { x: p.x, y: p.y, z: samples.value(i, j) }, Point::new(u, w))
 }
 
 /// The midpoint of half-edge `e` as a vertex, F bilinear there, and its position in grid units.

@@ -34,7 +34,10 @@ pub struct Sides {
 }
 
 /// Refines `grid` by greedy node insertion (criterion `error`), starting from its corners and
-/// the nodes of `sides`, and never inserting another node on a side.
+/// the nodes of `sides`, and never inserting another node on a side. With `samples`, the data
+/// `grid` was resampled from (a DEM under a tile's lattice, in the same coordinates), the
+/// error is measured at their samples as well as at the grid's nodes, and reached by the grid
+/// node nearest the worst sample.
 ///
 /// The sides' nodes should keep each side within the run's tolerance of its values (see
 /// `tiles`, which simplifies each side's profile to it): a triangle whose worst node lies
@@ -47,6 +50,7 @@ pub struct Sides {
 pub fn refine_with_sides<O: Observer>(
     grid: &Grid,
     sides: &Sides,
+    samples: Option<&Grid>,
     params: &Params,
     observer: &mut O,
 ) -> Refinement {
@@ -125,7 +129,7 @@ pub fn refine_with_sides<O: Observer>(
             evaluations += 1;
         }
     }
-    let (stop, errors) = nodes::refine(&mut mesh, grid, &mut run, &mut evaluations, true);
+    let (stop, errors) = nodes::refine(&mut mesh, grid, &mut run, &mut evaluations, true, samples);
     let round = run.finish(&mesh, stop, Some(errors));
     finished(mesh, round, params, evaluations, start)
 }

@@ -11,7 +11,10 @@
 //! side's values alone), and the tile is refined from its corners and those side nodes by
 //! greedy node insertion, never adding a node on a side ([`refine_with_sides`]). Two tiles
 //! that share a side then share its vertices and heights, whichever was made first and on
-//! whichever machine, and every lattice node of a tile is within the tolerance of its mesh.
+//! whichever machine. Every lattice node of a tile is within the tolerance of its mesh, and
+//! so is every sample of the DEM inside it: the lattice resamples the DEM between its
+//! samples, so the refinement also measures the DEM's own samples and inserts the worst one
+//! itself where the lattice cannot reach it.
 
 use super::ellipsoid::SEMI_MAJOR_AXIS;
 use super::scheme::{TileId, degrees_per_tile};
@@ -48,7 +51,8 @@ pub struct TileSurface {
 
 /// The mesh of `tile` over `dem` (a grid whose domain is in degrees: x longitude, y latitude)
 /// within `tolerance` metres of the DEM at every node of the tile's lattice of `steps` + 1
-/// samples a side (`steps` a power of two).
+/// samples a side (`steps` a power of two), and at the DEM's samples inside the tile but
+/// within a hundredth of a step of its sides.
 ///
 /// # Panics
 /// When `steps` is not a power of two of at least 2, or `tolerance` is not finite and ≥ 0.
@@ -92,7 +96,8 @@ pub fn mesh_tile(dem: &Grid, tile: TileId, tolerance: f64, steps: usize) -> Tile
         .on_grid(true)
         .build()
         .expect("a tolerance ≥ 0 and a budget of the lattice's nodes");
-    let refinement = refine_with_sides(&lattice, &sides, &params, &mut ());
+    // The error is measured at the DEM's own samples too: the lattice resamples them.
+    let refinement = refine_with_sides(&lattice, &sides, Some(dem), &params, &mut ());
     let mesh = &refinement.mesh;
     TileSurface {
         vertices: mesh.vertices().iter().map(|v| [v.x, v.y, v.z]).collect(),

@@ -13,6 +13,11 @@
 //! - `quantized`: a tile's mesh as quantized-mesh-1.0, with the octvertexnormals and
 //!   metadata extensions.
 
+/// The version of the tiles' meshing, beside the engine's (`ENGINE_VERSION`): a tile's bytes
+/// are the same for the same DEM, level and factor within both, and its entity tag names
+/// both. Bumped when a better rule changes tiles.
+pub const TILES_VERSION: &str = "meshfit-tiles-2";
+
 mod dem;
 mod ellipsoid;
 mod mesher;

@@ -90,6 +90,33 @@ fn every_lattice_node_is_within_the_tolerance() {
     }
 }
 
+/// The largest |mesh − DEM| over the DEM's own samples inside `tile` (sides included).
+fn worst_at_samples(dem: &Grid, tile: TileId, surface: &TileSurface) -> f64 {
+    let b = tile.bounds();
+    let mut worst = 0.0f64;
+    for j in 0..dem.ny() {
+        for i in 0..dem.nx() {
+            let p = dem.node(i, j);
+            if (b.west..=b.east).contains(&p.x) && (b.south..=b.north).contains(&p.y) {
+                worst = worst.max((linear(surface, p) - dem.value(i, j)).abs());
+            }
+        }
+    }
+    worst
+}
+
+#[test]
+fn every_dem_sample_in_a_tile_is_within_the_tolerance() {
+    // The lattice (64 steps over 35 pixels) resamples the DEM: its nodes are not the DEM's.
+    let dem = dem(1.3);
+    let tile = TileId::new(10, 1086, 770).unwrap();
+    for tolerance in [0.5, 5.0, 40.0] {
+        let surface = mesh_tile(&dem, tile, tolerance, 64);
+        let worst = worst_at_samples(&dem, tile, &surface);
+        assert!(worst <= tolerance * (1.0 + 1e-9) + 1e-9, "{worst} > {tolerance}");
+    }
+}
+
 #[test]
 fn a_tolerance_of_zero_keeps_every_node_and_a_large_one_the_corners() {
     let dem = dem(0.4);
