@@ -145,7 +145,8 @@ pub async fn serve(
         .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidInput, e))?;
     // Indexes are rebuilt in milliseconds; a quarter of the result cache's budget holds plenty.
     let locator_bytes = config.cache.memory_bytes / 4;
-    let state = http::AppState::new(jobs.clone(), datasets, config.limits, config.body, locator_bytes);
+    let keyed = !config.callers.api_keys.is_empty();
+    let state = http::AppState::new(jobs.clone(), datasets, keyed, config.limits, config.body, locator_bytes);
     let app = http::router(state, &config);
     let on_signal = jobs.clone();
     let grace = config.shutdown_grace;

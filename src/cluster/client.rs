@@ -139,13 +139,22 @@ impl Peers for Cluster {
         if bytes.len() as u64 > self.inner.settings.max_bytes {
             return Ok(false);
         }
-        let set = self.bulk()?.pset_ex::<_, _, ()>(key(shelf.name(), id), bytes, self.ttl_ms()).await;
+        let key = key(shelf.name(), id);
+        let set = match shelf {
+            // An upload stays until it is deleted: a replica serving it from memory never reads
+            // it back, so no read would renew a time to live.
+            Shelf::Dataset => self.bulk()?.set::<_, _, ()>(key, bytes).await,
+            Shelf::Tile => self.bulk()?.pset_ex::<_, _, ()>(key, bytes, self.ttl_ms()).await,
+        };
         self.note(set).map(|()| true)
     }
 
     async fn file(&self, shelf: Shelf, id: &str) -> Result<Option<Vec<u8>>> {
-        let ttl = redis::Expiry::PX(self.ttl_ms());
-        let got = self.bulk()?.get_ex(key(shelf.name(), id), ttl).await;
+        let key = key(shelf.name(), id);
+        let got = match shelf {
+            Shelf::Dataset => self.bulk()?.get(key).await,
+            Shelf::Tile => self.bulk()?.get_ex(key, redis::Expiry::PX(self.ttl_ms())).await,
+        };
         self.note(got)
     }
 

@@ -1,5 +1,6 @@
 //! One dataset: a DEM held in memory, where it came from, and what a client is told of it.
 
+use super::error::DatasetError;
 use crate::jobs::Charge;
 use crate::tiles::{Dem, Pyramid, TileId, Wanted, max_level};
 use sha2::{Digest, Sha256};
@@ -33,6 +34,9 @@ pub struct Dataset {
 
 impl Dataset {
     /// A dataset of `dem`, decoded from a file of `file_bytes` whose SHA-256 is `digest`.
+    ///
+    /// # Errors
+    /// When its pyramid would have more tiles than a pyramid may (a wide DEM of fine pixels).
     pub(super) fn new(
         id: String,
         origin: Origin,
@@ -41,10 +45,11 @@ impl Dataset {
         dem: Dem,
         error_factor: f64,
         charge: Option<Charge>,
-    ) -> Self {
+    ) -> Result<Self, DatasetError> {
+        Pyramid::new(&dem, 0, Some(max_level(dem.pixel())), error_factor)?;
         let values = (0..dem.grid().ny()).flat_map(|j| dem.grid().row(j).iter().copied());
         let heights = values.fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], v| [lo.min(v), hi.max(v)]);
-        Self { id, origin, digest, file_bytes, dem, heights, error_factor, _charge: charge }
+        Ok(Self { id, origin, digest, file_bytes, dem, heights, error_factor, _charge: charge })
     }
 
     /// Its id: the hash of an uploaded file, or the name a setting gives a file.
@@ -85,7 +90,7 @@ impl Dataset {
     /// Its pyramid, from level 0 to where a tile's samples reach the DEM's pixel.
     pub fn pyramid(&self) -> Pyramid<'_> {
         Pyramid::new(&self.dem, 0, Some(self.max_level()), self.error_factor)
-            .expect("the default levels of a DEM on the globe, with a factor checked by the settings")
+            .expect("checked when the dataset was made")
     }
 
     /// The deepest level.
@@ -107,6 +112,12 @@ impl Dataset {
     /// The entity tag of its `layer.json`.
     pub fn layer_etag(&self) -> String {
         self.tag(&[b"layer.json"])
+    }
+
+    /// The version its tiles' URLs carry: it changes whenever their bytes may (another
+    /// engine, another file under the same name, another error factor).
+    pub fn version(&self) -> String {
+        self.tag(&[b"version"]).trim_matches('"')[..16].to_owned()
     }
 
     /// A strong tag of `parts` of this dataset's file, served by this engine.

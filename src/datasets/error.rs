@@ -2,7 +2,7 @@
 
 use crate::jobs::OverBudget;
 use crate::source::GridFileError;
-use crate::tiles::DemError;
+use crate::tiles::{DemError, PyramidError};
 
 /// Why a dataset cannot be added, found or removed, or a tile made.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -13,6 +13,9 @@ pub enum DatasetError {
     /// A grid, but not a DEM that tiles can be made of.
     #[error("{0}")]
     Dem(#[from] DemError),
+    /// A DEM whose pyramid would have too many tiles.
+    #[error("{0}")]
+    Pyramid(#[from] PyramidError),
     /// No dataset has this id (on any replica, when `shared`).
     #[error(
         "no dataset `{id}`{}; upload a GeoTIFF with POST /v1/datasets (curl -F grid=@dem.tif)",

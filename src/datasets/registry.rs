@@ -7,10 +7,10 @@ use crate::jobs::{Budget, Charge, GRID_BYTES_PER_POINT};
 use crate::source::{GridHints, decode_grid};
 use crate::tiles::{Dem, TileId, Wanted};
 use bytes::Bytes;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::io::Write;
 use std::path::PathBuf;
-use std::sync::{Arc, PoisonError, RwLock, Weak};
+use std::sync::{Arc, Mutex, PoisonError, RwLock, Weak};
 use tokio::sync::{Semaphore, broadcast};
 
 /// How datasets are kept and served: the server's settings for them.
@@ -38,8 +38,8 @@ struct Cached {
     _charge: Charge,
 }
 
-/// A tile's cache key: the dataset's file (so a dataset deleted and uploaded again finds its
-/// tiles), the tile and its extensions.
+/// A tile's cache key: the dataset's file (the same file named twice in the settings shares
+/// its tiles), the tile and its extensions.
 type Key = (String, TileId, Wanted);
 
 /// The datasets, shared by every handler.
@@ -58,6 +58,11 @@ struct Inner {
     /// Uploads decoded and tiles made at once: one fewer than the cores (at least one), so
     /// that a map zoomed in on cold tiles cannot take every core from the async workers.
     work: Arc<Semaphore>,
+    /// Held while a dataset is read from the store.
+    fetching: tokio::sync::Mutex<()>,
+    /// Uploads deleted on any replica since this one started (until uploaded again): a read
+    /// from the store that a deletion overtook does not bring one back.
+    dropped: Mutex<BTreeSet<String>>,
 }
 
 impl Datasets {
@@ -73,7 +78,16 @@ impl Datasets {
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
         let work = Arc::new(Semaphore::new(cores.saturating_sub(1).max(1)));
         let messages = peers.as_ref().map(|p| p.messages());
-        let inner = Arc::new(Inner { by_id: RwLock::default(), tiles, budget, settings, peers, work });
+        let inner = Arc::new(Inner {
+            by_id: RwLock::default(),
+            tiles,
+            budget,
+            settings,
+            peers,
+            work,
+            fetching: tokio::sync::Mutex::new(()),
+            dropped: Mutex::default(),
+        });
         if let Some(messages) = messages {
             tokio::spawn(forget_dropped(Arc::downgrade(&inner), messages));
         }
@@ -88,6 +102,31 @@ impl Datasets {
     /// The bound on uploads decoded and tiles made at once.
     pub(super) fn work(&self) -> &Arc<Semaphore> {
         &self.inner.work
+    }
+
+    /// The lock a read from the store holds.
+    pub(super) fn fetching(&self) -> &tokio::sync::Mutex<()> {
+        &self.inner.fetching
+    }
+
+    /// The memory budget.
+    pub(super) fn budget(&self) -> &Arc<Budget> {
+        &self.inner.budget
+    }
+
+    /// Notes that upload `id` was deleted.
+    pub(super) fn drop_here(&self, id: &str) {
+        self.inner.dropped.lock().unwrap_or_else(PoisonError::into_inner).insert(id.to_owned());
+    }
+
+    /// Notes that upload `id` was uploaded again.
+    pub(super) fn undrop(&self, id: &str) {
+        self.inner.dropped.lock().unwrap_or_else(PoisonError::into_inner).remove(id);
+    }
+
+    /// Whether upload `id` was deleted since it was last uploaded.
+    pub(super) fn is_dropped(&self, id: &str) -> bool {
+        self.inner.dropped.lock().unwrap_or_else(PoisonError::into_inner).contains(id)
     }
 
     /// Reads and decodes each file the settings name: blocking work, done once at start-up.
@@ -109,7 +148,8 @@ impl Datasets {
                 dem,
                 self.inner.settings.error_factor,
                 Some(charge),
-            );
+            )
+            .map_err(|e| format!("{}: {e}", at()))?;
             self.write().insert(name.clone(), Arc::new(dataset));
         }
         Ok(())
@@ -117,14 +157,17 @@ impl Datasets {
 
     /// Adds the DEM in `file` (a GeoTIFF in EPSG:4326 of at most `max_points` samples), or
     /// finds it: its id is the file's hash. True when it is new. CPU work for a large file.
+    /// `allowance` counts it against the uploads' allowance: a file another replica took is
+    /// served whatever this one's allowance, so that a read never answers 507.
     ///
     /// # Errors
-    /// When the file does not decode, is not such a DEM, or does not fit the datasets' limit
-    /// or the memory budget.
+    /// When the file does not decode, is not such a DEM (or has more tiles than a pyramid
+    /// may), or does not fit the datasets' allowance or the memory budget.
     pub(super) fn upload(
         &self,
         file: &[u8],
         max_points: usize,
+        allowance: bool,
     ) -> Result<(Arc<Dataset>, bool), DatasetError> {
         let id = digest(file);
         if let Some(found) = self.get(&id) {
@@ -132,11 +175,6 @@ impl Datasets {
         }
         let dem = dem(file, max_points)?;
         let needed = bytes_of(&dem);
-        let held: u64 = self.uploads().iter().map(|d| bytes_of(d.dem())).sum();
-        let limit = self.inner.settings.max_bytes;
-        if held.saturating_add(needed) > limit {
-            return Err(DatasetError::Full { needed, held, limit });
-        }
         let charge = self.charge(&dem)?;
         let error_factor = self.inner.settings.error_factor;
         let dataset = Dataset::new(
@@ -147,12 +185,22 @@ impl Datasets {
             dem,
             error_factor,
             Some(charge),
-        );
-        // Two uploads of one file at once: the first in is the dataset, the other's charge goes.
+        )?;
+        // Under the lock, so that uploads at once cannot pass the allowance together; of two
+        // uploads of one file, the first in is the dataset and the other's charge goes.
         let mut by_id = self.write();
-        let entry = by_id.entry(id);
-        let created = matches!(entry, std::collections::btree_map::Entry::Vacant(_));
-        Ok((entry.or_insert_with(|| Arc::new(dataset)).clone(), created))
+        if let Some(found) = by_id.get(&id) {
+            return Ok((found.clone(), false));
+        }
+        let held: u64 =
+            by_id.values().filter(|d| *d.origin() == Origin::Upload).map(|d| bytes_of(d.dem())).sum();
+        let limit = self.inner.settings.max_bytes;
+        if allowance && held.saturating_add(needed) > limit {
+            return Err(DatasetError::Full { needed, held, limit });
+        }
+        let dataset = Arc::new(dataset);
+        by_id.insert(id, dataset.clone());
+        Ok((dataset, true))
     }
 
     /// The dataset `id`.
@@ -227,10 +275,6 @@ impl Datasets {
         }
     }
 
-    fn uploads(&self) -> Vec<Arc<Dataset>> {
-        self.list().into_iter().filter(|d| *d.origin() == Origin::Upload).collect()
-    }
-
     fn charge(&self, dem: &Dem) -> Result<Charge, DatasetError> {
         self.inner.budget.charge(bytes_of(dem)).map_err(DatasetError::OverBudget)
     }
@@ -250,8 +294,10 @@ async fn forget_dropped(inner: Weak<Inner>, mut messages: broadcast::Receiver<Me
         };
         let Some(inner) = inner.upgrade() else { return };
         if let Message::Dropped(Shelf::Dataset, id) = message {
+            let datasets = Datasets { inner };
+            datasets.drop_here(&id);
             // Not here, or a file named in this replica's settings: nothing to drop.
-            if (Datasets { inner }).remove(&id).is_ok() {
+            if datasets.remove(&id).is_ok() {
                 tracing::info!(dataset = %id, "dataset deleted on another replica");
             }
         }

@@ -54,7 +54,8 @@ impl Datasets {
     /// When the file does not decode, is not a DEM in EPSG:4326, or does not fit the datasets'
     /// allowance or the memory budget.
     pub async fn add(&self, file: Bytes, max_points: usize) -> Result<Added, DatasetError> {
-        let (dataset, created) = self.decode(file.clone(), max_points).await?;
+        let (dataset, created) = self.decode(file.clone(), max_points, true).await?;
+        self.undrop(dataset.id());
         let shared = match self.peers() {
             Some(peers) => Some(peers.keep_file(Shelf::Dataset, dataset.id(), &file).await.unwrap_or(false)),
             None => None,
@@ -66,20 +67,40 @@ impl Datasets {
     ///
     /// # Errors
     /// When no replica has it, or it is not here and the store does not answer.
-    pub async fn find(&self, id: &str, max_points: usize) -> Result<Arc<Dataset>, DatasetError> {
+    pub async fn find(&self, id: &str) -> Result<Arc<Dataset>, DatasetError> {
         if let Some(found) = self.get(id) {
             return Ok(found);
         }
         let Some(peers) = self.peers() else {
             return Err(DatasetError::NotFound { id: id.to_owned(), shared: false });
         };
+        // One read from the store at a time: a map opening on a cold replica asks for the
+        // same dataset many times at once, and each after the first finds it here.
+        let _fetching = self.fetching().lock().await;
+        if let Some(found) = self.get(id) {
+            return Ok(found);
+        }
+        let not_found = || DatasetError::NotFound { id: id.to_owned(), shared: true };
+        if self.is_dropped(id) {
+            return Err(not_found());
+        }
         let kept =
             peers.file(Shelf::Dataset, id).await.map_err(|_| DatasetError::Unreachable(id.to_owned()))?;
-        let not_found = || DatasetError::NotFound { id: id.to_owned(), shared: true };
-        let file = kept.ok_or_else(not_found)?;
-        // Decoded under this replica's own limits; the file named by its hash or not at all.
-        let (dataset, _) = self.decode(Bytes::from(file), max_points).await?;
-        if dataset.id() != id {
+        let file = Bytes::from(kept.ok_or_else(not_found)?);
+        // The file is held while it is decoded: charged like a request body.
+        let _held = self.budget().charge(file.len() as u64).map_err(DatasetError::OverBudget)?;
+        // Another replica took it, within its limits: no limit of this one's refuses a read.
+        let (dataset, _) = self.decode(file, usize::MAX, false).await.map_err(|e| match e {
+            DatasetError::OverBudget(_) => e,
+            // A file some replica took, that this one cannot read: not one it serves.
+            e => {
+                tracing::warn!(dataset = id, error = %e, "a dataset in the store does not decode here");
+                not_found()
+            }
+        })?;
+        // Named by its hash, or not at all; and not if it was deleted while it was read.
+        if dataset.id() != id || self.is_dropped(id) {
+            let _ = self.remove(id);
             return Err(not_found());
         }
         tracing::info!(dataset = id, "dataset read from the store");
@@ -93,6 +114,9 @@ impl Datasets {
     /// answer.
     pub async fn delete(&self, id: &str) -> Result<(), DatasetError> {
         let here = self.remove(id);
+        if here.is_ok() {
+            self.drop_here(id);
+        }
         let Some(peers) = self.peers() else { return here };
         match here {
             Ok(()) => {}
@@ -144,11 +168,17 @@ impl Datasets {
         Ok((gzip, Made::Miss))
     }
 
-    /// Decodes `file` as a dataset on the blocking pool (or finds it), true when new.
-    async fn decode(&self, file: Bytes, max_points: usize) -> Result<(Arc<Dataset>, bool), DatasetError> {
+    /// Decodes `file` as a dataset on the blocking pool (or finds it), true when new;
+    /// `allowance` counts it against the uploads' allowance.
+    async fn decode(
+        &self,
+        file: Bytes,
+        max_points: usize,
+        allowance: bool,
+    ) -> Result<(Arc<Dataset>, bool), DatasetError> {
         let _permit = self.work().acquire().await.expect("the semaphore is never closed");
         let datasets = self.clone();
-        joined(crate::cpu::spawn(move || datasets.upload(&file, max_points)).await)
+        joined(crate::cpu::spawn(move || datasets.upload(&file, max_points, allowance)).await)
     }
 }
 

@@ -305,7 +305,9 @@ impl ApiError {
             ),
             ApiError::Dataset(e) => match e {
                 DatasetError::File(file) => return ApiError::Spec(grid_error(file.clone())).parts(),
-                DatasetError::Dem(_) => (unprocessable, "invalid-dem", "Not a DEM on longitude and latitude", e.to_string()),
+                DatasetError::Dem(_) | DatasetError::Pyramid(_) => {
+                    (unprocessable, "invalid-dem", "Not a DEM terrain tiles can be made of", e.to_string())
+                }
                 DatasetError::Unreachable(_) => return ApiError::Unreachable.parts(),
                 DatasetError::NotFound { .. } | DatasetError::NoTile(_) => {
                     (StatusCode::NOT_FOUND, "not-found", "Not found", e.to_string())

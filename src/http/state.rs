@@ -31,6 +31,8 @@ pub struct AppState {
     pub jobs: Jobs,
     /// The DEMs terrain tiles are made of, and the tiles made.
     pub datasets: Datasets,
+    /// Whether API keys guard the API: then no shared cache may keep its answers.
+    pub keyed: bool,
     /// Request limits.
     pub limits: Limits,
     /// Point-location indexes of results recently evaluated.
@@ -44,9 +46,16 @@ pub struct AppState {
 
 impl AppState {
     /// The state of a server whose point-location indexes take at most `locator_bytes`.
-    pub fn new(jobs: Jobs, datasets: Datasets, limits: Limits, body: BodyLimits, locator_bytes: u64) -> Self {
+    pub fn new(
+        jobs: Jobs,
+        datasets: Datasets,
+        keyed: bool,
+        limits: Limits,
+        body: BodyLimits,
+        locator_bytes: u64,
+    ) -> Self {
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
         let parsers = Arc::new(tokio::sync::Semaphore::new(cores.saturating_sub(1).max(1)));
-        Self { jobs, datasets, limits, locators: locators(locator_bytes), body, parsers }
+        Self { jobs, datasets, keyed, limits, locators: locators(locator_bytes), body, parsers }
     }
 }

@@ -16,9 +16,10 @@ use std::io::Read;
 use std::sync::Arc;
 
 /// How long a client may keep a tile of a dataset named in the settings: its file may be
-/// replaced at a restart. An uploaded dataset's tiles never change (its id is its content).
-const FILE_MAX_AGE: &str = "public, max-age=3600";
-const UPLOAD_MAX_AGE: &str = "public, max-age=31536000, immutable";
+/// replaced at a restart. An uploaded dataset's tiles never change (its id is its content,
+/// and the URL names the engine's version).
+const FILE_MAX_AGE: &str = "max-age=3600";
+const UPLOAD_MAX_AGE: &str = "max-age=31536000, immutable";
 
 /// The media type of a tile, as Cesium's servers name it.
 const QUANTIZED_MESH: &str = "application/vnd.quantized-mesh";
@@ -89,11 +90,12 @@ pub async fn tiles_layer(
     let mut response = if not_modified(&headers, &tag) {
         StatusCode::NOT_MODIFIED.into_response()
     } else {
-        axum::Json(dataset.pyramid().layer_json(dataset.id())).into_response()
+        axum::Json(dataset.pyramid().layer_json(dataset.id(), &dataset.version())).into_response()
     };
     let h = response.headers_mut();
     h.insert(header::ETAG, tag);
-    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("public, max-age=60"));
+    let scope = if state.keyed { "private, max-age=60" } else { "public, max-age=60" };
+    h.insert(header::CACHE_CONTROL, HeaderValue::from_static(scope));
     Ok(response)
 }
 
@@ -109,15 +111,19 @@ pub async fn tiles_tile(
     let tile = tile_id(&z, &x, &file)?;
     state.datasets.check(&dataset, tile)?;
     let wanted = extensions(&uri, &headers)?;
-    let tag = HeaderValue::from_str(&dataset.etag(tile, wanted)).expect("hex tags");
+    // A strong tag names the bytes sent: the gzip its own.
+    let gzip = takes_gzip(&headers);
+    let etag = dataset.etag(tile, wanted);
+    let etag = if gzip { format!("{}-gz\"", etag.trim_end_matches('"')) } else { etag };
+    let tag = HeaderValue::from_str(&etag).expect("hex tags");
     let mut response = if not_modified(&headers, &tag) {
         StatusCode::NOT_MODIFIED.into_response()
     } else {
-        let (gzip, made) = state.datasets.tile(&dataset, tile, wanted).await?;
-        let mut response = if takes_gzip(&headers) {
-            ([(header::CONTENT_ENCODING, "gzip")], gzip).into_response()
+        let (bytes, made) = state.datasets.tile(&dataset, tile, wanted).await?;
+        let mut response = if gzip {
+            ([(header::CONTENT_ENCODING, "gzip")], bytes).into_response()
         } else {
-            gunzip(&gzip)?.into_response()
+            gunzip(&bytes)?.into_response()
         };
         response.headers_mut().insert(header::CONTENT_TYPE, media_type(wanted));
         response.headers_mut().insert("x-cache", HeaderValue::from_static(made.name()));
@@ -125,14 +131,22 @@ pub async fn tiles_tile(
     };
     let h = response.headers_mut();
     h.insert(header::ETAG, tag);
-    let age = if *dataset.origin() == Origin::Upload { UPLOAD_MAX_AGE } else { FILE_MAX_AGE };
-    h.insert(header::CACHE_CONTROL, HeaderValue::from_static(age));
+    h.insert(header::CACHE_CONTROL, cache_control(&state, &dataset));
     h.insert(header::VARY, HeaderValue::from_static("accept, accept-encoding"));
     Ok(response)
 }
 
+/// How long a client may keep a tile: the URL names the version, so an upload's tiles never
+/// change under it; a file named in the settings may be replaced at a restart. Behind API
+/// keys, only the client's own cache may keep them.
+fn cache_control(state: &AppState, dataset: &Dataset) -> HeaderValue {
+    let age = if *dataset.origin() == Origin::Upload { UPLOAD_MAX_AGE } else { FILE_MAX_AGE };
+    let scope = if state.keyed { "private" } else { "public" };
+    HeaderValue::from_str(&format!("{scope}, {age}")).expect("ascii")
+}
+
 async fn find(state: &AppState, id: &str) -> Result<Arc<Dataset>, ApiError> {
-    Ok(state.datasets.find(id, state.limits.max_grid_points).await?)
+    Ok(state.datasets.find(id).await?)
 }
 
 /// The tile a path names: `{z}/{x}/{y}.terrain`, each a whole number.
@@ -208,13 +222,21 @@ fn media_type(wanted: Wanted) -> HeaderValue {
 /// Whether `Accept-Encoding` takes gzip (not refused with `q=0`).
 fn takes_gzip(headers: &HeaderMap) -> bool {
     let codings = headers.get_all(header::ACCEPT_ENCODING).iter().filter_map(|v| v.to_str().ok());
-    codings.flat_map(|v| v.split(',')).any(|coding| {
+    // The weight of `gzip` if named, else of `*`: an explicit `gzip;q=0` wins over `*`.
+    let (mut gzip, mut any) = (None, None);
+    for coding in codings.flat_map(|v| v.split(',')) {
         let mut parts = coding.split(';').map(str::trim);
         let name = parts.next().unwrap_or_default();
-        let refused = parts
-            .any(|p| p.replace(' ', "").strip_prefix("q=").and_then(|q| q.parse::<f64>().ok()) == Some(0.0));
-        (name.eq_ignore_ascii_case("gzip") || name == "*") && !refused
-    })
+        let q = parts
+            .find_map(|p| p.replace(' ', "").strip_prefix("q=").and_then(|q| q.parse::<f64>().ok()))
+            .unwrap_or(1.0);
+        if name.eq_ignore_ascii_case("gzip") {
+            gzip = Some(q);
+        } else if name == "*" {
+            any = Some(q);
+        }
+    }
+    gzip.or(any).is_some_and(|q| q > 0.0)
 }
 
 /// The tile for a client that does not take gzip.
@@ -278,6 +300,7 @@ mod tests {
         assert!(!takes_gzip(&headers(header::ACCEPT_ENCODING, "gzip;q=0, br")));
         assert!(!takes_gzip(&headers(header::ACCEPT_ENCODING, "gzip; q=0.000")));
         assert!(!takes_gzip(&headers(header::ACCEPT_ENCODING, "identity")));
+        assert!(!takes_gzip(&headers(header::ACCEPT_ENCODING, "gzip;q=0, *")));
         assert!(!takes_gzip(&HeaderMap::new()));
     }
 

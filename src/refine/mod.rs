@@ -73,6 +73,7 @@ pub(crate) use floors::Floors;
 pub use floors::{ABSOLUTE_FLOOR, AREA_FLOOR, LENGTH_FLOOR, RESOLUTION};
 pub use history::Sample;
 pub use measures::{ErrorEstimate, dense_max_error, estimate_error, variation};
+pub use nodes::SAMPLE_CLEARANCE;
 pub use observer::{Observer, PROGRESS_INTERVAL, Progress};
 pub use outcome::{RefineError, Refinement, Stats, StopReason};
 pub use params::{Criterion, MAX_MIN_ANGLE, MAX_VERTICES, Method, Params, ParamsBuilder, ParamsError};

@@ -35,8 +35,9 @@ const NO_NODE: (u32, u32) = (u32::MAX, u32::MAX);
 const SAMPLE: u32 = 1 << 31;
 
 /// How far inside the grid's sides, in node spacings, a sample must lie to be inserted: one
-/// nearer would go onto the side, which a tile never splits.
-const SAMPLE_CLEARANCE: f64 = 0.01;
+/// nearer would go onto the side, which a tile never splits. A caller passes only samples
+/// clear of them (see `tiles`), so that none of those it leaves out hides another.
+pub const SAMPLE_CLEARANCE: f64 = 0.01;
 
 /// What is known of one triangle slot: e(T) and the node where it is reached.
 #[derive(Debug, Clone, Copy)]

@@ -12,14 +12,15 @@
 //! greedy node insertion, never adding a node on a side ([`refine_with_sides`]). Two tiles
 //! that share a side then share its vertices and heights, whichever was made first and on
 //! whichever machine. Every lattice node of a tile is within the tolerance of its mesh, and
-//! so is every sample of the DEM inside it: the lattice resamples the DEM between its
-//! samples, so the refinement also measures the DEM's own samples and inserts the worst one
-//! itself where the lattice cannot reach it.
+//! so is every sample of the DEM inside it off its sides: the lattice resamples the DEM
+//! between its samples, so the refinement also measures the DEM's own samples and inserts
+//! the worst one itself where the lattice cannot reach it. A sample on a side is left to the
+//! side's nodes, chosen on the lattice's profile.
 
 use super::ellipsoid::SEMI_MAJOR_AXIS;
 use super::scheme::{TileId, degrees_per_tile};
 use crate::geom::{Point, Rect};
-use crate::refine::{Criterion, Method, Params, Sides, refine_with_sides};
+use crate::refine::{Criterion, Method, Params, SAMPLE_CLEARANCE, Sides, refine_with_sides};
 use crate::source::{Grid, Surface, node_coordinate};
 
 /// The height far from the DEM: the ellipsoid's surface.
@@ -51,8 +52,9 @@ pub struct TileSurface {
 
 /// The mesh of `tile` over `dem` (a grid whose domain is in degrees: x longitude, y latitude)
 /// within `tolerance` metres of the DEM at every node of the tile's lattice of `steps` + 1
-/// samples a side (`steps` a power of two), and at the DEM's samples inside the tile but
-/// within a hundredth of a step of its sides.
+/// samples a side (`steps` a power of two), and at every sample of the DEM inside the tile
+/// but those on or within two hundredths of a step of its sides, which are left to the
+/// sides' nodes.
 ///
 /// # Panics
 /// When `steps` is not a power of two of at least 2, or `tolerance` is not finite and ≥ 0.
@@ -96,13 +98,30 @@ pub fn mesh_tile(dem: &Grid, tile: TileId, tolerance: f64, steps: usize) -> Tile
         .on_grid(true)
         .build()
         .expect("a tolerance ≥ 0 and a budget of the lattice's nodes");
-    // The error is measured at the DEM's own samples too: the lattice resamples them.
-    let refinement = refine_with_sides(&lattice, &sides, Some(dem), &params, &mut ());
+    // The error is measured at the DEM's own samples too: the lattice resamples them. Those
+    // on or next to a side are left to it (its nodes hold it within the tolerance).
+    let clearance = 2.0 * SAMPLE_CLEARANCE * (rect.x1() - rect.x0()) / steps as f64;
+    let samples = samples_inside(dem, rect, clearance);
+    let refinement = refine_with_sides(&lattice, &sides, samples.as_ref(), &params, &mut ());
     let mesh = &refinement.mesh;
     TileSurface {
         vertices: mesh.vertices().iter().map(|v| [v.x, v.y, v.z]).collect(),
         triangles: mesh.triangles().collect(),
     }
+}
+
+/// The DEM's samples inside `rect` at least `clearance` from its sides, as a grid of their
+/// own; `None` when fewer than two a side are.
+fn samples_inside(dem: &Grid, rect: Rect, clearance: f64) -> Option<Grid> {
+    let (x0, x1, y0, y1) =
+        (rect.x0() + clearance, rect.x1() - clearance, rect.y0() + clearance, rect.y1() - clearance);
+    let columns: Vec<usize> = (0..dem.nx()).filter(|&i| (x0..=x1).contains(&dem.node(i, 0).x)).collect();
+    let rows: Vec<usize> = (0..dem.ny()).filter(|&j| (y0..=y1).contains(&dem.node(0, j).y)).collect();
+    let (&i0, &i1, &j0, &j1) = (columns.first()?, columns.last()?, rows.first()?, rows.last()?);
+    let values = (j0..=j1).flat_map(|j| dem.row(j)[i0..=i1].iter().copied()).collect();
+    let domain =
+        Rect::new(dem.node(i0, 0).x, dem.node(i1, 0).x, dem.node(0, j0).y, dem.node(0, j1).y).ok()?;
+    Some(Grid::new(i1 - i0 + 1, j1 - j0 + 1, values).ok()?.with_domain(domain))
 }
 
 /// Cells a side of `tile` is cut into so that the chord of a cell's diagonal sags at most

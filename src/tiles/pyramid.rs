@@ -188,7 +188,10 @@ impl<'a> Pyramid<'a> {
     /// its tiles' URL template under the same directory, scheme, levels and availability,
     /// both whole (`available`, which most clients read) and level by level from the tiles'
     /// metadata (`metadataAvailability`, which CesiumJS then reads instead).
-    pub fn layer_json(&self, name: &str) -> serde_json::Value {
+    ///
+    /// The tiles' URLs carry `version` (`?v=`): a client or a CDN that keeps tiles for long
+    /// never mixes those of two versions, whose neighbours would not fit.
+    pub fn layer_json(&self, name: &str, version: &str) -> serde_json::Value {
         let available: Vec<_> = (0..=self.max_level)
             .map(|z| match self.available(z) {
                 Some((x, y)) => json!([range(x, y)]),
@@ -199,9 +202,9 @@ impl<'a> Pyramid<'a> {
         json!({
             "tilejson": "2.1.0",
             "name": name,
-            "version": "1.0.0",
+            "version": version,
             "scheme": "tms",
-            "tiles": ["{z}/{x}/{y}.terrain"],
+            "tiles": ["{z}/{x}/{y}.terrain?v={version}"],
             "format": "quantized-mesh-1.0",
             "projection": "EPSG:4326",
             "bounds": [b.west, b.south, b.east, b.north],

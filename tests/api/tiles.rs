@@ -196,9 +196,18 @@ async fn tiles_are_cached_revalidated_by_tag_and_kept_long_by_clients() {
     assert_eq!(second.bytes().await.unwrap(), body);
     let revalidated = app.client.get(&url).header("if-none-match", etag.clone()).send().await.unwrap();
     assert_eq!(revalidated.status(), StatusCode::NOT_MODIFIED);
-    // Another set of extensions is another representation, with its own tag.
+    // Another set of extensions, or gzip, is another representation, with its own tag.
     let normals = app.client.get(format!("{url}?extensions=octvertexnormals")).send().await.unwrap();
     assert_ne!(normals.headers()["etag"], etag);
+    let zipped = app.client.get(&url).header("accept-encoding", "gzip").send().await.unwrap();
+    let zipped_tag = zipped.headers()["etag"].to_str().unwrap().to_owned();
+    assert_eq!(zipped_tag, format!("{}-gz\"", etag.to_str().unwrap().trim_end_matches('"')));
+    assert_eq!(gunzip(&zipped.bytes().await.unwrap()), body);
+    // The tiles' URLs name the version of their bytes (clients fill in `{version}` from the
+    // layer), so a year's caching never mixes two.
+    assert_eq!(layer["tiles"][0], "{z}/{x}/{y}.terrain?v={version}");
+    let version = layer["version"].as_str().unwrap();
+    assert!(version.len() == 16 && version.bytes().all(|b| b.is_ascii_hexdigit()), "{version}");
     app.shutdown().await;
 }
 

@@ -64,7 +64,7 @@ pub(crate) fn tiles(args: &TilesArgs) -> Result<()> {
     }
     // layer.json last, so that it never lists a tile that is not there.
     let name = path.file_stem().map_or_else(|| "terrain".into(), |s| s.to_string_lossy().into_owned());
-    let layer = serde_json::to_vec_pretty(&pyramid.layer_json(&name))?;
+    let layer = serde_json::to_vec_pretty(&pyramid.layer_json(&name, meshfit::tiles::TILES_VERSION))?;
     write(&args.out.join("layer.json"), &layer)?;
     eprintln!(
         "{} tiles of levels 0..={} in {}; serve the directory and point a terrain provider at it",

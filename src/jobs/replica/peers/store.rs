@@ -105,11 +105,11 @@ pub trait Peers: Send + Sync + 'static {
     /// whether it was stored.
     async fn keep_result(&self, id: &str, kept: Kept, bytes: &[u8]) -> Result<bool>;
 
-    /// Keeps file `id` on `shelf` for the store's time to live, unless it is larger than the
-    /// store takes; says whether it was kept.
+    /// Keeps file `id` on `shelf`, unless it is larger than the store takes; says whether it
+    /// was kept. A dataset is kept until it is dropped, a tile for the store's time to live.
     async fn keep_file(&self, shelf: Shelf, id: &str, bytes: &[u8]) -> Result<bool>;
 
-    /// File `id` on `shelf`, if kept; reading it starts its time to live again.
+    /// File `id` on `shelf`, if kept; reading a tile starts its time to live again.
     async fn file(&self, shelf: Shelf, id: &str) -> Result<Option<Vec<u8>>>;
 
     /// Drops file `id` from `shelf` and tells every replica ([`Message::Dropped`]).
