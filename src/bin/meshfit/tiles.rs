@@ -1,5 +1,6 @@
 //! `meshfit tiles`: a DEM's terrain pyramid for static hosting: `layer.json` and every
-//! `z/x/y.terrain` (quantized-mesh-1.0, uncompressed), the tiles shared out over every core.
+//! `z/x/y.terrain` (quantized-mesh-1.0, uncompressed), the tiles shared out over every core,
+//! with a progress bar on a terminal.
 
 use anyhow::{Context, Result, anyhow};
 use clap::Args;
@@ -45,6 +46,11 @@ pub(crate) fn tiles(args: &TilesArgs) -> Result<()> {
     let stop = AtomicBool::new(false);
     let failure = Mutex::new(None);
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    // Drawn on a terminal only (indicatif hides it on a pipe or a file, as in CI).
+    let progress = indicatif::ProgressBar::new(tiles.len() as u64).with_style(
+        indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} tiles, {per_sec}, {eta} left")
+            .expect("a valid template"),
+    );
     std::thread::scope(|scope| {
         for _ in 0..threads {
             scope.spawn(|| {
@@ -55,10 +61,12 @@ pub(crate) fn tiles(args: &TilesArgs) -> Result<()> {
                         stop.store(true, Ordering::Relaxed);
                         failure.lock().unwrap_or_else(std::sync::PoisonError::into_inner).get_or_insert(e);
                     }
+                    progress.inc(1);
                 }
             });
         }
     });
+    progress.finish_and_clear();
     if let Some(e) = failure.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner) {
         return Err(e);
     }
