@@ -216,8 +216,11 @@ pub struct DatasetInfo {
     pub bounds: [f64; 4],
     /// The finer sample spacing, in degrees.
     pub pixel_degrees: f64,
-    /// The lowest and highest height, in metres.
+    /// The lowest and highest height, in metres (filled samples included).
     pub heights: [f64; 2],
+    /// Samples that were the file's nodata value (`GDAL_NODATA`), each filled from its
+    /// neighbours for meshing; a tile that holds no other sample is not available.
+    pub nodata_filled: u64,
     /// The deepest level tiles are made at: where a tile's 65 samples a side reach the pixel.
     pub max_zoom: u8,
     /// Each tile of level z keeps within this times 77,067.34 m / 2^z of the DEM.

@@ -267,8 +267,7 @@ impl Datasets {
 
     /// Says why `tile` is not one `dataset` serves, or nothing when it is.
     pub fn check(&self, dataset: &Dataset, tile: TileId) -> Result<(), DatasetError> {
-        let ([x0, x1], [y0, y1]) = dataset.pyramid().available(tile.z).unwrap_or(([1, 0], [1, 0]));
-        if (x0..=x1).contains(&tile.x) && (y0..=y1).contains(&tile.y) {
+        if dataset.pyramid().has(tile) {
             Ok(())
         } else {
             Err(DatasetError::NoTile(not_available(dataset, tile)))
@@ -304,9 +303,10 @@ async fn forget_dropped(inner: Weak<Inner>, mut messages: broadcast::Receiver<Me
     }
 }
 
-/// The DEM in `file`, of at most `max_points` samples.
+/// The DEM in `file`, of at most `max_points` samples, its nodata samples filled.
 fn dem(file: &[u8], max_points: usize) -> Result<Dem, DatasetError> {
-    Ok(Dem::new(decode_grid(file, &GridHints::default(), max_points)?)?)
+    let hints = GridHints { fill_nodata: true, ..GridHints::default() };
+    Ok(Dem::new(decode_grid(file, &hints, max_points)?)?)
 }
 
 /// The bytes a DEM's heights take decoded.
@@ -326,6 +326,10 @@ fn gzip(bytes: &[u8]) -> Vec<u8> {
 fn not_available(dataset: &Dataset, tile: TileId) -> String {
     let TileId { z, x, y } = tile;
     match dataset.pyramid().available(z) {
+        Some(([x0, x1], [y0, y1])) if (x0..=x1).contains(&x) && (y0..=y1).contains(&y) => format!(
+            "tile {z}/{x}/{y} is not available: it holds only nodata samples of dataset `{}`",
+            dataset.id()
+        ),
         Some(([x0, x1], [y0, y1])) => format!(
             "tile {z}/{x}/{y} is not available: level {z} of dataset `{}` has x in {x0}..={x1} and y in {y0}..={y1}",
             dataset.id()

@@ -264,6 +264,7 @@ fn describe(dataset: &Dataset) -> DatasetInfo {
         bounds: [b.west, b.south, b.east, b.north],
         pixel_degrees: dem.pixel(),
         heights: dataset.heights(),
+        nodata_filled: dem.filled(),
         max_zoom: dataset.max_level(),
         error_factor: dataset.error_factor(),
         shared: None,

@@ -55,6 +55,7 @@
 mod assemble;
 mod decode;
 mod error;
+mod fill;
 mod hints;
 mod json;
 mod kind;

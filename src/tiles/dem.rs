@@ -9,6 +9,10 @@ use crate::source::{Crs, DecodedGrid, Grid};
 pub struct Dem {
     grid: Grid,
     bounds: Bounds,
+    /// With holes (nodata samples, filled): the data samples in [0, i) × [0, j), at
+    /// `j·(nx + 1) + i`, so that whether a tile holds data is four reads.
+    data: Option<Vec<u32>>,
+    filled: u64,
 }
 
 /// Why a grid cannot be tiled.
@@ -77,7 +81,56 @@ impl Dem {
             let Bounds { west, south, east, north } = bounds;
             return Err(DemError::OffTheGlobe { west, east, south, north });
         }
-        Ok(Self { grid: decoded.grid.with_domain(domain), bounds })
+        let (nx, ny) = (decoded.grid.nx(), decoded.grid.ny());
+        let filled = decoded.holes.as_ref().map_or(0, |h| h.iter().filter(|&&h| h).count() as u64);
+        let data = decoded.holes.map(|holes| {
+            let mut counts = vec![0u32; (nx + 1) * (ny + 1)];
+            for j in 0..ny {
+                let mut row = 0;
+                for i in 0..nx {
+                    row += u32::from(!holes[j * nx + i]);
+                    counts[(j + 1) * (nx + 1) + i + 1] = counts[j * (nx + 1) + i + 1] + row;
+                }
+            }
+            counts
+        });
+        Ok(Self { grid: decoded.grid.with_domain(domain), bounds, data, filled })
+    }
+
+    /// How many samples were nodata, filled from their neighbours.
+    pub fn filled(&self) -> u64 {
+        self.filled
+    }
+
+    /// Whether the DEM has holes (nodata samples, filled for meshing).
+    pub fn has_holes(&self) -> bool {
+        self.data.is_some()
+    }
+
+    /// Whether a sample of data (not a filled hole) lies in `bounds` (sides included); for a
+    /// DEM without holes, whether its bounds meet them.
+    pub fn has_data(&self, bounds: &Bounds) -> bool {
+        let b = self.bounds;
+        let meets = bounds.west <= b.east
+            && b.west <= bounds.east
+            && bounds.south <= b.north
+            && b.south <= bounds.north;
+        let Some(counts) = &self.data else { return meets };
+        if !meets {
+            return false;
+        }
+        let (nx, ny) = (self.grid.nx(), self.grid.ny());
+        let (u0, v0) = self.grid.to_grid(crate::geom::Point::new(bounds.west, bounds.south));
+        let (u1, v1) = self.grid.to_grid(crate::geom::Point::new(bounds.east, bounds.north));
+        // The samples inside: columns ceil(u0)..=floor(u1), rows likewise.
+        let first = |u: f64| u.ceil().max(0.0) as usize;
+        let last = |u: f64, n: usize| (u.floor().max(-1.0) + 1.0).min(n as f64) as usize;
+        let (i0, i1, j0, j1) = (first(u0), last(u1, nx), first(v0), last(v1, ny));
+        if i0 >= i1 || j0 >= j1 {
+            return false;
+        }
+        let at = |i: usize, j: usize| i64::from(counts[j * (nx + 1) + i]);
+        at(i1, j1) - at(i0, j1) - at(i1, j0) + at(i0, j0) > 0
     }
 
     /// The heights, on longitude (x) and latitude (y).

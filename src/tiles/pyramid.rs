@@ -111,8 +111,9 @@ impl<'a> Pyramid<'a> {
         self.max_level
     }
 
-    /// The tiles of level `z` that exist: those the DEM overlaps, and at level 0 both roots
-    /// (a client always asks for them), as inclusive column and row ranges.
+    /// The columns and rows of level `z` whose tiles the DEM's bounds meet, and at level 0
+    /// both roots, as inclusive ranges. A DEM with holes may leave some of them without data:
+    /// [`Pyramid::has`] says which tiles exist.
     pub fn available(&self, z: u8) -> Option<([u32; 2], [u32; 2])> {
         if z == 0 {
             return Some(([0, 1], [0, 0]));
@@ -123,6 +124,16 @@ impl<'a> Pyramid<'a> {
         covering(&self.dem.bounds(), z)
     }
 
+    /// Whether the pyramid has `tile`: both roots, and below them each tile within
+    /// [`Pyramid::available`] that holds a sample of data (a tile wholly nodata does not
+    /// exist).
+    pub fn has(&self, tile: TileId) -> bool {
+        let Some(([x0, x1], [y0, y1])) = self.available(tile.z) else { return false };
+        (x0..=x1).contains(&tile.x)
+            && (y0..=y1).contains(&tile.y)
+            && (tile.z == 0 || self.dem.has_data(&tile.bounds()))
+    }
+
     /// Every tile of the pyramid, level by level, in rows from the south.
     pub fn tiles(&self) -> Vec<TileId> {
         let levels = (0..=self.max_level).filter(|&z| z == 0 || z >= self.min_level);
@@ -131,14 +142,37 @@ impl<'a> Pyramid<'a> {
             .flat_map(|(z, ([x0, x1], [y0, y1]))| {
                 (y0..=y1).flat_map(move |y| (x0..=x1).map(move |x| TileId { z, x, y }))
             })
+            .filter(|&tile| self.has(tile))
             .collect()
+    }
+
+    /// The tiles of level `z` within columns `x` and rows `y` that exist, as tilejson ranges:
+    /// one for a DEM without holes, else the runs of each row.
+    fn ranges(&self, z: u8, [x0, x1]: [u32; 2], [y0, y1]: [u32; 2]) -> serde_json::Value {
+        if !self.dem.has_holes() || z == 0 {
+            return json!([range([x0, x1], [y0, y1])]);
+        }
+        let mut runs = Vec::new();
+        for y in y0..=y1 {
+            let mut start = None;
+            for x in x0..=x1 + 1 {
+                match (start, x <= x1 && self.has(TileId { z, x, y })) {
+                    (None, true) => start = Some(x),
+                    (Some(s), false) => {
+                        runs.push(range([s, x - 1], [y, y]));
+                        start = None;
+                    }
+                    _ => {}
+                }
+            }
+        }
+        serde_json::Value::Array(runs)
     }
 
     /// The mesh of `tile`, or `None` when the pyramid has no such tile. Beyond the DEM the
     /// height is 0 (`FILL`): a root tile the DEM does not reach follows the ellipsoid.
     pub fn surface(&self, tile: TileId) -> Option<TileSurface> {
-        let ([x0, x1], [y0, y1]) = self.available(tile.z)?;
-        if !(x0..=x1).contains(&tile.x) || !(y0..=y1).contains(&tile.y) {
+        if !self.has(tile) {
             return None;
         }
         let tolerance = level_error(tile.z) * self.error_factor;
@@ -169,7 +203,7 @@ impl<'a> Pyramid<'a> {
             let (x0, y0) = (tile.x << k, tile.y << k);
             let (x1, y1) = (x0 + (1 << k) - 1, y0 + (1 << k) - 1);
             if ax0 <= x1 && x0 <= ax1 && ay0 <= y1 && y0 <= ay1 {
-                json!([range([x0.max(ax0), x1.min(ax1)], [y0.max(ay0), y1.min(ay1)])])
+                self.ranges(tile.z + k, [x0.max(ax0), x1.min(ax1)], [y0.max(ay0), y1.min(ay1)])
             } else {
                 json!([])
             }
@@ -194,7 +228,7 @@ impl<'a> Pyramid<'a> {
     pub fn layer_json(&self, name: &str, version: &str) -> serde_json::Value {
         let available: Vec<_> = (0..=self.max_level)
             .map(|z| match self.available(z) {
-                Some((x, y)) => json!([range(x, y)]),
+                Some((x, y)) => self.ranges(z, x, y),
                 None => json!([]),
             })
             .collect();

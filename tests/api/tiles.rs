@@ -328,3 +328,73 @@ async fn cesium_loads_every_tile_of_an_uploaded_dataset_from_the_server_and_sees
     assert!(summary["gap"].as_f64().unwrap() <= range / 32767.0 + 1e-9, "{summary}");
     app.shutdown().await;
 }
+
+/// A GeoTIFF in EPSG:4326 of 1/256° pixels from 10°E, 46°N (its first row the north), whose
+/// western half is the nodata value −9999.
+fn half_nodata_geotiff() -> Vec<u8> {
+    use tiff::encoder::{TiffEncoder, colortype};
+    use tiff::tags::Tag;
+    let (nx, ny) = (512u32, 256u32);
+    let data: Vec<f32> = (0..ny)
+        .flat_map(|j| (0..nx).map(move |i| (i, j)))
+        .map(|(i, j)| {
+            if i < nx / 2 {
+                -9999.0
+            } else {
+                400.0 + 200.0 * (i as f32 * 0.03).sin() * (j as f32 * 0.05).cos()
+            }
+        })
+        .collect();
+    let mut bytes = Vec::new();
+    let mut encoder = TiffEncoder::new(std::io::Cursor::new(&mut bytes)).unwrap();
+    let mut image = encoder.new_image::<colortype::Gray32Float>(nx, ny).unwrap();
+    let pixel = 1.0 / 256.0;
+    image.encoder().write_tag(Tag::ModelPixelScaleTag, &[pixel, pixel, 0.0][..]).unwrap();
+    image.encoder().write_tag(Tag::ModelTiepointTag, &[0.0, 0.0, 0.0, 10.0, 46.0, 0.0][..]).unwrap();
+    let keys: [u16; 12] = [1, 1, 0, 2, 1024, 0, 1, 2, 2048, 0, 1, 4326];
+    image.encoder().write_tag(Tag::GeoKeyDirectoryTag, &keys[..]).unwrap();
+    image.encoder().write_tag(Tag::GdalNodata, "-9999").unwrap();
+    image.write_data(&data).unwrap();
+    bytes
+}
+
+#[tokio::test]
+async fn nodata_is_filled_for_meshing_and_a_tile_of_nodata_alone_is_not_available() {
+    let app = app(|_| {}).await;
+    let created = upload(&app, half_nodata_geotiff()).await;
+    assert_eq!(created.status(), StatusCode::CREATED);
+    let info: Value = created.json().await.unwrap();
+    assert_eq!(info["nodata_filled"], 256 * 256, "the western half");
+    // Filled from the data: no height near −9999.
+    assert!(info["heights"][0].as_f64().unwrap() > 100.0, "{info}");
+    let id = info["id"].as_str().unwrap().to_owned();
+    let layer: Value = app.get(&format!("/v1/tiles/{id}/layer.json")).await.json().await.unwrap();
+    // Level 10 tiles are 45/256° wide: columns of the DEM's western degree hold no data.
+    let level = &layer["available"][10];
+    let listed: Vec<(u64, u64)> = level
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|r| {
+            let n = |k: &str| r[k].as_u64().unwrap();
+            (n("startY")..=n("endY")).flat_map(move |y| (n("startX")..=n("endX")).map(move |x| (x, y)))
+        })
+        .collect();
+    let west_of_data = |x: u64| -180.0 + (x + 1) as f64 * 180.0 / 1024.0 < 11.0;
+    assert!(!listed.is_empty() && listed.iter().all(|&(x, _)| !west_of_data(x)), "{level}");
+    // A tile of the western half answers 404 saying why; its eastern neighbours decode.
+    let covering = |lon: f64| ((lon + 180.0) / (180.0 / 1024.0)).floor() as u64;
+    let y = listed[0].1;
+    let doc = problem(
+        app.get(&format!("/v1/tiles/{id}/10/{}/{y}.terrain", covering(10.2))).await,
+        StatusCode::NOT_FOUND,
+    )
+    .await;
+    assert!(doc["detail"].as_str().unwrap().contains("only nodata"), "{doc}");
+    for &(x, y) in &listed {
+        let bytes = tile(&app, &format!("/v1/tiles/{id}/10/{x}/{y}.terrain"), "").await;
+        let mesh = DecodedMesh::decode(&bytes).unwrap();
+        assert!(mesh.header.min_height > 100.0, "tile 10/{x}/{y} dips to {}", mesh.header.min_height);
+    }
+    app.shutdown().await;
+}

@@ -33,8 +33,8 @@ pub(crate) struct TilesArgs {
 pub(crate) fn tiles(args: &TilesArgs) -> Result<()> {
     let path = &args.dem;
     let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let decoded = decode_grid(&bytes, &GridHints::default(), usize::MAX)
-        .with_context(|| format!("{}", path.display()))?;
+    let hints = GridHints { fill_nodata: true, ..GridHints::default() };
+    let decoded = decode_grid(&bytes, &hints, usize::MAX).with_context(|| format!("{}", path.display()))?;
     drop(bytes);
     let dem = Dem::new(decoded).with_context(|| format!("{}", path.display()))?;
     let pyramid = Pyramid::new(&dem, args.min_zoom, args.max_zoom, args.error_factor)?;

@@ -118,7 +118,7 @@ pub(super) fn into_grid(
 }
 
 /// Reverses the order of the rows in place.
-pub(super) fn flip_rows(values: &mut [f64], shape: Shape) {
+pub(super) fn flip_rows<T>(values: &mut [T], shape: Shape) {
     let nx = shape.nx;
     for r in 0..shape.ny / 2 {
         let (top, bottom) = values.split_at_mut((shape.ny - 1 - r) * nx);

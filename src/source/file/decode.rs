@@ -20,6 +20,9 @@ pub struct DecodedGrid {
     /// The rectangle a GeoTIFF places the samples on, when it says so; apply it with
     /// [`Grid::with_domain`] unless the request names its own.
     pub domain: Option<Rect>,
+    /// Which samples were nodata and were filled (with [`GridHints::fill_nodata`]), in the
+    /// grid's order (row j = 0 first); `None` when none were.
+    pub holes: Option<Vec<bool>>,
     /// The coordinate reference system of `domain`, when a GeoTIFF's keys name one.
     pub crs: Option<Crs>,
 }
@@ -43,7 +46,7 @@ pub struct DecodedGrid {
 /// // Two rows of three f32 samples, the top row first.
 /// let samples = [4.0f32, 5.0, 6.0, 1.0, 2.0, 3.0];
 /// let bytes: Vec<u8> = samples.iter().flat_map(|v| v.to_le_bytes()).collect();
-/// let hints = GridHints { nx: Some(3), ny: Some(2), dtype: Some(RawType::F32), encoding: None };
+/// let hints = GridHints { nx: Some(3), ny: Some(2), dtype: Some(RawType::F32), ..GridHints::default() };
 /// let decoded = decode_grid(&bytes, &hints, 1 << 20).unwrap();
 /// assert_eq!(decoded.kind, GridFileKind::Raw);
 /// assert_eq!(decoded.grid.row(0), &[1.0, 2.0, 3.0]); // j = 0 is the bottom row
@@ -57,12 +60,12 @@ pub fn decode_grid(bytes: &[u8], hints: &GridHints, max_points: usize) -> Result
         let found = format!("a{} {kind} file", if kind == GridFileKind::Npy { "n" } else { "" });
         return Err(GridFileError::NotATile { encoding: encoding.name(), found });
     }
-    let (grid, domain, crs) = match kind {
-        GridFileKind::Npy => (npy::decode(bytes, max_points)?, None, None),
-        GridFileKind::Png => (png::decode(bytes, hints.encoding, max_points)?, None, None),
-        GridFileKind::Tiff => tiff::decode(bytes, max_points)?,
-        GridFileKind::Json => (json::decode(bytes, max_points)?, None, None),
-        GridFileKind::Raw => (decode_raw(bytes, hints, max_points)?, None, None),
+    let (grid, domain, crs, holes) = match kind {
+        GridFileKind::Tiff => tiff::decode(bytes, max_points, hints.fill_nodata)?,
+        GridFileKind::Npy => (npy::decode(bytes, max_points)?, None, None, None),
+        GridFileKind::Png => (png::decode(bytes, hints.encoding, max_points)?, None, None, None),
+        GridFileKind::Json => (json::decode(bytes, max_points)?, None, None, None),
+        GridFileKind::Raw => (decode_raw(bytes, hints, max_points)?, None, None, None),
     };
-    Ok(DecodedGrid { grid, kind, domain, crs })
+    Ok(DecodedGrid { grid, kind, domain, holes, crs })
 }

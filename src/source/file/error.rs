@@ -92,6 +92,9 @@ pub enum GridFileError {
         /// The nodata value.
         value: f64,
     },
+    /// A GeoTIFF whose every sample is its `GDAL_NODATA` value: nothing to fill from.
+    #[error("every sample is the nodata value {0}: the file holds no data")]
+    AllNoData(f64),
     /// A PNG pixel that is not fully opaque.
     #[error(
         "PNG pixel at index [{i}, {j}] (file row {row}, column {i}) is transparent; \

@@ -48,7 +48,7 @@ fn no_hints() -> GridHints {
 }
 
 fn raw_hints(nx: usize, ny: usize, dtype: RawType) -> GridHints {
-    GridHints { nx: Some(nx), ny: Some(ny), dtype: Some(dtype), encoding: None }
+    GridHints { nx: Some(nx), ny: Some(ny), dtype: Some(dtype), ..GridHints::default() }
 }
 
 /// A .npy file as numpy's `format.write_array` lays it out: version 1.0, the header padded with
@@ -839,7 +839,7 @@ fn hints_strategy() -> impl Strategy<Value = GridHints> {
         proptest::option::of(0usize..6),
         proptest::option::of(prop_oneof![Just(RawType::F32), Just(RawType::F64)]),
     )
-        .prop_map(|(nx, ny, dtype)| GridHints { nx, ny, dtype, encoding: None })
+        .prop_map(|(nx, ny, dtype)| GridHints { nx, ny, dtype, ..GridHints::default() })
 }
 
 /// Arbitrary bytes, bytes behind each format's magic, and valid files with bytes changed,

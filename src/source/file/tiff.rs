@@ -1,8 +1,9 @@
 //! TIFF and GeoTIFF rasters: one band of integer or float samples, the georeferenced domain
 //! and the `GDAL_NODATA` value.
 
-use super::assemble::{NoData, Rows, Shape, check_size, into_grid};
+use super::assemble::{NoData, Rows, Shape, check_size, flip_rows, into_grid};
 use super::error::{GridFileError, detail};
+use super::fill::fill_holes;
 use super::kind::GridFileKind;
 use crate::geom::Rect;
 use crate::source::Grid;
@@ -46,10 +47,12 @@ fn error(e: TiffError) -> GridFileError {
     }
 }
 
-pub(super) fn decode(
-    bytes: &[u8],
-    max_points: usize,
-) -> Result<(Grid, Option<Rect>, Option<Crs>), GridFileError> {
+/// A decoded GeoTIFF: its grid, domain and system, and which samples were nodata, filled.
+pub(super) type Decoded = (Grid, Option<Rect>, Option<Crs>, Option<Vec<bool>>);
+
+/// The grid, its domain and system, and with `fill` (nodata samples filled from their
+/// neighbours rather than refused) which samples were, in grid order.
+pub(super) fn decode(bytes: &[u8], max_points: usize, fill: bool) -> Result<Decoded, GridFileError> {
     // Reading the first directory touches only the header and the tags.
     let mut decoder = Decoder::new(Cursor::new(bytes)).map_err(error)?;
     check_colour(&mut decoder)?;
@@ -65,7 +68,7 @@ pub(super) fn decode(
     let mut limits = Limits::default();
     limits.decoding_buffer_size = max_points.saturating_mul(8);
     let mut decoder = decoder.with_limits(limits);
-    let values: Vec<f64> = match decoder.read_image().map_err(error)? {
+    let mut values: Vec<f64> = match decoder.read_image().map_err(error)? {
         DecodingResult::U8(v) => v.into_iter().map(f64::from).collect(),
         DecodingResult::U16(v) => v.into_iter().map(f64::from).collect(),
         DecodingResult::U32(v) => v.into_iter().map(f64::from).collect(),
@@ -82,8 +85,17 @@ pub(super) fn decode(
             detail: format!("decoded {} samples for {width} x {height} pixels", values.len()),
         });
     }
-    let grid = into_grid(KIND, shape, Rows::TopFirst, values, nodata)?;
-    Ok((grid, domain, crs))
+    let holes = match nodata {
+        Some(hole) if fill => {
+            let mut holes = fill_holes(&mut values, shape, |v| hole.matches(v))
+                .ok_or(GridFileError::AllNoData(hole.0))?;
+            flip_rows(&mut holes, shape);
+            holes.contains(&true).then_some(holes)
+        }
+        _ => None,
+    };
+    let grid = into_grid(KIND, shape, Rows::TopFirst, values, nodata.filter(|_| !fill))?;
+    Ok((grid, domain, crs, holes))
 }
 
 fn unsupported_type(found: &str) -> GridFileError {
