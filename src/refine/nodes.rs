@@ -15,6 +15,11 @@
 //! `exhausted`. An encroached side splits at its node nearest the midpoint, and a triangle
 //! below `min_angle` at the midpoint of its longest-edge path's end (see [`super::angles`]).
 //! `recursive` keeps midpoints: Rivara's bisection needs them for its bound on the angles.
+//!
+//! A terrain tile's grid is a lattice that resamples a DEM between the DEM's own samples; the
+//! DEM is its data. With those `samples`, a triangle that holds some is measured at them and
+//! its worst sample inserted itself (flagged [`SAMPLE`] in its slot), so the mesh is within
+//! the tolerance of the DEM where the lattice alone could not be.
 
 use super::angles::{self, Encroachment, Repair, Repairs, terminal_edge};
 use super::observer::Observer;
@@ -76,41 +81,43 @@ impl Estimates<'_> {
     /// (a few units in the last place of z at the other corners): F_n matches the triangle's
     /// nodes, and its error is 0.
     fn measure(&self, mesh: &Mesh, corners: [u32; 3]) -> Slot {
-        let in_grid = corners.map(|v| self.at[v as usize]);
         let z = corners.map(|v| mesh.vertex(v).z);
+        // With the data the grid resampled, a triangle over them is measured at them alone.
+        if let Some(slot) = self.samples.and_then(|samples| self.probe(mesh, samples, corners, z)) {
+            return slot;
+        }
+        let in_grid = corners.map(|v| self.at[v as usize]);
         let worst = worst_node(self.grid, in_grid, z, 0.0);
         let node = worst.node(self.grid);
         let is_corner =
             |(i, j): (u32, u32)| in_grid.iter().any(|p| p.x == f64::from(i) && p.y == f64::from(j));
-        let slot = match node.filter(|&node| !is_corner(node)) {
+        match node.filter(|&node| !is_corner(node)) {
             None => Slot { error: 0.0, node: NO_NODE },
             Some(node) => Slot { error: worst.error, node },
-        };
-        match self.samples {
-            Some(samples) => self.probe(mesh, samples, corners, z, slot),
-            None => slot,
         }
     }
 
-    /// `slot`, or, where a sample of the data the grid was resampled from is off by more, that
-    /// error and the sample itself, to be inserted with its own value: a grid that resamples
-    /// the data between its samples cannot match them at its nodes alone. A sample within
-    /// [`SAMPLE_CLEARANCE`] of the grid's sides is left to them (a tile never splits a side,
-    /// whose nodes keep it within the tolerance): the grid's worst node stands.
-    fn probe(&self, mesh: &Mesh, samples: &Grid, corners: [u32; 3], z: [f64; 3], slot: Slot) -> Slot {
+    /// For a triangle that holds samples of the data the grid was resampled from, e(T) is
+    /// their largest |value − F_n|, reached by inserting the worst sample itself with its own
+    /// value (a grid that resamples the data between its samples cannot match them at its
+    /// nodes); `None` for a triangle that holds none, which the grid's nodes measure. A
+    /// sample within [`SAMPLE_CLEARANCE`] of the grid's sides is never inserted (a tile never
+    /// splits a side): the caller passes only samples clear of them.
+    fn probe(&self, mesh: &Mesh, samples: &Grid, corners: [u32; 3], z: [f64; 3]) -> Option<Slot> {
         let in_samples = corners.map(|v| {
             let (u, w) = samples.to_grid(mesh.point(v));
             Point::new(u, w)
         });
-        let worst = worst_node(samples, in_samples, z, slot.error);
-        let Some((si, sj)) = worst.node(samples) else { return slot };
+        // Below any deviation: the run is found whenever the triangle holds a sample.
+        let worst = worst_node(samples, in_samples, z, -1.0);
+        let (si, sj) = worst.node(samples)?;
         let (u, w) = self.grid.to_grid(samples.node(si as usize, sj as usize));
         let clear = |k: f64, n: usize| k >= SAMPLE_CLEARANCE && k <= (n - 1) as f64 - SAMPLE_CLEARANCE;
-        if si < SAMPLE && clear(u, self.grid.nx()) && clear(w, self.grid.ny()) {
+        Some(if worst.error > 0.0 && si < SAMPLE && clear(u, self.grid.nx()) && clear(w, self.grid.ny()) {
             Slot { error: worst.error, node: (si | SAMPLE, sj) }
         } else {
-            slot
-        }
+            Slot { error: 0.0, node: NO_NODE }
+        })
     }
 
     /// Gives triangle `t` what [`Estimates::measure`] found, in its slot and the queue.
@@ -131,8 +138,8 @@ impl Estimates<'_> {
 /// Refines `mesh`, whose vertices are all grid nodes (S₄, or S₄ with nodes on its sides), by
 /// inserting the worst node of the worst triangle until a stop rule fires. With
 /// `fixed_sides`, a node on the rectangle's sides is never inserted: a triangle whose worst
-/// node is there is retired. With `samples` (the data `grid` was resampled from), e(T) is
-/// also measured at their samples, and reached by the grid node nearest the worst one
+/// node is there is retired. With `samples` (the data `grid` was resampled from), a triangle
+/// that holds some is measured at them instead, and the worst inserted itself
 /// ([`Estimates::probe`]). Returns why it stopped and every triangle's e(T), by index.
 /// `evaluations` counts the node values taken as vertices (a node is read, not evaluated,
 /// but it is F's value there).

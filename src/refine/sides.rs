@@ -35,9 +35,9 @@ pub struct Sides {
 
 /// Refines `grid` by greedy node insertion (criterion `error`), starting from its corners and
 /// the nodes of `sides`, and never inserting another node on a side. With `samples`, the data
-/// `grid` was resampled from (a DEM under a tile's lattice, in the same coordinates), the
-/// error is measured at their samples as well as at the grid's nodes, and reached by the grid
-/// node nearest the worst sample.
+/// `grid` was resampled from (a DEM under a tile's lattice, in the same coordinates, clear of
+/// its sides), a triangle that holds samples is measured at them rather than at the grid's
+/// nodes, and its worst sample is inserted itself.
 ///
 /// The sides' nodes should keep each side within the run's tolerance of its values (see
 /// `tiles`, which simplifies each side's profile to it): a triangle whose worst node lies

@@ -11,11 +11,11 @@
 //! side's values alone), and the tile is refined from its corners and those side nodes by
 //! greedy node insertion, never adding a node on a side ([`refine_with_sides`]). Two tiles
 //! that share a side then share its vertices and heights, whichever was made first and on
-//! whichever machine. Every lattice node of a tile is within the tolerance of its mesh, and
-//! so is every sample of the DEM inside it off its sides: the lattice resamples the DEM
-//! between its samples, so the refinement also measures the DEM's own samples and inserts
-//! the worst one itself where the lattice cannot reach it. A sample on a side is left to the
-//! side's nodes, chosen on the lattice's profile.
+//! whichever machine. Every sample of the DEM inside a tile off its sides is within the
+//! tolerance of its mesh: the lattice resamples the DEM between its samples, so a triangle
+//! over the DEM is measured at the DEM's own samples and the worst one inserted itself; a
+//! triangle beyond the DEM, at the lattice's nodes. A sample on a side is left to the side's
+//! nodes, chosen on the lattice's profile.
 
 use super::ellipsoid::SEMI_MAJOR_AXIS;
 use super::scheme::{TileId, degrees_per_tile};
@@ -51,10 +51,10 @@ pub struct TileSurface {
 }
 
 /// The mesh of `tile` over `dem` (a grid whose domain is in degrees: x longitude, y latitude)
-/// within `tolerance` metres of the DEM at every node of the tile's lattice of `steps` + 1
-/// samples a side (`steps` a power of two), and at every sample of the DEM inside the tile
-/// but those on or within two hundredths of a step of its sides, which are left to the
-/// sides' nodes.
+/// within `tolerance` metres of the DEM at every sample of the DEM inside the tile but those
+/// on or within two hundredths of a step of its sides (which are left to the sides' nodes),
+/// and beyond the DEM at every node of the tile's lattice of `steps` + 1 samples a side
+/// (`steps` a power of two).
 ///
 /// # Panics
 /// When `steps` is not a power of two of at least 2, or `tolerance` is not finite and ≥ 0.
