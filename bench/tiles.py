@@ -25,9 +25,16 @@ as per-tile scripts do; meshfit fixes each side from its own values first.
   tiles' height quantization, and the largest gap of the level is printed.
 - time: meshfit's `tiles` command for the whole pyramid on every core; pydelatin's lattice
   sampling, meshing and encoding of every tile, one process per core.
+- on demand: `meshfit serve` (release build) with the DEM uploaded, each tile of the deepest
+  level asked for once over HTTP (uncached, gzipped, both extensions): the median and largest
+  latency, beside pydelatin's time for the same tile in this process (lattice, or window,
+  meshing and encoding), median.
 """
 
 import argparse
+import socket
+import statistics
+import urllib.request
 import gzip
 import io
 import json
@@ -285,6 +292,42 @@ def measure(name, tiles, dem, levels):
     return rows
 
 
+def on_demand(binary, path, tiles):
+    """Latencies of uncached tiles from a fresh `meshfit serve`, in ms, in the order given."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    env = dict(os.environ, MESHFIT_ADDR=f"127.0.0.1:{port}", MESHFIT_LOG="warn")
+    server = subprocess.Popen([binary, "serve"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    base = f"http://127.0.0.1:{port}"
+    try:
+        for _ in range(200):
+            try:
+                urllib.request.urlopen(f"{base}/healthz", timeout=1)
+                break
+            except OSError:
+                time.sleep(0.05)
+        boundary = "meshfit-bench"
+        body = (
+            f"--{boundary}\r\nContent-Disposition: form-data; name=\"grid\"; filename=\"dem.tif\"\r\n"
+            "Content-Type: image/tiff\r\n\r\n"
+        ).encode() + Path(path).read_bytes() + f"\r\n--{boundary}--\r\n".encode()
+        request = urllib.request.Request(
+            f"{base}/v1/datasets", data=body, headers={"content-type": f"multipart/form-data; boundary={boundary}"}
+        )
+        dataset = json.loads(urllib.request.urlopen(request).read())["id"]
+        latencies = []
+        for z, x, y in tiles:
+            url = f"{base}/v1/tiles/{dataset}/{z}/{x}/{y}.terrain?extensions=octvertexnormals-metadata"
+            start = time.perf_counter()
+            urllib.request.urlopen(urllib.request.Request(url, headers={"accept-encoding": "gzip"})).read()
+            latencies.append((time.perf_counter() - start) * 1e3)
+        return latencies
+    finally:
+        server.terminate()
+        server.wait()
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--dem", default=str(ROOT / "examples/grids/dem-4326.tif"))
@@ -332,6 +375,24 @@ def main():
         for z in levels:
             for name, z, n, v, inner, gz, worst, frac, cracked, shared, gap in (r[z] for r in rows_at if z in r):
                 print(f"| {name} | {z} | {n} | {v} | {inner} | {gz} | {worst:.2f} | {frac:.2f} | {cracked}/{shared} | {gap:.3f} |")
+        deepest = sorted(k[1:] for k in ours if k[0] == layer["maxzoom"])
+        zmax = layer["maxzoom"]
+        served = on_demand(args.meshfit, args.dem, [(zmax, x, y) for x, y in deepest])
+        init(args.dem)
+        timed = {}
+        for name, make in (("pydelatin", delatin_tile), ("DEM window", delatin_window)):
+            times = []
+            for x, y in deepest:
+                start = time.perf_counter()
+                make((args.dem, zmax, x, y))
+                times.append((time.perf_counter() - start) * 1e3)
+            timed[name] = statistics.median(times)
+        print()
+        print(
+            f"on demand, level {zmax} ({len(deepest)} tiles, uncached): meshfit serve {statistics.median(served):.1f} ms "
+            f"median, {max(served):.1f} ms largest (HTTP, gzip included); pydelatin {timed['pydelatin']:.1f} ms, "
+            f"DEM window {timed['DEM window']:.1f} ms median (in process)"
+        )
     finally:
         shutil.rmtree(out, ignore_errors=True)
 

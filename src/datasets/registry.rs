@@ -58,8 +58,8 @@ struct Inner {
     /// Uploads decoded and tiles made at once: one fewer than the cores (at least one), so
     /// that a map zoomed in on cold tiles cannot take every core from the async workers.
     work: Arc<Semaphore>,
-    /// Held while a dataset is read from the store.
-    fetching: tokio::sync::Mutex<()>,
+    /// Held while a dataset is read from the store, one lock per id being read.
+    fetching: Mutex<BTreeMap<String, Arc<tokio::sync::Mutex<()>>>>,
     /// Uploads deleted on any replica since this one started (until uploaded again): a read
     /// from the store that a deletion overtook does not bring one back.
     dropped: Mutex<BTreeSet<String>>,
@@ -85,7 +85,7 @@ impl Datasets {
             settings,
             peers,
             work,
-            fetching: tokio::sync::Mutex::new(()),
+            fetching: Mutex::default(),
             dropped: Mutex::default(),
         });
         if let Some(messages) = messages {
@@ -104,9 +104,12 @@ impl Datasets {
         &self.inner.work
     }
 
-    /// The lock a read from the store holds.
-    pub(super) fn fetching(&self) -> &tokio::sync::Mutex<()> {
-        &self.inner.fetching
+    /// The lock a read of dataset `id` from the store holds. Locks nobody else holds are
+    /// dropped as each is handed out, so ids asked for once do not pile up.
+    pub(super) fn fetching(&self, id: &str) -> Arc<tokio::sync::Mutex<()>> {
+        let mut locks = self.inner.fetching.lock().unwrap_or_else(PoisonError::into_inner);
+        locks.retain(|_, lock| Arc::strong_count(lock) > 1);
+        locks.entry(id.to_owned()).or_default().clone()
     }
 
     /// The memory budget.

@@ -74,23 +74,23 @@ impl Datasets {
         let Some(peers) = self.peers() else {
             return Err(DatasetError::NotFound { id: id.to_owned(), shared: false });
         };
-        // One read from the store at a time: a map opening on a cold replica asks for the
-        // same dataset many times at once, and each after the first finds it here.
-        let _fetching = self.fetching().lock().await;
+        // One read of a dataset from the store at a time: a map opening on a cold replica asks
+        // for the same one many times at once, and each after the first finds it here.
+        let lock = self.fetching(id);
+        let _fetching = lock.lock().await;
         if let Some(found) = self.get(id) {
             return Ok(found);
         }
+        // A deletion seen before is history: the store says whether it was uploaded again.
+        self.undrop(id);
         let not_found = || DatasetError::NotFound { id: id.to_owned(), shared: true };
-        if self.is_dropped(id) {
-            return Err(not_found());
-        }
         let kept =
             peers.file(Shelf::Dataset, id).await.map_err(|_| DatasetError::Unreachable(id.to_owned()))?;
         let file = Bytes::from(kept.ok_or_else(not_found)?);
         // The file is held while it is decoded: charged like a request body.
         let _held = self.budget().charge(file.len() as u64).map_err(DatasetError::OverBudget)?;
         // Another replica took it, within its limits: no limit of this one's refuses a read.
-        let (dataset, _) = self.decode(file, usize::MAX, false).await.map_err(|e| match e {
+        let (dataset, created) = self.decode(file, usize::MAX, false).await.map_err(|e| match e {
             DatasetError::OverBudget(_) => e,
             // A file some replica took, that this one cannot read: not one it serves.
             e => {
@@ -100,7 +100,9 @@ impl Datasets {
         })?;
         // Named by its hash, or not at all; and not if it was deleted while it was read.
         if dataset.id() != id || self.is_dropped(id) {
-            let _ = self.remove(id);
+            if created {
+                let _ = self.remove(dataset.id());
+            }
             return Err(not_found());
         }
         tracing::info!(dataset = id, "dataset read from the store");

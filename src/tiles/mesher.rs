@@ -110,14 +110,22 @@ pub fn mesh_tile(dem: &Grid, tile: TileId, tolerance: f64, steps: usize) -> Tile
     }
 }
 
+/// The most samples of a DEM a tile copies to measure itself at: 32 MiB. A low level's tile of
+/// a large DEM (16.8 million samples at the default limit) is measured at its lattice alone,
+/// for a tolerance of kilometres.
+pub const MAX_SAMPLES: usize = 1 << 22;
+
 /// The DEM's samples inside `rect` at least `clearance` from its sides, as a grid of their
-/// own; `None` when fewer than two a side are.
+/// own; `None` when fewer than two a side are, or more than [`MAX_SAMPLES`].
 fn samples_inside(dem: &Grid, rect: Rect, clearance: f64) -> Option<Grid> {
     let (x0, x1, y0, y1) =
         (rect.x0() + clearance, rect.x1() - clearance, rect.y0() + clearance, rect.y1() - clearance);
     let columns: Vec<usize> = (0..dem.nx()).filter(|&i| (x0..=x1).contains(&dem.node(i, 0).x)).collect();
     let rows: Vec<usize> = (0..dem.ny()).filter(|&j| (y0..=y1).contains(&dem.node(0, j).y)).collect();
     let (&i0, &i1, &j0, &j1) = (columns.first()?, columns.last()?, rows.first()?, rows.last()?);
+    if (i1 - i0 + 1).saturating_mul(j1 - j0 + 1) > MAX_SAMPLES {
+        return None;
+    }
     let values = (j0..=j1).flat_map(|j| dem.row(j)[i0..=i1].iter().copied()).collect();
     let domain =
         Rect::new(dem.node(i0, 0).x, dem.node(i1, 0).x, dem.node(0, j0).y, dem.node(0, j1).y).ok()?;

@@ -330,18 +330,18 @@ async fn cesium_loads_every_tile_of_an_uploaded_dataset_from_the_server_and_sees
 }
 
 /// A GeoTIFF in EPSG:4326 of 1/256° pixels from 10°E, 46°N (its first row the north), whose
-/// western half is the nodata value −9999.
+/// southern half (the file's last rows) is the nodata value −9999.
 fn half_nodata_geotiff() -> Vec<u8> {
     use tiff::encoder::{TiffEncoder, colortype};
     use tiff::tags::Tag;
     let (nx, ny) = (512u32, 256u32);
     let data: Vec<f32> = (0..ny)
         .flat_map(|j| (0..nx).map(move |i| (i, j)))
-        .map(|(i, j)| {
-            if i < nx / 2 {
+        .map(|(i, row)| {
+            if row >= ny / 2 {
                 -9999.0
             } else {
-                400.0 + 200.0 * (i as f32 * 0.03).sin() * (j as f32 * 0.05).cos()
+                400.0 + 200.0 * (i as f32 * 0.03).sin() * (row as f32 * 0.05).cos()
             }
         })
         .collect();
@@ -364,12 +364,12 @@ async fn nodata_is_filled_for_meshing_and_a_tile_of_nodata_alone_is_not_availabl
     let created = upload(&app, half_nodata_geotiff()).await;
     assert_eq!(created.status(), StatusCode::CREATED);
     let info: Value = created.json().await.unwrap();
-    assert_eq!(info["nodata_filled"], 256 * 256, "the western half");
+    assert_eq!(info["nodata_filled"], 512 * 128, "the southern half");
     // Filled from the data: no height near −9999.
     assert!(info["heights"][0].as_f64().unwrap() > 100.0, "{info}");
     let id = info["id"].as_str().unwrap().to_owned();
     let layer: Value = app.get(&format!("/v1/tiles/{id}/layer.json")).await.json().await.unwrap();
-    // Level 10 tiles are 45/256° wide: columns of the DEM's western degree hold no data.
+    // Level 10 tiles are 45/256° high: rows of the DEM's southern half-degree hold no data.
     let level = &layer["available"][10];
     let listed: Vec<(u64, u64)> = level
         .as_array()
@@ -380,13 +380,13 @@ async fn nodata_is_filled_for_meshing_and_a_tile_of_nodata_alone_is_not_availabl
             (n("startY")..=n("endY")).flat_map(move |y| (n("startX")..=n("endX")).map(move |x| (x, y)))
         })
         .collect();
-    let west_of_data = |x: u64| -180.0 + (x + 1) as f64 * 180.0 / 1024.0 < 11.0;
-    assert!(!listed.is_empty() && listed.iter().all(|&(x, _)| !west_of_data(x)), "{level}");
-    // A tile of the western half answers 404 saying why; its eastern neighbours decode.
-    let covering = |lon: f64| ((lon + 180.0) / (180.0 / 1024.0)).floor() as u64;
-    let y = listed[0].1;
+    let south_of_data = |y: u64| -90.0 + (y + 1) as f64 * 180.0 / 1024.0 < 45.5;
+    assert!(!listed.is_empty() && listed.iter().all(|&(_, y)| !south_of_data(y)), "{level}");
+    // A tile of the southern half answers 404 saying why; its northern neighbours decode.
+    let covering = |lat: f64| ((lat + 90.0) / (180.0 / 1024.0)).floor() as u64;
+    let x = listed[0].0;
     let doc = problem(
-        app.get(&format!("/v1/tiles/{id}/10/{}/{y}.terrain", covering(10.2))).await,
+        app.get(&format!("/v1/tiles/{id}/10/{x}/{}.terrain", covering(45.1))).await,
         StatusCode::NOT_FOUND,
     )
     .await;
