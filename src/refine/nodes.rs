@@ -76,16 +76,30 @@ impl Estimates<'_> {
     }
 
     /// e(T) and its node for the triangle with these corners (in the mesh or not).
+    fn measure(&self, mesh: &Mesh, corners: [u32; 3]) -> Slot {
+        let z = corners.map(|v| mesh.vertex(v).z);
+        // With the data the grid resampled, a triangle over them is measured at them alone;
+        // one that reaches beyond them (past the data's edge) at its grid nodes too.
+        let over_samples = self.samples.and_then(|samples| {
+            let slot = self.probe(mesh, samples, corners, z)?;
+            Some((slot, corners.iter().all(|&v| within(samples, mesh.point(v)))))
+        });
+        match over_samples {
+            Some((slot, true)) => slot,
+            Some((slot, false)) => {
+                let nodes = self.at_nodes(corners, z);
+                if nodes.error > slot.error { nodes } else { slot }
+            }
+            None => self.at_nodes(corners, z),
+        }
+    }
+
+    /// e(T) over the grid's nodes in the triangle, and the node where it is reached.
     ///
     /// When the worst node is a corner, every node's deviation is within the plane's rounding
     /// (a few units in the last place of z at the other corners): F_n matches the triangle's
     /// nodes, and its error is 0.
-    fn measure(&self, mesh: &Mesh, corners: [u32; 3]) -> Slot {
-        let z = corners.map(|v| mesh.vertex(v).z);
-        // With the data the grid resampled, a triangle over them is measured at them alone.
-        if let Some(slot) = self.samples.and_then(|samples| self.probe(mesh, samples, corners, z)) {
-            return slot;
-        }
+    fn at_nodes(&self, corners: [u32; 3], z: [f64; 3]) -> Slot {
         let in_grid = corners.map(|v| self.at[v as usize]);
         let worst = worst_node(self.grid, in_grid, z, 0.0);
         let node = worst.node(self.grid);
@@ -352,6 +366,16 @@ fn side_split(grid: &Grid, mesh: &Mesh, h: u32) -> (Vertex, Point) {
 fn on_node(grid: &Grid, i: usize, j: usize) -> (Vertex, Point) {
     let p = grid.node(i, j);
     (Vertex { x: p.x, y: p.y, z: grid.value(i, j) }, Point::new(i as f64, j as f64))
+}
+
+/// Whether `p` lies within one and a half sample spacings of `samples`' rectangle: on the
+/// data, or between its outer samples and a side of the grid it was clipped to, not beyond
+/// the data's edge.
+fn within(samples: &Grid, p: Point) -> bool {
+    let r = samples.rect();
+    let dx = 1.5 * (r.x1() - r.x0()) / (samples.nx() - 1) as f64;
+    let dy = 1.5 * (r.y1() - r.y0()) / (samples.ny() - 1) as f64;
+    (r.x0() - dx..=r.x1() + dx).contains(&p.x) && (r.y0() - dy..=r.y1() + dy).contains(&p.y)
 }
 
 /// Sample (i, j) of `samples` as a vertex with its value, and its position in `grid`'s units.

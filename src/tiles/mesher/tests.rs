@@ -153,6 +153,34 @@ fn samples_on_a_tiles_sides_are_left_to_them_and_every_one_inside_is_within_the_
 }
 
 #[test]
+fn a_tile_across_the_dems_edge_keeps_its_samples_and_the_fade_beyond_within_the_tolerance() {
+    // Level 10 tile 1092 spans 11.95°–12.13°E; a DEM of 0.04° ends at 12°E, its edge
+    // fading to 0 over 0.04° beyond: steep, where only the lattice's nodes measure it.
+    let values = (0..41 * 41).map(|k| 800.0 + 50.0 * (f64::from(k % 41) * 0.3).sin()).collect();
+    let dem = Grid::new(41, 41, values).unwrap().with_domain(Rect::new(11.96, 12.0, 45.40, 45.44).unwrap());
+    let tile = TileId::new(10, 1092, 770).unwrap();
+    let b = tile.bounds();
+    assert!(b.west < 12.0 && 12.0 < b.east);
+    let tolerance = 2.0;
+    let surface = mesh_tile(&dem, tile, tolerance, 64);
+    let (inside, _) = worst_at_samples(&dem, tile, &surface);
+    assert!(inside <= tolerance * (1.0 + 1e-9) + 1e-9, "{inside} > {tolerance} at the samples");
+    let mut beyond = 0.0f64;
+    for j in 0..=64 {
+        for i in 0..=64 {
+            let p = Point::new(
+                b.west + (b.east - b.west) * f64::from(i) / 64.0,
+                b.south + (b.north - b.south) * f64::from(j) / 64.0,
+            );
+            if p.x > 12.0 {
+                beyond = beyond.max((linear(&surface, p) - height(&dem, p)).abs());
+            }
+        }
+    }
+    assert!(beyond <= tolerance * (1.0 + 1e-9) + 1e-9, "{beyond} > {tolerance} beyond the DEM");
+}
+
+#[test]
 fn a_tolerance_of_zero_keeps_every_node_and_a_large_one_the_corners() {
     let dem = dem(0.4);
     let tile = TileId::new(11, 2176, 1542).unwrap();
