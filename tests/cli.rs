@@ -1,8 +1,12 @@
 //! The `meshfit mesh` command, run as a user would: real process, real files, JSON on stdout.
 
+#[path = "support/cesium.rs"]
+mod support;
+
 use serde_json::Value;
 use std::path::PathBuf;
 use std::process::{Command, Output};
+use support::cesium;
 
 fn meshfit(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_meshfit")).args(args).output().expect("meshfit runs")
@@ -561,21 +565,6 @@ fn tiles_refuses_a_projected_or_unreferenced_dem_naming_why() {
     assert!(err.contains("levels 5..=3"), "{err}");
     let err = refused(&dem, &["--max-zoom", "30"]);
     assert!(err.contains("more than 10000000") && err.contains("lower max level"), "{err}");
-}
-
-/// Whether CesiumJS is installed in tests/cesium (`npm ci --prefix tests/cesium`), or `None`
-/// to skip; `CESIUM_TESTS=required` (as in `.ci/run`) makes its absence a failure.
-fn cesium() -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/cesium");
-    let installed = dir.join("node_modules/@cesium/engine").is_dir()
-        && Command::new("node").arg("--version").output().is_ok_and(|o| o.status.success());
-    if !installed {
-        let required = std::env::var("CESIUM_TESTS").is_ok_and(|v| v == "required");
-        assert!(!required, "CESIUM_TESTS=required, but node or tests/cesium/node_modules is missing");
-        eprintln!("skipped: CesiumJS is not installed (npm ci --prefix tests/cesium)");
-        return None;
-    }
-    Some(dir)
 }
 
 #[test]

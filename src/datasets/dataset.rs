@@ -29,7 +29,7 @@ pub struct Dataset {
     /// Each tile within this fraction of its level's error.
     error_factor: f64,
     /// The decoded heights' share of the memory budget, held as long as the dataset.
-    _charge: Option<Charge>,
+    _charge: Charge,
 }
 
 impl Dataset {
@@ -44,7 +44,7 @@ impl Dataset {
         file_bytes: u64,
         dem: Dem,
         error_factor: f64,
-        charge: Option<Charge>,
+        charge: Charge,
     ) -> Result<Self, DatasetError> {
         Pyramid::new(&dem, 0, Some(max_level(dem.pixel())), error_factor)?;
         let values = (0..dem.grid().ny()).flat_map(|j| dem.grid().row(j).iter().copied());

@@ -2,7 +2,7 @@
 
 use super::dataset::{Dataset, Origin, digest};
 use super::error::DatasetError;
-use crate::jobs::peers::{Message, Peers, Shelf};
+use crate::jobs::peers::{Message, Peers, Shelf, next_message};
 use crate::jobs::{Budget, Charge, GRID_BYTES_PER_POINT};
 use crate::source::{GridHints, decode_grid};
 use crate::tiles::{Dem, TileId, Wanted};
@@ -141,18 +141,12 @@ impl Datasets {
         for (name, path) in &self.inner.settings.files {
             let at = || format!("MESHFIT_DATASET: {name}={}", path.display());
             let bytes = std::fs::read(path).map_err(|e| format!("{}: cannot read it: {e}", at()))?;
-            let dem = dem(&bytes, usize::MAX).map_err(|e| format!("{}: {e}", at()))?;
-            let charge = self.charge(&dem).map_err(|e| format!("{}: {e}", at()))?;
-            let dataset = Dataset::new(
-                name.clone(),
-                Origin::File(path.clone()),
-                digest(&bytes),
-                bytes.len() as u64,
-                dem,
-                self.inner.settings.error_factor,
-                Some(charge),
-            )
-            .map_err(|e| format!("{}: {e}", at()))?;
+            let dataset = dem(&bytes, usize::MAX)
+                .and_then(|dem| {
+                    let origin = Origin::File(path.clone());
+                    self.held(name.clone(), origin, digest(&bytes), bytes.len() as u64, dem)
+                })
+                .map_err(|e| format!("{}: {e}", at()))?;
             self.write().insert(name.clone(), Arc::new(dataset));
         }
         Ok(())
@@ -178,17 +172,7 @@ impl Datasets {
         }
         let dem = dem(file, max_points)?;
         let needed = bytes_of(&dem);
-        let charge = self.charge(&dem)?;
-        let error_factor = self.inner.settings.error_factor;
-        let dataset = Dataset::new(
-            id.clone(),
-            Origin::Upload,
-            id.clone(),
-            file.len() as u64,
-            dem,
-            error_factor,
-            Some(charge),
-        )?;
+        let dataset = self.held(id.clone(), Origin::Upload, id.clone(), file.len() as u64, dem)?;
         // Under the lock, so that uploads at once cannot pass the allowance together; of two
         // uploads of one file, the first in is the dataset and the other's charge goes.
         let mut by_id = self.write();
@@ -277,8 +261,18 @@ impl Datasets {
         }
     }
 
-    fn charge(&self, dem: &Dem) -> Result<Charge, DatasetError> {
-        self.inner.budget.charge(bytes_of(dem)).map_err(DatasetError::OverBudget)
+    /// A dataset of `dem`, from a file of `file_bytes` whose SHA-256 is `digest`, with its
+    /// heights charged to the memory budget for as long as it is held.
+    fn held(
+        &self,
+        id: String,
+        origin: Origin,
+        digest: String,
+        file_bytes: u64,
+        dem: Dem,
+    ) -> Result<Dataset, DatasetError> {
+        let charge = self.inner.budget.charge(bytes_of(&dem)).map_err(DatasetError::OverBudget)?;
+        Dataset::new(id, origin, digest, file_bytes, dem, self.inner.settings.error_factor, charge)
     }
 
     fn write(&self) -> std::sync::RwLockWriteGuard<'_, BTreeMap<String, Arc<Dataset>>> {
@@ -288,12 +282,7 @@ impl Datasets {
 
 /// Drops, on this replica, each dataset another replica deleted, until the datasets are gone.
 async fn forget_dropped(inner: Weak<Inner>, mut messages: broadcast::Receiver<Message>) {
-    loop {
-        let message = match messages.recv().await {
-            Ok(m) => m,
-            Err(broadcast::error::RecvError::Lagged(_)) => continue,
-            Err(broadcast::error::RecvError::Closed) => return,
-        };
+    while let Some(message) = next_message(&mut messages).await {
         let Some(inner) = inner.upgrade() else { return };
         if let Message::Dropped(Shelf::Dataset, id) = message {
             let datasets = Datasets { inner };

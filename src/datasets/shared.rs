@@ -145,7 +145,6 @@ impl Datasets {
         tile: TileId,
         wanted: Wanted,
     ) -> Result<(Bytes, Made), DatasetError> {
-        self.check(dataset, tile)?;
         if let Some(gzip) = self.cached(dataset, tile, wanted) {
             return Ok((gzip, Made::Hit));
         }

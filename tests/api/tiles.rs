@@ -4,6 +4,9 @@
 //! are the library's bytes, gzipped when asked, revalidated by entity tag; and every bad
 //! request is a problem naming what is wrong.
 
+#[path = "../support/cesium.rs"]
+mod support;
+
 use crate::helpers::{configured, spawn_with};
 use meshfit::source::{GridHints, decode_grid};
 use meshfit::tiles::{Dem, Pyramid, TileId, Wanted};
@@ -14,6 +17,7 @@ use serde_json::Value;
 use std::collections::BTreeMap;
 use std::io::Read;
 use std::path::PathBuf;
+use support::cesium;
 
 /// The quick start's 256 × 256 DEM at one arc-second, in EPSG:4326: levels 0..=14.
 fn dem_path() -> PathBuf {
@@ -108,28 +112,20 @@ async fn an_uploaded_dem_serves_layer_json_and_tiles_whose_neighbours_share_thei
             deepest.insert((x, y), mesh);
         }
     }
+    // Each side's vertices by their quantized position along it: v on an east or west side,
+    // u on a north or south one.
+    let along = |side: &[u32], at: &[u16]| side.iter().map(|&k| at[k as usize]).collect::<Vec<_>>();
     let mut sides = 0;
     for (&(x, y), mesh) in &deepest {
+        let (e, n) = (&mesh.edge_indices, &mesh.vertices);
         if let Some(east) = deepest.get(&(x + 1, y)) {
-            let v = |m: &DecodedMesh, side: &[u32]| {
-                side.iter().map(|&k| m.vertices.v[k as usize]).collect::<Vec<_>>()
-            };
-            assert_eq!(
-                v(mesh, &mesh.edge_indices.east),
-                v(east, &east.edge_indices.west),
-                "{x}/{y} east side"
-            );
+            let theirs = along(&east.edge_indices.west, &east.vertices.v);
+            assert_eq!(along(&e.east, &n.v), theirs, "{x}/{y} east side");
             sides += 1;
         }
         if let Some(north) = deepest.get(&(x, y + 1)) {
-            let u = |m: &DecodedMesh, side: &[u32]| {
-                side.iter().map(|&k| m.vertices.u[k as usize]).collect::<Vec<_>>()
-            };
-            assert_eq!(
-                u(mesh, &mesh.edge_indices.north),
-                u(north, &north.edge_indices.south),
-                "{x}/{y} north side"
-            );
+            let theirs = along(&north.edge_indices.south, &north.vertices.u);
+            assert_eq!(along(&e.north, &n.u), theirs, "{x}/{y} north side");
             sides += 1;
         }
     }
@@ -269,20 +265,6 @@ async fn bad_uploads_and_tile_addresses_are_problems_naming_what_is_wrong() {
     assert_eq!(app.get(&format!("/v1/datasets/{id}")).await.status(), StatusCode::NOT_FOUND);
     assert_eq!(upload(&app, other).await.status(), StatusCode::CREATED);
     app.shutdown().await;
-}
-
-/// CesiumJS's own terrain provider, in Node (`npm ci --prefix tests/cesium`), or `None` to
-/// skip; `CESIUM_TESTS=required` (as in `.ci/run`) makes its absence a failure.
-fn cesium() -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/cesium");
-    let node = std::process::Command::new("node").arg("--version").output();
-    if dir.join("node_modules/@cesium/engine").is_dir() && node.is_ok_and(|o| o.status.success()) {
-        return Some(dir);
-    }
-    let required = std::env::var("CESIUM_TESTS").is_ok_and(|v| v == "required");
-    assert!(!required, "CESIUM_TESTS=required, but node or tests/cesium/node_modules is missing");
-    eprintln!("skipped: CesiumJS is not installed (npm ci --prefix tests/cesium)");
-    None
 }
 
 #[tokio::test]

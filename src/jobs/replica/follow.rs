@@ -7,7 +7,7 @@
 //! holding the lease, so that a final posting of an earlier run (cancelled, say) is not taken
 //! for this one's.
 
-use super::peers::{Control, Kept, Message, Peers, Posting};
+use super::peers::{Control, Kept, Message, Peers, Posting, next_message};
 use crate::jobs::Failure;
 use crate::jobs::inner::Inner;
 use crate::jobs::job::{Job, JobError, Outcome, Record, Status};
@@ -258,13 +258,7 @@ async fn keep_current(inner: Arc<Inner>, job: Arc<Job>, mut run: Option<String>)
 /// Hands every message to the job it concerns on this replica: a posting wakes the mirror's
 /// task, a request to cancel or detach goes to the job run here. Ends with the registry.
 pub(in crate::jobs) async fn dispatch(inner: Weak<Inner>, mut messages: broadcast::Receiver<Message>) {
-    loop {
-        let message = match messages.recv().await {
-            Ok(m) => m,
-            // Missed postings are read back at the next sweep; missed requests from the keys.
-            Err(broadcast::error::RecvError::Lagged(_)) => continue,
-            Err(broadcast::error::RecvError::Closed) => return,
-        };
+    while let Some(message) = next_message(&mut messages).await {
         let Some(inner) = inner.upgrade() else { return };
         let (Message::Posted(id, _) | Message::Control(id, _)) = &message else { continue };
         let Some(job) = inner.table.live(id) else { continue };

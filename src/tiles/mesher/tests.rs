@@ -78,19 +78,28 @@ fn beyond_the_dem_every_lattice_node_is_within_the_tolerance() {
     assert!(tile.bounds().west > 12.0);
     for tolerance in [0.5, 5.0, 40.0] {
         let surface = mesh_tile(&dem, tile, tolerance, 32);
-        let b = tile.bounds();
-        let mut worst = 0.0f64;
-        for j in 0..=32 {
-            for i in 0..=32 {
-                let p = Point::new(
-                    b.west + (b.east - b.west) * f64::from(i) / 32.0,
-                    b.south + (b.north - b.south) * f64::from(j) / 32.0,
-                );
-                worst = worst.max((linear(&surface, p) - height(&dem, p)).abs());
-            }
-        }
+        let worst = worst_at_lattice(&dem, tile, &surface, 32, |_| true);
         assert!(worst <= tolerance * (1.0 + 1e-9) + 1e-9, "{worst} > {tolerance}");
     }
+}
+
+/// The largest |mesh − height| over the nodes of `tile`'s lattice of `steps` a side for
+/// which `keep` holds, the height faded beyond the DEM as the tiles make it.
+fn worst_at_lattice(
+    dem: &Grid,
+    tile: TileId,
+    surface: &TileSurface,
+    steps: u32,
+    keep: impl Fn(Point) -> bool,
+) -> f64 {
+    let b = tile.bounds();
+    let at = |k: u32, lo: f64, hi: f64| lo + (hi - lo) * f64::from(k) / f64::from(steps);
+    (0..=steps)
+        .flat_map(|j| (0..=steps).map(move |i| (i, j)))
+        .map(|(i, j)| Point::new(at(i, b.west, b.east), at(j, b.south, b.north)))
+        .filter(|&p| keep(p))
+        .map(|p| (linear(surface, p) - height(dem, p)).abs())
+        .fold(0.0, f64::max)
 }
 
 /// The largest |mesh − DEM| over the DEM's own samples inside `tile`: those off its sides,
@@ -165,18 +174,7 @@ fn a_tile_across_the_dems_edge_keeps_its_samples_and_the_fade_beyond_within_the_
     let surface = mesh_tile(&dem, tile, tolerance, 64);
     let (inside, _) = worst_at_samples(&dem, tile, &surface);
     assert!(inside <= tolerance * (1.0 + 1e-9) + 1e-9, "{inside} > {tolerance} at the samples");
-    let mut beyond = 0.0f64;
-    for j in 0..=64 {
-        for i in 0..=64 {
-            let p = Point::new(
-                b.west + (b.east - b.west) * f64::from(i) / 64.0,
-                b.south + (b.north - b.south) * f64::from(j) / 64.0,
-            );
-            if p.x > 12.0 {
-                beyond = beyond.max((linear(&surface, p) - height(&dem, p)).abs());
-            }
-        }
-    }
+    let beyond = worst_at_lattice(&dem, tile, &surface, 64, |p| p.x > 12.0);
     assert!(beyond <= tolerance * (1.0 + 1e-9) + 1e-9, "{beyond} > {tolerance} beyond the DEM");
 }
 

@@ -27,4 +27,4 @@ mod wire;
 
 pub(in crate::jobs) use alone::Alone;
 pub use store::{Peers, Result, Unavailable};
-pub use wire::{Acquired, Asked, Control, Kept, Message, Posting, Shelf, Take};
+pub use wire::{Acquired, Asked, Control, Kept, Message, Posting, Shelf, Take, next_message};

@@ -113,3 +113,17 @@ impl Shelf {
         [Shelf::Dataset, Shelf::Tile].into_iter().find(|s| s.name() == name)
     }
 }
+
+/// The next message for a replica's listener: one missed while it lagged is skipped (postings
+/// are read back at the next sweep, requests from their keys, drops from the store), `None`
+/// once no replica sends any more.
+pub async fn next_message(messages: &mut tokio::sync::broadcast::Receiver<Message>) -> Option<Message> {
+    use tokio::sync::broadcast::error::RecvError;
+    loop {
+        match messages.recv().await {
+            Ok(message) => return Some(message),
+            Err(RecvError::Lagged(_)) => continue,
+            Err(RecvError::Closed) => return None,
+        }
+    }
+}
