@@ -379,7 +379,7 @@ pub const SETTINGS: &[Setting] = &[
         flag: Some("dataset-bytes"),
         value_name: "BYTES",
         default: Fallback::Value("1073741824"),
-        help: "memory uploaded datasets may hold, decoded (8 bytes a sample); past it, 507 until one is deleted",
+        help: "memory uploaded datasets may hold: their files and a 64 MiB cache of decoded blocks each; past it, 507 until one is deleted",
         parse: |v, c| number(v).map(|n| c.datasets.max_bytes = n),
     },
     Setting {

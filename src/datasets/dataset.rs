@@ -1,4 +1,4 @@
-//! One dataset: a DEM held in memory, where it came from, and what a client is told of it.
+//! One dataset: a DEM, where it came from, and what a client is told of it.
 
 use super::error::DatasetError;
 use crate::jobs::Charge;
@@ -25,7 +25,6 @@ pub struct Dataset {
     digest: String,
     file_bytes: u64,
     dem: Dem,
-    heights: [f64; 2],
     /// Each tile within this fraction of its level's error.
     error_factor: f64,
     /// The decoded heights' share of the memory budget, held as long as the dataset.
@@ -47,9 +46,7 @@ impl Dataset {
         charge: Charge,
     ) -> Result<Self, DatasetError> {
         Pyramid::new(&dem, 0, Some(max_level(dem.pixel())), error_factor)?;
-        let values = (0..dem.grid().ny()).flat_map(|j| dem.grid().row(j).iter().copied());
-        let heights = values.fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], v| [lo.min(v), hi.max(v)]);
-        Ok(Self { id, origin, digest, file_bytes, dem, heights, error_factor, _charge: charge })
+        Ok(Self { id, origin, digest, file_bytes, dem, error_factor, _charge: charge })
     }
 
     /// Its id: the hash of an uploaded file, or the name a setting gives a file.
@@ -72,9 +69,9 @@ impl Dataset {
         &self.dem
     }
 
-    /// The lowest and highest height.
+    /// The lowest and highest height of its data.
     pub fn heights(&self) -> [f64; 2] {
-        self.heights
+        self.dem.heights()
     }
 
     /// The size of its file in bytes.

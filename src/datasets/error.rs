@@ -40,15 +40,23 @@ pub enum DatasetError {
     Configured(String),
     /// Uploaded datasets would hold more than `MESHFIT_DATASET_BYTES`.
     #[error(
-        "this DEM takes {needed} bytes decoded and uploaded datasets may hold {limit} (MESHFIT_DATASET_BYTES), of which {held} are held: delete a dataset first"
+        "this DEM takes {needed} bytes (its file and a cache of its blocks) and uploaded datasets may hold {limit} (MESHFIT_DATASET_BYTES), of which {held} are held: delete a dataset first"
     )]
     Full {
-        /// Bytes the DEM takes decoded.
+        /// Bytes the DEM takes: its file and its blocks' cache.
         needed: u64,
         /// Bytes uploaded datasets hold now.
         held: u64,
         /// The limit.
         limit: u64,
+    },
+    /// A block of the dataset's file cannot be read now (a file changed or gone on disk).
+    #[error("dataset `{id}`: {detail}")]
+    Unreadable {
+        /// The dataset.
+        id: String,
+        /// What the reader said.
+        detail: String,
     },
     /// The memory budget has no room for the DEM, or a tile.
     #[error("the memory budget has {} bytes free, and {} are needed", .0.available, .0.needed)]

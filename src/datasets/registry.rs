@@ -3,9 +3,8 @@
 use super::dataset::{Dataset, Origin, digest};
 use super::error::DatasetError;
 use crate::jobs::peers::{Message, Peers, Shelf, next_message};
-use crate::jobs::{Budget, Charge, GRID_BYTES_PER_POINT};
-use crate::source::{GridHints, decode_grid};
-use crate::tiles::{Dem, TileId, Wanted};
+use crate::jobs::{Budget, Charge};
+use crate::tiles::{Dem, DemError, TileId, Wanted};
 use bytes::Bytes;
 use std::collections::{BTreeMap, BTreeSet};
 use std::io::Write;
@@ -18,7 +17,7 @@ use tokio::sync::{Semaphore, broadcast};
 pub struct DatasetSettings {
     /// Files served under a name from start-up (`MESHFIT_DATASET`).
     pub files: Vec<(String, PathBuf)>,
-    /// Bytes uploaded datasets may hold decoded (`MESHFIT_DATASET_BYTES`).
+    /// Bytes uploaded datasets may hold, files and blocks' caches (`MESHFIT_DATASET_BYTES`).
     pub max_bytes: u64,
     /// Each tile within this fraction of its level's error (`MESHFIT_TILE_ERROR_FACTOR`).
     pub error_factor: f64,
@@ -132,7 +131,8 @@ impl Datasets {
         self.inner.dropped.lock().unwrap_or_else(PoisonError::into_inner).contains(id)
     }
 
-    /// Reads and decodes each file the settings name: blocking work, done once at start-up.
+    /// Opens each file the settings name and reads it once through: blocking work, done
+    /// once at start-up. A file is then read by blocks as tiles need them, never held whole.
     ///
     /// # Errors
     /// The first file that cannot be read or is not a DEM in EPSG:4326, or does not fit the
@@ -140,12 +140,11 @@ impl Datasets {
     pub fn open_files(&self) -> Result<(), String> {
         for (name, path) in &self.inner.settings.files {
             let at = || format!("MESHFIT_DATASET: {name}={}", path.display());
-            let bytes = std::fs::read(path).map_err(|e| format!("{}: cannot read it: {e}", at()))?;
-            let dataset = dem(&bytes, usize::MAX)
-                .and_then(|dem| {
-                    let origin = Origin::File(path.clone());
-                    self.held(name.clone(), origin, digest(&bytes), bytes.len() as u64, dem)
-                })
+            let cannot = |e: std::io::Error| format!("{}: cannot read it: {e}", at());
+            let (digest, file_bytes) = file_digest(path).map_err(cannot)?;
+            let file = std::fs::File::open(path).map_err(cannot)?;
+            let dataset = dem(Box::new(std::io::BufReader::new(file)), usize::MAX)
+                .and_then(|dem| self.held(name.clone(), Origin::File(path.clone()), digest, file_bytes, dem))
                 .map_err(|e| format!("{}: {e}", at()))?;
             self.write().insert(name.clone(), Arc::new(dataset));
         }
@@ -153,34 +152,39 @@ impl Datasets {
     }
 
     /// Adds the DEM in `file` (a GeoTIFF in EPSG:4326 of at most `max_points` samples), or
-    /// finds it: its id is the file's hash. True when it is new. CPU work for a large file.
-    /// `allowance` counts it against the uploads' allowance: a file another replica took is
-    /// served whatever this one's allowance, so that a read never answers 507.
+    /// finds it: its id is the file's hash. True when it is new. CPU work for a large file,
+    /// which is read through once. `allowance` counts it against the uploads' allowance: a
+    /// file another replica took is served whatever this one's allowance, so that a read
+    /// never answers 507.
     ///
     /// # Errors
     /// When the file does not decode, is not such a DEM (or has more tiles than a pyramid
     /// may), or does not fit the datasets' allowance or the memory budget.
     pub(super) fn upload(
         &self,
-        file: &[u8],
+        file: Bytes,
         max_points: usize,
         allowance: bool,
     ) -> Result<(Arc<Dataset>, bool), DatasetError> {
-        let id = digest(file);
+        let id = digest(&file);
         if let Some(found) = self.get(&id) {
             return Ok((found, false));
         }
-        let dem = dem(file, max_points)?;
-        let needed = bytes_of(&dem);
-        let dataset = self.held(id.clone(), Origin::Upload, id.clone(), file.len() as u64, dem)?;
+        let file_bytes = file.len() as u64;
+        let dem = dem(Box::new(std::io::Cursor::new(file)), max_points)?;
+        let needed = bytes_of(&dem, file_bytes);
+        let dataset = self.held(id.clone(), Origin::Upload, id.clone(), file_bytes, dem)?;
         // Under the lock, so that uploads at once cannot pass the allowance together; of two
         // uploads of one file, the first in is the dataset and the other's charge goes.
         let mut by_id = self.write();
         if let Some(found) = by_id.get(&id) {
             return Ok((found.clone(), false));
         }
-        let held: u64 =
-            by_id.values().filter(|d| *d.origin() == Origin::Upload).map(|d| bytes_of(d.dem())).sum();
+        let held: u64 = by_id
+            .values()
+            .filter(|d| *d.origin() == Origin::Upload)
+            .map(|d| bytes_of(d.dem(), d.file_bytes()))
+            .sum();
         let limit = self.inner.settings.max_bytes;
         if allowance && held.saturating_add(needed) > limit {
             return Err(DatasetError::Full { needed, held, limit });
@@ -237,8 +241,10 @@ impl Datasets {
         wanted: Wanted,
     ) -> Result<Bytes, DatasetError> {
         let pyramid = dataset.pyramid();
-        let bytes =
-            pyramid.tile(tile, wanted).ok_or_else(|| DatasetError::NoTile(not_available(dataset, tile)))?;
+        let bytes = pyramid
+            .tile(tile, wanted)
+            .map_err(|e| DatasetError::Unreadable { id: dataset.id().to_owned(), detail: e.to_string() })?
+            .ok_or_else(|| DatasetError::NoTile(not_available(dataset, tile)))?;
         let gzip = Bytes::from(gzip(&bytes));
         self.keep(dataset, tile, wanted, gzip.clone());
         Ok(gzip)
@@ -271,7 +277,8 @@ impl Datasets {
         file_bytes: u64,
         dem: Dem,
     ) -> Result<Dataset, DatasetError> {
-        let charge = self.inner.budget.charge(bytes_of(&dem)).map_err(DatasetError::OverBudget)?;
+        let held = if origin == Origin::Upload { file_bytes } else { 0 };
+        let charge = self.inner.budget.charge(bytes_of(&dem, held)).map_err(DatasetError::OverBudget)?;
         Dataset::new(id, origin, digest, file_bytes, dem, self.inner.settings.error_factor, charge)
     }
 
@@ -295,15 +302,25 @@ async fn forget_dropped(inner: Weak<Inner>, mut messages: broadcast::Receiver<Me
     }
 }
 
-/// The DEM in `file`, of at most `max_points` samples, its nodata samples filled.
-fn dem(file: &[u8], max_points: usize) -> Result<Dem, DatasetError> {
-    let hints = GridHints { fill_nodata: true, ..GridHints::default() };
-    Ok(Dem::new(decode_grid(file, &hints, max_points)?)?)
+/// The DEM in `file`, of at most `max_points` samples.
+fn dem(file: Box<dyn crate::source::BlockReader>, max_points: usize) -> Result<Dem, DatasetError> {
+    Dem::open(file, max_points).map_err(|e| match e {
+        DemError::File(e) => DatasetError::File(e),
+        e => DatasetError::Dem(e),
+    })
 }
 
-/// The bytes a DEM's heights take decoded.
-fn bytes_of(dem: &Dem) -> u64 {
-    (dem.grid().nx() * dem.grid().ny()) as u64 * GRID_BYTES_PER_POINT
+/// The memory a DEM takes: its blocks' cache and masks, and `file_bytes` of its file held.
+fn bytes_of(dem: &Dem, file_bytes: u64) -> u64 {
+    dem.resident_bytes() + file_bytes
+}
+
+/// The SHA-256 of the file at `path`, hex, and its length: read through, never held.
+fn file_digest(path: &std::path::Path) -> std::io::Result<(String, u64)> {
+    use sha2::Digest;
+    let mut hash = sha2::Sha256::new();
+    let bytes = std::io::copy(&mut std::fs::File::open(path)?, &mut hash)?;
+    Ok((format!("{:x}", hash.finalize()), bytes))
 }
 
 /// `bytes` gzipped, as a client that sends `Accept-Encoding: gzip` takes them.

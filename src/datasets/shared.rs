@@ -179,7 +179,7 @@ impl Datasets {
     ) -> Result<(Arc<Dataset>, bool), DatasetError> {
         let _permit = self.work().acquire().await.expect("the semaphore is never closed");
         let datasets = self.clone();
-        joined(crate::cpu::spawn(move || datasets.upload(&file, max_points, allowance)).await)
+        joined(crate::cpu::spawn(move || datasets.upload(file, max_points, allowance)).await)
     }
 }
 

@@ -95,6 +95,8 @@ impl From<DatasetError> for ApiError {
             // With their Retry-After.
             DatasetError::Unreachable(_) => ApiError::Unreachable,
             DatasetError::OverBudget(o) => ApiError::OverBudget(o.needed, o.available, 1),
+            // The server's fault, not the request's: logged, never sent.
+            e @ DatasetError::Unreadable { .. } => ApiError::Internal(e.to_string()),
             e => ApiError::Dataset(e),
         }
     }
@@ -321,6 +323,7 @@ impl ApiError {
                 }
                 // Made the variants above by `From`, which sets their Retry-After.
                 DatasetError::OverBudget(o) => return ApiError::OverBudget(o.needed, o.available, 1).parts(),
+                DatasetError::Unreadable { .. } => return ApiError::Internal(e.to_string()).parts(),
             },
             ApiError::Internal(_) => (
                 StatusCode::INTERNAL_SERVER_ERROR,

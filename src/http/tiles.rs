@@ -259,7 +259,7 @@ fn describe(dataset: &Dataset) -> DatasetInfo {
             Origin::File(_) => "file",
         },
         file_bytes: dataset.file_bytes(),
-        size: [dem.grid().nx(), dem.grid().ny()],
+        size: dem.size(),
         crs: "EPSG:4326",
         bounds: [b.west, b.south, b.east, b.north],
         pixel_degrees: dem.pixel(),

@@ -35,7 +35,9 @@
 //! # Holes
 //! A hole is an error, not a guess: a GeoTIFF sample equal to its `GDAL_NODATA` value, a PNG
 //! pixel that is not fully opaque (alpha below its maximum, or equal to the `tRNS` grey), and
-//! a NaN or infinite float each fail with the (i, j) of the first one in grid order.
+//! a NaN or infinite float each fail with the (i, j) of the first one in grid order. Terrain
+//! tiles read a GeoTIFF by blocks instead ([`TiffBlocks`]), which fills its nodata samples
+//! ([`fill_holes`]).
 //!
 //! # GeoTIFF domain
 //! `ModelPixelScale` (33550) with `ModelTiepoint` (33922), or an axis-aligned
@@ -53,6 +55,7 @@
 //! f16 is rare in heightmaps, and a 64-bit integer does not always fit an f64 exactly.
 
 mod assemble;
+mod blocks;
 mod decode;
 mod error;
 mod fill;
@@ -66,8 +69,10 @@ mod raw;
 mod tests;
 mod tiff;
 
+pub use blocks::{Block, BlockReader, TiffBlocks};
 pub use decode::{DecodedGrid, decode_grid};
 pub use error::GridFileError;
+pub use fill::fill_holes;
 pub use hints::{Encoding, GridHints, RawType};
 pub use json::decode_values;
 pub use kind::{GridFileKind, signed_kind};

@@ -135,10 +135,15 @@ impl Grid {
     #[inline]
     pub fn to_grid(&self, p: Point) -> (f64, f64) {
         let r = self.rect;
-        let u = (p.x - r.x0()) / (r.x1() - r.x0()) * to_f64(self.nx - 1);
-        let v = (p.y - r.y0()) / (r.y1() - r.y0()) * to_f64(self.ny - 1);
-        (u, v)
+        (grid_coordinate(p.x, self.nx, r.x0(), r.x1()), grid_coordinate(p.y, self.ny, r.y0(), r.y1()))
     }
+}
+
+/// The continuous index of coordinate `x` among `n` nodes spread over [`lo`, `hi`]: what
+/// [`Grid::to_grid`] gives on each axis. For a caller that holds only part of a grid's values.
+#[inline]
+pub fn grid_coordinate(x: f64, n: usize, lo: f64, hi: f64) -> f64 {
+    (x - lo) / (hi - lo) * to_f64(n - 1)
 }
 
 /// The coordinate of node `k` of `n` spread over [`lo`, `hi`]: what [`Grid::node`] gives on
@@ -159,7 +164,7 @@ fn to_f64(n: usize) -> f64 {
 
 /// Splits a continuous grid coordinate into a cell index in [0, n−2] and a fraction.
 #[inline]
-fn cell(u: f64, n: usize) -> (usize, f64) {
+pub(crate) fn cell(u: f64, n: usize) -> (usize, f64) {
     // Comparisons rather than `clamp`, which checks its bounds first: the same value, NaN
     // included.
     let last = to_f64(n - 1);

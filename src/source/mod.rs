@@ -9,9 +9,10 @@ mod surface;
 
 pub use expr::{ExprError, ExprErrorKind, Expression};
 pub use file::{
-    Crs, DecodedGrid, Encoding, GridFileError, GridFileKind, GridHints, RawType, decode_grid, decode_values,
-    signed_kind,
+    Block, BlockReader, Crs, DecodedGrid, Encoding, GridFileError, GridFileKind, GridHints, RawType,
+    TiffBlocks, decode_grid, decode_values, fill_holes, signed_kind,
 };
 pub use function::Source;
-pub use grid::{BLOCK, Grid, GridError, node_coordinate};
+pub(crate) use grid::cell;
+pub use grid::{BLOCK, Grid, GridError, grid_coordinate, node_coordinate};
 pub use surface::Surface;

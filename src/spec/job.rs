@@ -108,8 +108,6 @@ impl JobSpec {
                     ny: grid.ny.map(|n| n.try_into().unwrap_or(usize::MAX)),
                     dtype: grid.dtype,
                     encoding: grid.encoding,
-                    // A mesh of a grid file is of its data: a hole is the caller's to fill.
-                    fill_nodata: false,
                 };
                 let decoded = decode_grid(file, &hints, limits.max_grid_points).map_err(grid_error)?;
                 file_domain = decoded.domain;

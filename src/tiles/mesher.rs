@@ -19,9 +19,10 @@
 
 use super::ellipsoid::SEMI_MAJOR_AXIS;
 use super::scheme::{TileId, degrees_per_tile};
+use super::view::View;
 use crate::geom::{Point, Rect};
 use crate::refine::{Criterion, Method, Params, SAMPLE_CLEARANCE, Sides, refine_with_sides};
-use crate::source::{Grid, Surface, node_coordinate};
+use crate::source::{Grid, node_coordinate};
 
 /// The height far from the DEM: the ellipsoid's surface.
 pub const FILL: f64 = 0.0;
@@ -29,7 +30,7 @@ pub const FILL: f64 = 0.0;
 /// The DEM's height at `p` (bilinear); outside its extent, its nearest edge's height fading
 /// linearly to [`FILL`] over the DEM's larger side, measured the larger way off (in degrees).
 /// A cliff at the edge would spoil the DEM's last samples in every tile that straddles it.
-pub fn height(dem: &Grid, p: Point) -> f64 {
+pub fn height(dem: &View<'_>, p: Point) -> f64 {
     let r = dem.rect();
     let off = (r.x0() - p.x).max(p.x - r.x1()).max(r.y0() - p.y).max(p.y - r.y1());
     if off <= 0.0 {
@@ -50,7 +51,7 @@ pub struct TileSurface {
     pub triangles: Vec<[u32; 3]>,
 }
 
-/// The mesh of `tile` over `dem` (a grid whose domain is in degrees: x longitude, y latitude)
+/// The mesh of `tile` over `dem` (samples whose domain is in degrees: x longitude, y latitude)
 /// within `tolerance` metres of the DEM at every sample of the DEM inside the tile but those
 /// on or within two hundredths of a step of its sides (which are left to the sides' nodes),
 /// and beyond the DEM at every node of the tile's lattice of `steps` + 1 samples a side
@@ -58,7 +59,7 @@ pub struct TileSurface {
 ///
 /// # Panics
 /// When `steps` is not a power of two of at least 2, or `tolerance` is not finite and ≥ 0.
-pub fn mesh_tile(dem: &Grid, tile: TileId, tolerance: f64, steps: usize) -> TileSurface {
+pub fn mesh_tile(dem: &View<'_>, tile: TileId, tolerance: f64, steps: usize) -> TileSurface {
     assert!(steps >= 2 && steps.is_power_of_two(), "steps {steps} is not a power of two");
     let b = tile.bounds();
     let rect = Rect::new(b.west, b.east, b.south, b.north).expect("a tile is a proper rectangle");
@@ -100,8 +101,7 @@ pub fn mesh_tile(dem: &Grid, tile: TileId, tolerance: f64, steps: usize) -> Tile
         .expect("a tolerance ≥ 0 and a budget of the lattice's nodes");
     // The error is measured at the DEM's own samples too: the lattice resamples them. Those
     // on or next to a side are left to it (its nodes hold it within the tolerance).
-    let clearance = 2.0 * SAMPLE_CLEARANCE * (rect.x1() - rect.x0()) / steps as f64;
-    let samples = samples_inside(dem, rect, clearance);
+    let samples = dem.samples_inside(rect, clearance(rect, steps));
     let refinement = refine_with_sides(&lattice, &sides, samples.as_ref(), &params, &mut ());
     let mesh = &refinement.mesh;
     TileSurface {
@@ -110,26 +110,10 @@ pub fn mesh_tile(dem: &Grid, tile: TileId, tolerance: f64, steps: usize) -> Tile
     }
 }
 
-/// The most samples of a DEM a tile copies to measure itself at: 32 MiB. A low level's tile of
-/// a large DEM (16.8 million samples at the default limit) is measured at its lattice alone,
-/// for a tolerance of kilometres.
-pub const MAX_SAMPLES: usize = 1 << 22;
-
-/// The DEM's samples inside `rect` at least `clearance` from its sides, as a grid of their
-/// own; `None` when fewer than two a side are, or more than [`MAX_SAMPLES`].
-fn samples_inside(dem: &Grid, rect: Rect, clearance: f64) -> Option<Grid> {
-    let (x0, x1, y0, y1) =
-        (rect.x0() + clearance, rect.x1() - clearance, rect.y0() + clearance, rect.y1() - clearance);
-    let columns: Vec<usize> = (0..dem.nx()).filter(|&i| (x0..=x1).contains(&dem.node(i, 0).x)).collect();
-    let rows: Vec<usize> = (0..dem.ny()).filter(|&j| (y0..=y1).contains(&dem.node(0, j).y)).collect();
-    let (&i0, &i1, &j0, &j1) = (columns.first()?, columns.last()?, rows.first()?, rows.last()?);
-    if (i1 - i0 + 1).saturating_mul(j1 - j0 + 1) > MAX_SAMPLES {
-        return None;
-    }
-    let values = (j0..=j1).flat_map(|j| dem.row(j)[i0..=i1].iter().copied()).collect();
-    let domain =
-        Rect::new(dem.node(i0, 0).x, dem.node(i1, 0).x, dem.node(0, j0).y, dem.node(0, j1).y).ok()?;
-    Some(Grid::new(i1 - i0 + 1, j1 - j0 + 1, values).ok()?.with_domain(domain))
+/// How far from a tile's sides, in degrees, the DEM's samples it is measured at lie: those
+/// nearer are left to the sides' nodes.
+pub(super) fn clearance(rect: Rect, steps: usize) -> f64 {
+    2.0 * SAMPLE_CLEARANCE * (rect.x1() - rect.x0()) / steps as f64
 }
 
 /// Cells a side of `tile` is cut into so that the chord of a cell's diagonal sags at most

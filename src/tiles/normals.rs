@@ -5,13 +5,13 @@
 
 use super::ellipsoid::{E2, SEMI_MAJOR_AXIS};
 use super::mesher::height;
+use super::view::View;
 use crate::geom::Point;
-use crate::source::Grid;
 
 /// The unit normal, in Earth-centred (ECEF) axes, of the DEM's surface at each of `vertices`
 /// (longitude, latitude in degrees, height): the slope from central differences `step` degrees
 /// either side, in metres on the WGS84 ellipsoid at that latitude.
-pub fn normals(dem: &Grid, vertices: &[[f64; 3]], step: f64) -> Vec<[f64; 3]> {
+pub fn normals(dem: &View<'_>, vertices: &[[f64; 3]], step: f64) -> Vec<[f64; 3]> {
     vertices
         .iter()
         .map(|&[lon, lat, _]| {
@@ -46,6 +46,7 @@ pub fn normals(dem: &Grid, vertices: &[[f64; 3]], step: f64) -> Vec<[f64; 3]> {
 mod tests {
     use super::*;
     use crate::geom::Rect;
+    use crate::source::Grid;
     use crate::tiles::ellipsoid::to_ecef;
 
     fn plane(slope_east: f64) -> Grid {
@@ -57,7 +58,7 @@ mod tests {
 
     #[test]
     fn flat_ground_faces_straight_up_from_the_ellipsoid() {
-        let n = normals(&plane(0.0), &[[10.5, 45.5, 100.0]], 0.01)[0];
+        let n = normals(&View::whole(&plane(0.0)), &[[10.5, 45.5, 100.0]], 0.01)[0];
         // The geodetic up: the direction from a point just below to the point.
         let (a, b) = (to_ecef(10.5, 45.5, 0.0), to_ecef(10.5, 45.5, 1.0));
         let up: Vec<f64> = (0..3).map(|k| b[k] - a[k]).collect();
@@ -68,7 +69,7 @@ mod tests {
     #[test]
     fn a_slope_rising_east_tilts_the_normal_west_by_its_angle() {
         // 1000 m a degree of longitude at 45.5°N, where a degree is about 78 km: atan(1000/78000).
-        let n = normals(&plane(1000.0), &[[10.5, 45.5, 600.0]], 0.01)[0];
+        let n = normals(&View::whole(&plane(1000.0)), &[[10.5, 45.5, 600.0]], 0.01)[0];
         let east = [-(10.5f64.to_radians()).sin(), (10.5f64.to_radians()).cos(), 0.0];
         let along: f64 = (0..3).map(|k| n[k] * east[k]).sum();
         let metres_a_degree = to_ecef(10.0, 45.5, 0.0)

@@ -1,11 +1,13 @@
 //! A DEM's tile pyramid: which tiles exist at each level, each tile's bytes, and the
 //! `layer.json` that tells a client both.
 
-use super::dem::Dem;
+use super::dem::{Dem, DemError};
 use super::mesher::{TileSurface, mesh_tile};
 use super::normals::normals;
 use super::quantized::{Extensions, TileMesh, encode};
 use super::scheme::{MAX_LEVEL, TileId, covering, degrees_per_tile, level_error, max_level};
+use super::view::View;
+use crate::geom::Rect;
 use serde_json::json;
 
 /// The finest lattice a tile is meshed on, in steps a side: low levels of a large DEM would
@@ -171,27 +173,45 @@ impl<'a> Pyramid<'a> {
 
     /// The mesh of `tile`, or `None` when the pyramid has no such tile. Beyond the DEM the
     /// height is 0 (`FILL`): a root tile the DEM does not reach follows the ellipsoid.
-    pub fn surface(&self, tile: TileId) -> Option<TileSurface> {
-        if !self.has(tile) {
-            return None;
-        }
-        let tolerance = level_error(tile.z) * self.error_factor;
-        Some(mesh_tile(self.dem.grid(), tile, tolerance, self.steps(tile.z)))
+    ///
+    /// # Errors
+    /// When a block of the DEM's file the tile needs cannot be read.
+    pub fn surface(&self, tile: TileId) -> Result<Option<TileSurface>, DemError> {
+        Ok(self.made(tile)?.map(|(surface, _)| surface))
     }
 
     /// The quantized-mesh-1.0 bytes of `tile` (uncompressed) with the extensions `wanted`, or
     /// `None` when the pyramid has no such tile.
-    pub fn tile(&self, tile: TileId, wanted: Wanted) -> Option<Vec<u8>> {
-        let surface = self.surface(tile)?;
-        // The level's lattice step: the same for every tile of the level, so neighbours give
-        // a shared vertex the same normal.
-        let step = degrees_per_tile(tile.z) / self.steps(tile.z) as f64;
-        let normals = wanted.normals.then(|| normals(self.dem.grid(), &surface.vertices, step));
+    ///
+    /// # Errors
+    /// When a block of the DEM's file the tile needs cannot be read.
+    pub fn tile(&self, tile: TileId, wanted: Wanted) -> Result<Option<Vec<u8>>, DemError> {
+        let Some((surface, view)) = self.made(tile)? else { return Ok(None) };
+        let normals = wanted.normals.then(|| normals(&view, &surface.vertices, self.step(tile.z)));
         let metadata =
             (wanted.metadata && tile.z.is_multiple_of(METADATA_LEVELS)).then(|| self.metadata(tile));
         let mesh =
             TileMesh { bounds: tile.bounds(), vertices: &surface.vertices, triangles: &surface.triangles };
-        Some(encode(&mesh, &Extensions { normals: normals.as_deref(), metadata: metadata.as_deref() }))
+        Ok(Some(encode(&mesh, &Extensions { normals: normals.as_deref(), metadata: metadata.as_deref() })))
+    }
+
+    /// The mesh of `tile` and the DEM's samples it was made from.
+    fn made(&self, tile: TileId) -> Result<Option<(TileSurface, View<'_>)>, DemError> {
+        if !self.has(tile) {
+            return Ok(None);
+        }
+        let b = tile.bounds();
+        let rect = Rect::new(b.west, b.east, b.south, b.north).expect("a tile is a proper rectangle");
+        let steps = self.steps(tile.z);
+        let view = self.dem.view(rect, steps, self.step(tile.z))?;
+        let tolerance = level_error(tile.z) * self.error_factor;
+        Ok(Some((mesh_tile(&view, tile, tolerance, steps), view)))
+    }
+
+    /// The level's lattice step in degrees, which normals are taken across: the same for
+    /// every tile of the level, so neighbours give a shared vertex the same normal.
+    fn step(&self, z: u8) -> f64 {
+        degrees_per_tile(z) / self.steps(z) as f64
     }
 
     /// The metadata extension's JSON for `tile`: which tiles of its subtree exist in each of

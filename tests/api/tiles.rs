@@ -8,7 +8,7 @@
 mod support;
 
 use crate::helpers::{configured, spawn_with};
-use meshfit::source::{GridHints, decode_grid};
+
 use meshfit::tiles::{Dem, Pyramid, TileId, Wanted};
 use quantized_mesh::DecodedMesh;
 use reqwest::multipart::{Form, Part};
@@ -137,8 +137,7 @@ async fn an_uploaded_dem_serves_layer_json_and_tiles_whose_neighbours_share_thei
 async fn a_tile_is_the_library_s_bytes_with_the_extensions_asked_for() {
     let app = app(|_| {}).await;
     let id = upload(&app, dem_file()).await.json::<Value>().await.unwrap()["id"].as_str().unwrap().to_owned();
-    let decoded = decode_grid(&dem_file(), &GridHints::default(), usize::MAX).unwrap();
-    let dem = Dem::new(decoded).unwrap();
+    let dem = Dem::open(Box::new(std::io::Cursor::new(dem_file())), usize::MAX).unwrap();
     let pyramid = Pyramid::new(&dem, 0, None, 1.0).unwrap();
     // The DEM is in Texas, under the western root.
     let root = TileId { z: 0, x: 0, y: 0 };
@@ -148,7 +147,11 @@ async fn a_tile_is_the_library_s_bytes_with_the_extensions_asked_for() {
         ("octvertexnormals", Wanted { normals: true, metadata: false }),
         ("", Wanted::default()),
     ] {
-        assert_eq!(tile(&app, &path, extensions).await, pyramid.tile(root, wanted).unwrap(), "{extensions}");
+        assert_eq!(
+            tile(&app, &path, extensions).await,
+            pyramid.tile(root, wanted).unwrap().unwrap(),
+            "{extensions}"
+        );
     }
     // CesiumJS asks in Accept; a root tile's metadata lists the tiles of the levels below.
     let accept = "application/vnd.quantized-mesh;extensions=octvertexnormals-watermask-metadata,*/*;q=0.01";
@@ -223,7 +226,10 @@ async fn a_dataset_named_in_the_settings_is_served_and_cannot_be_deleted() {
 
 #[tokio::test]
 async fn bad_uploads_and_tile_addresses_are_problems_naming_what_is_wrong() {
-    let app = app(|c| c.datasets.max_bytes = 256 * 256 * 8 + 1).await;
+    // An allowance of one DEM (its file and its blocks' cache), with room for a few bytes more.
+    let dem = Dem::open(Box::new(std::io::Cursor::new(dem_file())), usize::MAX).unwrap();
+    let one = dem.resident_bytes() + dem_file().len() as u64;
+    let app = app(|c| c.datasets.max_bytes = one + 64).await;
     // A projected GeoTIFF (the quick start's, in UTM) names its system.
     let utm =
         std::fs::read(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples/grids/dem.tif")).unwrap();

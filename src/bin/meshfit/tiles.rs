@@ -4,7 +4,6 @@
 
 use anyhow::{Context, Result, anyhow};
 use clap::Args;
-use meshfit::source::{GridHints, decode_grid};
 use meshfit::tiles::{Dem, Pyramid, TileId, Wanted};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
@@ -32,11 +31,11 @@ pub(crate) struct TilesArgs {
 
 pub(crate) fn tiles(args: &TilesArgs) -> Result<()> {
     let path = &args.dem;
-    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let hints = GridHints { fill_nodata: true, ..GridHints::default() };
-    let decoded = decode_grid(&bytes, &hints, usize::MAX).with_context(|| format!("{}", path.display()))?;
-    drop(bytes);
-    let dem = Dem::new(decoded).with_context(|| format!("{}", path.display()))?;
+    // Read by blocks, as the server reads a file: the same tiles, and a DEM larger than
+    // memory works.
+    let file = std::fs::File::open(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let dem = Dem::open(Box::new(std::io::BufReader::new(file)), usize::MAX)
+        .with_context(|| format!("{}", path.display()))?;
     let pyramid = Pyramid::new(&dem, args.min_zoom, args.max_zoom, args.error_factor)?;
     let tiles = pyramid.tiles();
     std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create {}", args.out.display()))?;
@@ -85,7 +84,7 @@ pub(crate) fn tiles(args: &TilesArgs) -> Result<()> {
 
 fn write_tile(pyramid: &Pyramid<'_>, tile: TileId, out: &Path) -> Result<()> {
     let bytes = pyramid
-        .tile(tile, Wanted::ALL)
+        .tile(tile, Wanted::ALL)?
         .ok_or_else(|| anyhow!("tile {}/{}/{} is not in the pyramid", tile.z, tile.x, tile.y))?;
     let dir = out.join(tile.z.to_string()).join(tile.x.to_string());
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;

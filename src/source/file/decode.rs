@@ -20,9 +20,6 @@ pub struct DecodedGrid {
     /// The rectangle a GeoTIFF places the samples on, when it says so; apply it with
     /// [`Grid::with_domain`] unless the request names its own.
     pub domain: Option<Rect>,
-    /// Which samples were nodata and were filled (with [`GridHints::fill_nodata`]), in the
-    /// grid's order (row j = 0 first); `None` when none were.
-    pub holes: Option<Vec<bool>>,
     /// The coordinate reference system of `domain`, when a GeoTIFF's keys name one.
     pub crs: Option<Crs>,
 }
@@ -60,12 +57,12 @@ pub fn decode_grid(bytes: &[u8], hints: &GridHints, max_points: usize) -> Result
         let found = format!("a{} {kind} file", if kind == GridFileKind::Npy { "n" } else { "" });
         return Err(GridFileError::NotATile { encoding: encoding.name(), found });
     }
-    let (grid, domain, crs, holes) = match kind {
-        GridFileKind::Tiff => tiff::decode(bytes, max_points, hints.fill_nodata)?,
-        GridFileKind::Npy => (npy::decode(bytes, max_points)?, None, None, None),
-        GridFileKind::Png => (png::decode(bytes, hints.encoding, max_points)?, None, None, None),
-        GridFileKind::Json => (json::decode(bytes, max_points)?, None, None, None),
-        GridFileKind::Raw => (decode_raw(bytes, hints, max_points)?, None, None, None),
+    let (grid, domain, crs) = match kind {
+        GridFileKind::Tiff => tiff::decode(bytes, max_points)?,
+        GridFileKind::Npy => (npy::decode(bytes, max_points)?, None, None),
+        GridFileKind::Png => (png::decode(bytes, hints.encoding, max_points)?, None, None),
+        GridFileKind::Json => (json::decode(bytes, max_points)?, None, None),
+        GridFileKind::Raw => (decode_raw(bytes, hints, max_points)?, None, None),
     };
-    Ok(DecodedGrid { grid, kind, domain, holes, crs })
+    Ok(DecodedGrid { grid, kind, domain, crs })
 }

@@ -7,12 +7,9 @@
 //! (the same bytes on every machine), and a hole n samples from the data is filled in the nth
 //! layer: O(samples) in all.
 
-use super::assemble::Shape;
-
-/// Fills the samples of `values` (row-major, `shape`) for which `hole` is true, in place, and
-/// returns which were; `None` when every sample is a hole.
-pub(super) fn fill_holes(values: &mut [f64], shape: Shape, hole: impl Fn(f64) -> bool) -> Option<Vec<bool>> {
-    let (nx, ny) = (shape.nx, shape.ny);
+/// Fills the samples of `values` (row-major, `[nx, ny]`) for which `hole` is true, in place,
+/// and returns which were; `None` when every sample is a hole.
+pub fn fill_holes(values: &mut [f64], [nx, ny]: [usize; 2], hole: impl Fn(f64) -> bool) -> Option<Vec<bool>> {
     let holes: Vec<bool> = values.iter().map(|&v| hole(v)).collect();
     if !holes.contains(&true) {
         return Some(holes);
@@ -59,7 +56,7 @@ mod tests {
         // 5 × 1 with a hole of three in the middle: 1, _, _, _, 9.
         let hole = |v: f64| v == -1.0;
         let mut values = vec![1.0, -1.0, -1.0, -1.0, 9.0];
-        let filled = fill_holes(&mut values, Shape { nx: 5, ny: 1 }, hole).unwrap();
+        let filled = fill_holes(&mut values, [5, 1], hole).unwrap();
         assert_eq!(filled, [false, true, true, true, false]);
         // Layer 1: the two next to the data; layer 2: the middle, from both.
         assert_eq!(values, [1.0, 1.0, 5.0, 9.0, 9.0]);
@@ -68,7 +65,7 @@ mod tests {
     #[test]
     fn the_result_does_not_depend_on_the_scan_and_all_holes_is_none() {
         // A plane with a square void: the fill is symmetric where the data are.
-        let shape = Shape { nx: 7, ny: 7 };
+        let shape = [7, 7];
         let mut values: Vec<f64> = (0..49).map(|k| f64::from((k % 7) as u8 + (k / 7) as u8)).collect();
         for j in 2..5 {
             for i in 2..5 {
@@ -91,6 +88,6 @@ mod tests {
         assert!(values.iter().all(|v| v.is_finite()));
         // The void's centre, (3, 3), is the plane's value there by symmetry.
         assert_eq!(values[3 * 7 + 3], 6.0);
-        assert!(fill_holes(&mut [f64::NAN; 4], Shape { nx: 2, ny: 2 }, f64::is_nan).is_none());
+        assert!(fill_holes(&mut [f64::NAN; 4], [2, 2], f64::is_nan).is_none());
     }
 }

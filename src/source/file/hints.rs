@@ -12,10 +12,6 @@ pub struct GridHints {
     pub dtype: Option<RawType>,
     /// How a colour PNG tile encodes heights.
     pub encoding: Option<Encoding>,
-    /// Fill a GeoTIFF's nodata samples (its `GDAL_NODATA` value) from their neighbours
-    /// instead of refusing the file ([`DecodedGrid::holes`](super::DecodedGrid::holes) says
-    /// which were).
-    pub fill_nodata: bool,
 }
 
 /// How a web-map elevation tile (an 8-bit RGB or RGBA PNG) encodes each pixel's height.

@@ -1,9 +1,8 @@
 //! TIFF and GeoTIFF rasters: one band of integer or float samples, the georeferenced domain
 //! and the `GDAL_NODATA` value.
 
-use super::assemble::{NoData, Rows, Shape, check_size, flip_rows, into_grid};
+use super::assemble::{NoData, Rows, Shape, check_size, into_grid};
 use super::error::{GridFileError, detail};
-use super::fill::fill_holes;
 use super::kind::GridFileKind;
 use crate::geom::Rect;
 use crate::source::Grid;
@@ -11,9 +10,9 @@ use ::tiff::decoder::ifd::Value;
 use ::tiff::decoder::{Decoder, DecodingResult, Limits};
 use ::tiff::tags::Tag;
 use ::tiff::{TiffError, TiffResult};
-use std::io::Cursor;
+use std::io::{Cursor, Read, Seek};
 
-const KIND: GridFileKind = GridFileKind::Tiff;
+pub(super) const KIND: GridFileKind = GridFileKind::Tiff;
 
 const SUPPORTED: &str = "one band of u8, u16, u32, i8, i16, i32, f32 or f64";
 
@@ -40,35 +39,64 @@ pub enum Crs {
     Projected(Option<u16>),
 }
 
-fn error(e: TiffError) -> GridFileError {
+pub(super) fn error(e: TiffError) -> GridFileError {
     match e {
         TiffError::UnsupportedError(e) => GridFileError::Unsupported { kind: KIND, detail: detail(e) },
         e => GridFileError::Corrupt { kind: KIND, detail: detail(e) },
     }
 }
 
-/// A decoded GeoTIFF: its grid, domain and system, and which samples were nodata, filled.
-pub(super) type Decoded = (Grid, Option<Rect>, Option<Crs>, Option<Vec<bool>>);
+/// A decoded GeoTIFF: its grid, domain and system.
+pub(super) type Decoded = (Grid, Option<Rect>, Option<Crs>);
 
-/// The grid, its domain and system, and with `fill` (nodata samples filled from their
-/// neighbours rather than refused) which samples were, in grid order.
-pub(super) fn decode(bytes: &[u8], max_points: usize, fill: bool) -> Result<Decoded, GridFileError> {
-    // Reading the first directory touches only the header and the tags.
+/// What a GeoTIFF's first directory says, read before any sample.
+pub(super) struct Header {
+    pub(super) shape: Shape,
+    pub(super) nodata: Option<NoData>,
+    pub(super) domain: Option<Rect>,
+    pub(super) crs: Option<Crs>,
+}
+
+/// The grid, its domain and system; a nodata sample is refused.
+pub(super) fn decode(bytes: &[u8], max_points: usize) -> Result<Decoded, GridFileError> {
     let mut decoder = Decoder::new(Cursor::new(bytes)).map_err(error)?;
-    check_colour(&mut decoder)?;
-    let is_f32 = check_sample_type(&mut decoder)? == (3, 32);
-    let (width, height) = decoder.dimensions().map_err(error)?;
-    let shape = check_size(u64::from(width), u64::from(height), max_points)?;
-    let nodata = nodata(&mut decoder, is_f32)?;
-    let keys = decoder.find_tag_unsigned_vec::<u16>(Tag::GeoKeyDirectoryTag).map_err(error)?;
-    let domain = domain(&mut decoder, shape, keys.as_deref())?;
-    let crs = crs(keys.as_deref());
+    let Header { shape, nodata, domain, crs } = header(&mut decoder, max_points)?;
     // The decoded buffer is at most nx·ny samples of 8 bytes; the default 256 MiB cap would
     // refuse a large grid the caller allows.
     let mut limits = Limits::default();
     limits.decoding_buffer_size = max_points.saturating_mul(8);
     let mut decoder = decoder.with_limits(limits);
-    let mut values: Vec<f64> = match decoder.read_image().map_err(error)? {
+    let values = samples(decoder.read_image().map_err(error)?)?;
+    if values.len() != shape.points() {
+        return Err(GridFileError::Corrupt {
+            kind: KIND,
+            detail: format!("decoded {} samples for {} x {} pixels", values.len(), shape.nx, shape.ny),
+        });
+    }
+    let grid = into_grid(KIND, shape, Rows::TopFirst, values, nodata)?;
+    Ok((grid, domain, crs))
+}
+
+/// Reads the first directory, which touches only the header and the tags: refuses colour,
+/// several bands and sample types meshfit does not read, and more than `max_points` samples.
+pub(super) fn header<R: Read + Seek>(
+    decoder: &mut Decoder<R>,
+    max_points: usize,
+) -> Result<Header, GridFileError> {
+    check_colour(decoder)?;
+    let is_f32 = check_sample_type(decoder)? == (3, 32);
+    let (width, height) = decoder.dimensions().map_err(error)?;
+    let shape = check_size(u64::from(width), u64::from(height), max_points)?;
+    let nodata = nodata(decoder, is_f32)?;
+    let keys = decoder.find_tag_unsigned_vec::<u16>(Tag::GeoKeyDirectoryTag).map_err(error)?;
+    let domain = domain(decoder, shape, keys.as_deref())?;
+    let crs = crs(keys.as_deref());
+    Ok(Header { shape, nodata, domain, crs })
+}
+
+/// Decoded samples as f64, which holds every accepted type exactly.
+pub(super) fn samples(result: DecodingResult) -> Result<Vec<f64>, GridFileError> {
+    Ok(match result {
         DecodingResult::U8(v) => v.into_iter().map(f64::from).collect(),
         DecodingResult::U16(v) => v.into_iter().map(f64::from).collect(),
         DecodingResult::U32(v) => v.into_iter().map(f64::from).collect(),
@@ -78,24 +106,7 @@ pub(super) fn decode(bytes: &[u8], max_points: usize, fill: bool) -> Result<Deco
         DecodingResult::F32(v) => v.into_iter().map(f64::from).collect(),
         DecodingResult::F64(v) => v,
         other => return Err(unsupported_type(result_type(&other))),
-    };
-    if values.len() != shape.points() {
-        return Err(GridFileError::Corrupt {
-            kind: KIND,
-            detail: format!("decoded {} samples for {width} x {height} pixels", values.len()),
-        });
-    }
-    let holes = match nodata {
-        Some(hole) if fill => {
-            let mut holes = fill_holes(&mut values, shape, |v| hole.matches(v))
-                .ok_or(GridFileError::AllNoData(hole.0))?;
-            flip_rows(&mut holes, shape);
-            holes.contains(&true).then_some(holes)
-        }
-        _ => None,
-    };
-    let grid = into_grid(KIND, shape, Rows::TopFirst, values, nodata.filter(|_| !fill))?;
-    Ok((grid, domain, crs, holes))
+    })
 }
 
 fn unsupported_type(found: &str) -> GridFileError {
@@ -112,7 +123,7 @@ fn result_type(r: &DecodingResult) -> &'static str {
 }
 
 /// Refuses colour models first, then more than one sample per pixel.
-fn check_colour(decoder: &mut Decoder<Cursor<&[u8]>>) -> Result<(), GridFileError> {
+fn check_colour<R: Read + Seek>(decoder: &mut Decoder<R>) -> Result<(), GridFileError> {
     // TIFF 6.0 PhotometricInterpretation values; 32844/32845 are LogL/LogLuv.
     let model = match decoder.find_tag_unsigned::<u16>(Tag::PhotometricInterpretation).map_err(error)? {
         Some(2) => Some("RGB"),
@@ -141,7 +152,7 @@ fn check_colour(decoder: &mut Decoder<Cursor<&[u8]>>) -> Result<(), GridFileErro
 /// Accepts 8-, 16- and 32-bit integers and 32- and 64-bit floats and returns their
 /// (SampleFormat, BitsPerSample); refuses the rest before decoding (1-bit samples, say, would
 /// come out packed eight to a byte).
-fn check_sample_type(decoder: &mut Decoder<Cursor<&[u8]>>) -> Result<(u16, u16), GridFileError> {
+fn check_sample_type<R: Read + Seek>(decoder: &mut Decoder<R>) -> Result<(u16, u16), GridFileError> {
     let first = |v: Option<Vec<u16>>, default| v.and_then(|v| v.first().copied()).unwrap_or(default);
     let bits = first(decoder.find_tag_unsigned_vec::<u16>(Tag::BitsPerSample).map_err(error)?, 1);
     let format = first(decoder.find_tag_unsigned_vec::<u16>(Tag::SampleFormat).map_err(error)?, 1);
@@ -156,7 +167,7 @@ fn check_sample_type(decoder: &mut Decoder<Cursor<&[u8]>>) -> Result<(u16, u16),
 }
 
 /// `GDAL_NODATA` (tag 42113): the value as ASCII, compared as the samples' own type would.
-fn nodata(decoder: &mut Decoder<Cursor<&[u8]>>, is_f32: bool) -> Result<Option<NoData>, GridFileError> {
+fn nodata<R: Read + Seek>(decoder: &mut Decoder<R>, is_f32: bool) -> Result<Option<NoData>, GridFileError> {
     let Some(value) = decoder.find_tag(Tag::GdalNodata).map_err(error)? else { return Ok(None) };
     let text = value.into_string().map_err(error)?;
     let text = text.trim_matches(|c: char| c.is_whitespace() || c == '\0');
@@ -182,15 +193,15 @@ fn numbers(value: Value) -> Vec<f64> {
     }
 }
 
-fn find_numbers(decoder: &mut Decoder<Cursor<&[u8]>>, tag: Tag) -> TiffResult<Option<Vec<f64>>> {
+fn find_numbers<R: Read + Seek>(decoder: &mut Decoder<R>, tag: Tag) -> TiffResult<Option<Vec<f64>>> {
     Ok(decoder.find_tag(tag)?.map(numbers))
 }
 
 /// The rectangle through the centres of the corner pixels, from ModelPixelScale and
 /// ModelTiepoint or from an axis-aligned ModelTransformation; `None` when the file has
 /// neither, or only a rotation or ground control points.
-fn domain(
-    decoder: &mut Decoder<Cursor<&[u8]>>,
+fn domain<R: Read + Seek>(
+    decoder: &mut Decoder<R>,
     shape: Shape,
     keys: Option<&[u16]>,
 ) -> Result<Option<Rect>, GridFileError> {

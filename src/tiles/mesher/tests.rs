@@ -1,5 +1,6 @@
 use super::*;
 use crate::geom::Point;
+use crate::tiles::View;
 use proptest::prelude::*;
 
 /// A DEM of hills and a ridge over 10°–12°E, 45°–46°N, 401 × 201 samples (18 arc-seconds).
@@ -56,9 +57,9 @@ fn neighbours_share_every_vertex_of_their_common_side_bit_for_bit() {
     let (z, x, y) = (9, 541, 384);
     let tile = |x, y| TileId::new(z, x, y).unwrap();
     let tolerance = 2.0;
-    let here = mesh_tile(&dem, tile(x, y), tolerance, 64);
-    let east = mesh_tile(&dem, tile(x + 1, y), tolerance, 64);
-    let north = mesh_tile(&dem, tile(x, y + 1), tolerance, 64);
+    let here = mesh_tile(&View::whole(&dem), tile(x, y), tolerance, 64);
+    let east = mesh_tile(&View::whole(&dem), tile(x + 1, y), tolerance, 64);
+    let north = mesh_tile(&View::whole(&dem), tile(x, y + 1), tolerance, 64);
     let b = tile(x, y).bounds();
     let shared_east = on_line(&here, |v| v[0] == b.east);
     assert_eq!(shared_east, on_line(&east, |v| v[0] == b.east));
@@ -77,7 +78,7 @@ fn beyond_the_dem_every_lattice_node_is_within_the_tolerance() {
     let tile = TileId::new(10, 1095, 770).unwrap();
     assert!(tile.bounds().west > 12.0);
     for tolerance in [0.5, 5.0, 40.0] {
-        let surface = mesh_tile(&dem, tile, tolerance, 32);
+        let surface = mesh_tile(&View::whole(&dem), tile, tolerance, 32);
         let worst = worst_at_lattice(&dem, tile, &surface, 32, |_| true);
         assert!(worst <= tolerance * (1.0 + 1e-9) + 1e-9, "{worst} > {tolerance}");
     }
@@ -98,7 +99,7 @@ fn worst_at_lattice(
         .flat_map(|j| (0..=steps).map(move |i| (i, j)))
         .map(|(i, j)| Point::new(at(i, b.west, b.east), at(j, b.south, b.north)))
         .filter(|&p| keep(p))
-        .map(|p| (linear(surface, p) - height(dem, p)).abs())
+        .map(|p| (linear(surface, p) - height(&View::whole(dem), p)).abs())
         .fold(0.0, f64::max)
 }
 
@@ -129,7 +130,7 @@ fn every_dem_sample_in_a_tile_is_within_the_tolerance() {
     let dem = dem(1.3);
     let tile = TileId::new(10, 1086, 770).unwrap();
     for tolerance in [0.5, 5.0, 40.0] {
-        let surface = mesh_tile(&dem, tile, tolerance, 64);
+        let surface = mesh_tile(&View::whole(&dem), tile, tolerance, 64);
         let (inside, on_sides) = worst_at_samples(&dem, tile, &surface);
         assert_eq!(on_sides, 0.0, "no sample of this DEM lies on the tile's sides");
         assert!(inside <= tolerance * (1.0 + 1e-9) + 1e-9, "{inside} > {tolerance}");
@@ -152,7 +153,7 @@ fn samples_on_a_tiles_sides_are_left_to_them_and_every_one_inside_is_within_the_
     let b = tile.bounds();
     assert_eq!((b.west * 256.0).fract(), 0.0, "the tile's west side is a column of the DEM");
     for tolerance in [0.5, 5.0] {
-        let surface = mesh_tile(&dem, tile, tolerance, 64);
+        let surface = mesh_tile(&View::whole(&dem), tile, tolerance, 64);
         // Samples on a side are left to its nodes, simplified on the lattice's profile: they
         // may pass the tolerance (by a third here; see docs/tiles.md). Not one inside does.
         let (inside, on_sides) = worst_at_samples(&dem, tile, &surface);
@@ -171,7 +172,7 @@ fn a_tile_across_the_dems_edge_keeps_its_samples_and_the_fade_beyond_within_the_
     let b = tile.bounds();
     assert!(b.west < 12.0 && 12.0 < b.east);
     let tolerance = 2.0;
-    let surface = mesh_tile(&dem, tile, tolerance, 64);
+    let surface = mesh_tile(&View::whole(&dem), tile, tolerance, 64);
     let (inside, _) = worst_at_samples(&dem, tile, &surface);
     assert!(inside <= tolerance * (1.0 + 1e-9) + 1e-9, "{inside} > {tolerance} at the samples");
     let beyond = worst_at_lattice(&dem, tile, &surface, 64, |p| p.x > 12.0);
@@ -182,24 +183,25 @@ fn a_tile_across_the_dems_edge_keeps_its_samples_and_the_fade_beyond_within_the_
 fn a_tolerance_of_zero_keeps_every_node_and_a_large_one_the_corners() {
     let dem = dem(0.4);
     let tile = TileId::new(11, 2176, 1542).unwrap();
-    assert_eq!(mesh_tile(&dem, tile, 0.0, 8).vertices.len(), 81);
+    assert_eq!(mesh_tile(&View::whole(&dem), tile, 0.0, 8).vertices.len(), 81);
     // A tolerance the data and the curvature of a level-11 tile meet with its corners alone.
-    assert_eq!(mesh_tile(&dem, tile, 1e6, 8).vertices.len(), 4);
+    assert_eq!(mesh_tile(&View::whole(&dem), tile, 1e6, 8).vertices.len(), 4);
 }
 
 #[test]
 fn beyond_the_dem_its_edge_fades_to_the_fill_and_sides_across_it_agree() {
     let dem = dem(0.0);
-    let edge = dem.eval(Point::new(10.0, 45.5));
+    let edge = dem.interpolate(Point::new(10.0, 45.5));
     // Just west of the DEM (10°E): its edge, barely faded; two degrees off (one DEM width):
     // the fill.
-    assert!((height(&dem, Point::new(9.99, 45.5)) - edge).abs() < 0.01 * edge.abs());
-    assert_eq!(height(&dem, Point::new(8.0, 45.5)), FILL);
-    assert_eq!(height(&dem, Point::new(-150.0, -60.0)), FILL);
+    assert!((height(&View::whole(&dem), Point::new(9.99, 45.5)) - edge).abs() < 0.01 * edge.abs());
+    assert_eq!(height(&View::whole(&dem), Point::new(8.0, 45.5)), FILL);
+    assert_eq!(height(&View::whole(&dem), Point::new(-150.0, -60.0)), FILL);
     // The tile astride the DEM's west edge and its western neighbour share their side.
     let (astride, off) = (TileId::new(9, 540, 385).unwrap(), TileId::new(9, 539, 385).unwrap());
     assert!(astride.bounds().west < 10.0 && astride.bounds().east > 10.0);
-    let (a, b) = (mesh_tile(&dem, astride, 1.0, 64), mesh_tile(&dem, off, 1.0, 64));
+    let (a, b) =
+        (mesh_tile(&View::whole(&dem), astride, 1.0, 64), mesh_tile(&View::whole(&dem), off, 1.0, 64));
     let side = astride.bounds().west;
     assert_eq!(on_line(&a, |v| v[0] == side), on_line(&b, |v| v[0] == side));
 }
@@ -211,7 +213,7 @@ fn large_tiles_follow_the_earths_curvature_within_the_tolerance() {
     for (z, x, y) in [(0, 0, 0), (1, 3, 0), (4, 20, 11)] {
         let tile = TileId::new(z, x, y).unwrap();
         let tolerance = level_error(tile.z);
-        let surface = mesh_tile(&dem, tile, tolerance, 64);
+        let surface = mesh_tile(&View::whole(&dem), tile, tolerance, 64);
         assert!(surface.vertices.len() > 4, "level {z} is more than two triangles");
         // Away from the DEM every height is the fill: what a client draws is the chord of each
         // triangle between Earth-centred points. Its gap to the ellipsoid at the lattice nodes:
@@ -255,7 +257,7 @@ proptest! {
         let (x, y) = (541 + dx, 384 + dy);
         let a = TileId::new(9, x, y).unwrap();
         let b = if vertical { TileId::new(9, x, y + 1).unwrap() } else { TileId::new(9, x + 1, y).unwrap() };
-        let (ma, mb) = (mesh_tile(&dem, a, tolerance, 32), mesh_tile(&dem, b, tolerance, 32));
+        let (ma, mb) = (mesh_tile(&View::whole(&dem), a, tolerance, 32), mesh_tile(&View::whole(&dem), b, tolerance, 32));
         let bounds = a.bounds();
         if vertical {
             prop_assert_eq!(on_line(&ma, |v| v[1] == bounds.north), on_line(&mb, |v| v[1] == bounds.north));
