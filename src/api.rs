@@ -60,16 +60,29 @@ fn count<'de, D: Deserializer<'de>>(d: D) -> Result<u64, D::Error> {
             u64::try_from(v).map_err(|_| E::invalid_value(de::Unexpected::Signed(v), &self))
         }
         fn visit_f64<E: de::Error>(self, v: f64) -> Result<u64, E> {
-            // 2^64 is the first float above u64::MAX; every float below it with no fraction is
-            // an exact count.
-            if v.fract() == 0.0 && (0.0..18_446_744_073_709_551_616.0).contains(&v) {
-                Ok(v as u64)
-            } else {
-                Err(E::invalid_value(de::Unexpected::Float(v), &self))
-            }
+            whole(v).ok_or_else(|| E::invalid_value(de::Unexpected::Float(v), &self))
         }
     }
     d.deserialize_any(V)
+}
+
+/// `v` as a count, when it is a whole number from 0 below 2^64.
+fn whole(v: f64) -> Option<u64> {
+    // 2^64 is the first float above u64::MAX; every float below it with no fraction is an
+    // exact count.
+    (v.fract() == 0.0 && (0.0..18_446_744_073_709_551_616.0).contains(&v)).then_some(v as u64)
+}
+
+/// A count written as text (a command-line flag) read as a request's JSON number is: `10000`,
+/// `1e4` and `10000.0` are 10000; `1.5`, `-1` and words are not counts.
+///
+/// ```
+/// assert_eq!(meshfit::api::parse_count("1e4"), Some(10_000));
+/// assert_eq!(meshfit::api::parse_count("2.5"), None);
+/// ```
+pub fn parse_count(text: &str) -> Option<u64> {
+    let text = text.trim();
+    text.parse::<u64>().ok().or_else(|| text.parse::<f64>().ok().and_then(whole))
 }
 
 /// An optional [`count`]; `null` is no count, as for any optional field.

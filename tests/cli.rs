@@ -606,3 +606,49 @@ fn cesium_reads_every_tile_as_written_and_sees_no_crack() {
     assert!(summary["sides"].as_u64().unwrap() > 0, "{summary}");
     assert!(summary["gap"].as_f64().unwrap() <= quantum + 1e-9, "{summary}, a quantum is {quantum}");
 }
+
+#[test]
+fn counts_read_as_the_api_reads_them_and_a_grid_comes_from_stdin() {
+    use std::io::Write;
+    let a = document(&["mesh", "--function", "x*y", "--max-vertices", "1e2", "--stats"]);
+    let b = document(&["mesh", "--function", "x*y", "--max-vertices", "100", "--stats"]);
+    assert_eq!(a["stats"]["vertices"], 100);
+    assert_eq!(a["stats"], b["stats"]);
+    let err = stderr_of_failure(&["mesh", "--function", "x*y", "--max-vertices", "1.5"]);
+    assert!(err.contains("`1.5` is not a whole number"), "{err}");
+    // The same grid from a file and from stdin.
+    let grid = r#"{"nx": 3, "ny": 2, "values": [0, 1, 4, 1, 2, 9]}"#;
+    let path = temp_file("stdin-grid.json", grid);
+    let from_file = document(&["mesh", "--grid", path.to_str().unwrap(), "--max-vertices", "6"]);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_meshfit"))
+        .args(["mesh", "--grid", "-", "--max-vertices", "6"])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    child.stdin.take().unwrap().write_all(grid.as_bytes()).unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let from_stdin: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(from_stdin["vertices"], from_file["vertices"]);
+    assert_eq!(from_stdin["stats"]["vertices"], 6);
+}
+
+#[test]
+fn an_output_option_the_format_does_not_take_is_refused() {
+    let err = stderr_of_failure(&["mesh", "--function", "x*y", "--z-scale", "2"]);
+    assert!(err.contains("--z-scale does not apply to format json"), "{err}");
+    let err = stderr_of_failure(&["mesh", "--function", "x*y", "--format", "svg", "--size", "100"]);
+    assert!(err.contains("--size does not apply to format svg"), "{err}");
+    let out =
+        meshfit(&["mesh", "--function", "x*y", "--max-vertices", "9", "--format", "obj", "--z-scale", "2"]);
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    let z: Vec<f64> = text
+        .lines()
+        .filter_map(|l| l.strip_prefix("v "))
+        .map(|l| l.split(' ').nth(2).unwrap().parse().unwrap())
+        .collect();
+    // x*y on [0,1]²: the far corner is 1, doubled.
+    assert!(z.contains(&2.0), "{z:?}");
+}

@@ -47,6 +47,21 @@ impl Wanted {
             None => from_accept(headers)?,
         };
         let mut options = Options::default();
+        // An option the format does not take would be ignored without a word.
+        let refuse = |option: &str, takes: fn(Format) -> bool| {
+            let formats: Vec<&str> = Format::ALL.iter().filter(|f| takes(**f)).map(|f| f.name()).collect();
+            ApiError::InvalidRequest(format!(
+                "{option} does not apply to format {}; it applies to {}",
+                format.name(),
+                formats.join(", ")
+            ))
+        };
+        if query.z_scale.is_some() && !format.takes_z_scale() {
+            return Err(refuse("z_scale", Format::takes_z_scale));
+        }
+        if query.size.is_some() && !format.takes_size() {
+            return Err(refuse("size", Format::takes_size));
+        }
         if let Some(z) = query.z_scale {
             if !z.is_finite() {
                 return Err(ApiError::InvalidRequest(format!("z_scale must be a finite number, got {z}")));

@@ -22,7 +22,7 @@ pub enum Format {
     Vtu,
     /// Gmsh 4.1 ASCII with z and the triangle errors as views, for Gmsh and FEM tools.
     Msh,
-    /// Binary glTF 2.0, coloured by z, for web viewers (`z_scale` applies).
+    /// Binary glTF 2.0, coloured by z, for web viewers.
     Glb,
     /// The mesh seen from above, coloured by z, as SVG.
     Svg,
@@ -43,6 +43,17 @@ impl Format {
         Format::Svg,
         Format::Png,
     ];
+
+    /// Whether `z_scale` applies: the formats whose positions are 3-D (the JSON document and
+    /// msh carry z as a value, the pictures as a colour).
+    pub fn takes_z_scale(self) -> bool {
+        matches!(self, Format::Obj | Format::Ply | Format::Stl | Format::Vtu | Format::Glb)
+    }
+
+    /// Whether `size` applies: the raster picture.
+    pub fn takes_size(self) -> bool {
+        self == Format::Png
+    }
 
     /// The name used by `?format=`, `--format` and as the file extension.
     pub fn name(self) -> &'static str {

@@ -11,10 +11,10 @@ use std::io::Write;
 use std::sync::Arc;
 
 /// The OBJ file of `result`.
-pub(super) fn encode(result: &Arc<RunResult>, _options: &Options) -> Encoded {
+pub(super) fn encode(result: &Arc<RunResult>, options: &Options) -> Encoded {
     let head =
         format!("# meshfit: {} vertices, {} triangles\n", result.vertices.len(), result.triangles.len());
-    let (r, s) = (result.clone(), result.clone());
+    let (r, s, z_scale) = (result.clone(), result.clone(), options.z_scale);
     Encoded::new(vec![
         Part::Bytes(head.into_bytes()),
         Part::rows(result.vertices.len(), move |i, out| {
@@ -24,7 +24,7 @@ pub(super) fn encode(result: &Arc<RunResult>, _options: &Options) -> Encoded {
             out.push(b' ');
             push_f64(out, v.y);
             out.push(b' ');
-            push_f64(out, v.z);
+            push_f64(out, v.z * z_scale);
             out.push(b'\n');
         }),
         Part::rows(result.triangles.len(), move |i, out| {

@@ -8,7 +8,7 @@ use crate::result::{Role, RunResult};
 use std::sync::Arc;
 
 /// The PLY file of `result`.
-pub(super) fn encode(result: &Arc<RunResult>, _options: &Options) -> Encoded {
+pub(super) fn encode(result: &Arc<RunResult>, options: &Options) -> Encoded {
     // A face has room for one number: the refinement's indicator, under its field's name.
     let indicator = result.with_role(Role::Indicator);
     let mut head = format!(
@@ -22,12 +22,12 @@ pub(super) fn encode(result: &Arc<RunResult>, _options: &Options) -> Encoded {
         head.push_str(&format!("property double {}\n", result.fields[f].name));
     }
     head.push_str("end_header\n");
-    let (r, s) = (result.clone(), result.clone());
+    let (r, s, z_scale) = (result.clone(), result.clone(), options.z_scale);
     Encoded::new(vec![
         Part::Bytes(head.into_bytes()),
         Part::rows(result.vertices.len(), move |i, out| {
             let v = r.vertices[i];
-            for c in [v.x, v.y, v.z] {
+            for c in [v.x, v.y, v.z * z_scale] {
                 out.extend_from_slice(&c.to_le_bytes());
             }
         }),

@@ -13,17 +13,20 @@ use std::sync::Arc;
 const HEADER: &[u8] = b"meshfit binary STL";
 
 /// The STL file of `result`.
-pub(super) fn encode(result: &Arc<RunResult>, _options: &Options) -> Encoded {
+pub(super) fn encode(result: &Arc<RunResult>, options: &Options) -> Encoded {
     let mut head = HEADER.to_vec();
     head.resize(80, b' ');
     // Triangle ids are u32, so their count fits the u32 field.
     let count = u32::try_from(result.triangles.len()).expect("triangle ids are u32");
     head.extend_from_slice(&count.to_le_bytes());
-    let r = result.clone();
+    let (r, z_scale) = (result.clone(), options.z_scale);
     Encoded::new(vec![
         Part::Bytes(head),
         Part::rows(result.triangles.len(), move |i, out| {
-            let corners = r.triangles[i].map(|v| r.vertices[v as usize]);
+            let corners = r.triangles[i].map(|v| {
+                let v = r.vertices[v as usize];
+                Vertex { z: v.z * z_scale, ..v }
+            });
             for v in std::iter::once(normal(corners)).chain(corners.map(|v| [v.x, v.y, v.z])) {
                 for c in v {
                     out.extend_from_slice(&(c as f32).to_le_bytes());

@@ -18,7 +18,7 @@ use std::sync::Arc;
 const VTK_TRIANGLE: u8 = 5;
 
 /// The VTU file of `result`.
-pub(super) fn encode(result: &Arc<RunResult>, _options: &Options) -> Encoded {
+pub(super) fn encode(result: &Arc<RunResult>, options: &Options) -> Encoded {
     let (n, m) = (result.vertices.len(), result.triangles.len());
     let array = |attributes: &str| format!("<DataArray {attributes} format=\"binary\">").into_bytes();
     let mut parts = vec![
@@ -50,13 +50,14 @@ pub(super) fn encode(result: &Arc<RunResult>, _options: &Options) -> Encoded {
         }
         parts.push(Part::Bytes(b"</CellData>\n".to_vec()));
     }
-    let (r, s) = (result.clone(), result.clone());
+    let (r, s, z_scale) = (result.clone(), result.clone(), options.z_scale);
     parts.extend([
         Part::Bytes(b"<Points>\n".to_vec()),
         Part::Bytes(array("type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\"")),
         binary_array(n, 24, move |i, out| {
             let v = r.vertices[i];
-            for c in [v.x, v.y, v.z] {
+            // The points are scaled for the view; the z array keeps the values.
+            for c in [v.x, v.y, v.z * z_scale] {
                 out.extend_from_slice(&c.to_le_bytes());
             }
         }),

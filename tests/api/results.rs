@@ -2,6 +2,7 @@
 //! runs a time limit stopped kept apart from the answers.
 
 use crate::helpers::{read_events, spawn_app};
+use reqwest::StatusCode;
 use serde_json::{Value, json};
 
 fn body() -> Value {
@@ -30,11 +31,42 @@ async fn the_format_parameter_wins_over_accept_and_each_form_has_its_own_etag() 
     let plain = app.post("/v1/meshes", &body()).await;
     let tag = plain.headers()["etag"].to_str().unwrap().to_owned();
     assert_eq!(plain.headers()["vary"], "accept");
-    let request = app.client.post(app.url("/v1/meshes?format=json&z_scale=3")).header("accept", "image/png");
+    let request = app.client.post(app.url("/v1/meshes?format=obj&z_scale=3")).header("accept", "image/png");
     let scaled = request.json(&body()).send().await.unwrap();
-    assert_eq!(scaled.headers()["content-type"], "application/json");
+    assert_eq!(scaled.headers()["content-type"], "model/obj");
     assert_eq!(scaled.headers()["x-cache"], "hit");
     assert_ne!(scaled.headers()["etag"].to_str().unwrap(), tag, "other options, other tag");
+    app.shutdown().await;
+}
+
+/// The z of each `v x y z` line of an OBJ.
+fn obj_heights(text: &str) -> Vec<f64> {
+    text.lines()
+        .filter_map(|l| l.strip_prefix("v "))
+        .map(|l| l.split(' ').nth(2).unwrap().parse().unwrap())
+        .collect()
+}
+
+#[tokio::test]
+async fn z_scale_stretches_every_3d_format_and_an_option_a_format_does_not_take_is_refused() {
+    let app = spawn_app().await;
+    let plain = app.post("/v1/meshes?format=obj", &body()).await.text().await.unwrap();
+    let tall = app.post("/v1/meshes?format=obj&z_scale=2.5", &body()).await.text().await.unwrap();
+    let (plain, tall) = (obj_heights(&plain), obj_heights(&tall));
+    assert!(plain.iter().any(|&z| z != 0.0));
+    assert_eq!(tall, plain.iter().map(|z| z * 2.5).collect::<Vec<_>>());
+    for (query, option) in [
+        ("format=json&z_scale=2", "z_scale"),
+        ("format=png&z_scale=2", "z_scale"),
+        ("format=svg&size=64", "size"),
+        ("format=obj&size=64", "size"),
+    ] {
+        let response = app.post(&format!("/v1/meshes?{query}"), &body()).await;
+        assert_eq!(response.status(), StatusCode::UNPROCESSABLE_ENTITY, "{query}");
+        let doc: Value = response.json().await.unwrap();
+        let detail = doc["detail"].as_str().unwrap();
+        assert!(detail.starts_with(&format!("{option} does not apply to format")), "{query}: {detail}");
+    }
     app.shutdown().await;
 }
 

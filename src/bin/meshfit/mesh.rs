@@ -24,14 +24,14 @@ pub(crate) struct MeshArgs {
     /// F sampled on a grid, from a file: .npy, 8- or 16-bit greyscale PNG, a colour PNG
     /// elevation tile (give --encoding), TIFF/GeoTIFF, raw little-endian samples (give --nx,
     /// --ny and --dtype), or JSON {"nx", "ny", "values"}. The format is read from the content,
-    /// not the name.
+    /// not the name. `-` reads it from stdin.
     #[arg(long, value_name = "FILE")]
     grid: Option<PathBuf>,
     /// Samples along x of a raw grid file.
-    #[arg(long, value_name = "N", requires = "grid")]
+    #[arg(long, value_name = "N", requires = "grid", value_parser = parse_count::<usize>)]
     nx: Option<usize>,
     /// Samples along y of a raw grid file.
-    #[arg(long, value_name = "N", requires = "grid")]
+    #[arg(long, value_name = "N", requires = "grid", value_parser = parse_count::<usize>)]
     ny: Option<usize>,
     /// Sample type of a raw grid file: f32 or f64.
     #[arg(long, value_name = "TYPE", requires = "grid", value_parser = parse_dtype)]
@@ -44,8 +44,8 @@ pub(crate) struct MeshArgs {
     /// rectangle, else [0,nx−1]×[0,ny−1] for a grid. Negative bounds may lead: -3,3,-3,3.
     #[arg(long, value_name = "a,b,c,d", value_parser = parse_domain, allow_hyphen_values = true)]
     domain: Option<Rect>,
-    /// The vertex budget n (at least 4).
-    #[arg(long, value_name = "N", default_value_t = 10_000)]
+    /// The vertex budget n (at least 4); 1e4 is 10000, as in a request.
+    #[arg(long, value_name = "N", default_value_t = 10_000, value_parser = parse_count::<usize>)]
     max_vertices: usize,
     /// recursive (no flips), semi-recursive (Delaunay flips after each insertion) or, for a
     /// grid with criterion error, data-dependent (semi-recursive, then flips that lower the
@@ -65,13 +65,20 @@ pub(crate) struct MeshArgs {
     #[arg(long, value_name = "DEG")]
     min_angle: Option<f64>,
     /// Stop after this many milliseconds.
-    #[arg(long, value_name = "MS")]
+    #[arg(long, value_name = "MS", value_parser = parse_count::<u64>)]
     time_limit_ms: Option<u64>,
     /// Print only the stats, the E_n estimate and the refinement's time (`elapsed_ms`).
     #[arg(long, conflicts_with_all = ["format", "output"])]
     stats: bool,
     #[command(flatten)]
     output: OutputArgs,
+}
+
+/// A count as a request's JSON reads one: 10000, 1e4 and 10000.0 alike.
+fn parse_count<T: TryFrom<u64>>(s: &str) -> Result<T, String> {
+    meshfit::api::parse_count(s)
+        .and_then(|n| T::try_from(n).ok())
+        .ok_or_else(|| format!("`{s}` is not a whole number (such as 10000 or 1e4)"))
 }
 
 fn parse_domain(s: &str) -> Result<Rect, String> {
@@ -98,6 +105,12 @@ fn parse_encoding(s: &str) -> Result<Encoding, String> {
 /// API would take, so the command line checks it by the same rules.
 fn mesh_request(args: &MeshArgs) -> Result<(JobRequest<'static>, Option<Vec<u8>>)> {
     let file = match &args.grid {
+        Some(path) if path.as_os_str() == "-" => {
+            let mut bytes = Vec::new();
+            std::io::Read::read_to_end(&mut std::io::stdin(), &mut bytes)
+                .context("reading the grid from stdin")?;
+            Some(bytes)
+        }
         Some(path) => {
             Some(std::fs::read(path).with_context(|| format!("cannot read grid file {}", path.display()))?)
         }

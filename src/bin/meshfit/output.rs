@@ -23,12 +23,13 @@ pub(crate) struct OutputArgs {
     /// Write to this file instead of stdout.
     #[arg(long, short, value_name = "FILE")]
     output: Option<PathBuf>,
-    /// Factor on z for the 3-D formats a viewer shows to scale (glb).
-    #[arg(long, value_name = "FACTOR", default_value_t = 1.0)]
-    z_scale: f64,
+    /// Factor on z in the formats with 3-D positions (obj, ply, stl, vtu, glb): a vertical
+    /// exaggeration.
+    #[arg(long, value_name = "FACTOR")]
+    z_scale: Option<f64>,
     /// Width in pixels of a png picture.
-    #[arg(long, value_name = "PIXELS", default_value_t = 1024)]
-    size: u32,
+    #[arg(long, value_name = "PIXELS")]
+    size: Option<u32>,
 }
 
 impl OutputArgs {
@@ -46,15 +47,31 @@ impl OutputArgs {
 
     /// Checks the flags before any work is done.
     pub(crate) fn check(&self) -> Result<Format> {
-        if !(self.z_scale.is_finite()) {
+        if self.z_scale.is_some_and(|z| !z.is_finite()) {
             bail!("--z-scale must be a finite number");
         }
-        self.format()
+        let format = self.format()?;
+        // As the API does: an option the format does not take is refused, never ignored.
+        if self.z_scale.is_some() && !format.takes_z_scale() {
+            bail!(
+                "--z-scale does not apply to format {}; it applies to obj, ply, stl, vtu and glb",
+                format.name()
+            );
+        }
+        if self.size.is_some() && !format.takes_size() {
+            bail!("--size does not apply to format {}; it applies to png", format.name());
+        }
+        Ok(format)
     }
 
     /// Writes `result` as the flags say.
     pub(crate) fn write(&self, result: RunResult, format: Format) -> Result<()> {
-        let options = Options { id: None, z_scale: self.z_scale, size: self.size };
+        let defaults = Options::default();
+        let options = Options {
+            id: None,
+            z_scale: self.z_scale.unwrap_or(defaults.z_scale),
+            size: self.size.unwrap_or(defaults.size),
+        };
         let encoding = output::encode(&Arc::new(result), format, &options);
         match &self.output {
             Some(path) => {
