@@ -181,11 +181,30 @@ pub struct JobStatus {
     /// the one thing that differs between two runs of a request).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub elapsed_ms: Option<f64>,
+    /// When the job was made here (RFC 3339, UTC); in a job list, when the client last
+    /// submitted it. Absent for a result found in the cache alone.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub created_at: Option<String>,
+    /// When a worker took it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub started_at: Option<String>,
+    /// When it ended.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub finished_at: Option<String>,
     /// The problem document, once failed.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub problem: Option<serde_json::Value>,
     /// Where to find the job's resources.
     pub links: Links,
+}
+
+/// `GET /v1/jobs`: a page of the jobs submitted, newest first.
+#[derive(Debug, Clone, Serialize)]
+pub struct JobList {
+    /// The jobs, each as `GET /v1/jobs/{id}` shows it.
+    pub jobs: Vec<JobStatus>,
+    /// The next page's address, when older jobs are left.
+    pub next: Option<String>,
 }
 
 /// Links of a job.

@@ -21,8 +21,9 @@ pub enum LogFormat {
     Json,
 }
 
-/// Where the server listens unless told otherwise.
-pub const DEFAULT_ADDR: SocketAddr = SocketAddr::new(IpAddr::V4(std::net::Ipv4Addr::UNSPECIFIED), 8080);
+/// Where the server listens unless told otherwise: this machine only (a container sets
+/// `0.0.0.0:8080`).
+pub const DEFAULT_ADDR: SocketAddr = SocketAddr::new(IpAddr::V4(std::net::Ipv4Addr::LOCALHOST), 8080);
 
 /// Validated service settings, each read from the variable of its [`Setting`](super::Setting) (named in
 /// brackets); [`SETTINGS`](super::SETTINGS) holds their defaults and help. They arrive grouped by the part of
@@ -178,6 +179,7 @@ impl Default for Config {
                 queue: 64,
                 client_share: 0.5,
                 memory_bytes: crate::jobs::default_memory_bytes(),
+                job_retention: Duration::from_secs(24 * 3600),
             },
             cache: CacheSettings { memory_bytes: 1 << 30, dir: None, dir_bytes: 10 << 30 },
             connections: Connections {

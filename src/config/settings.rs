@@ -99,8 +99,8 @@ pub const SETTINGS: &[Setting] = &[
         name: "MESHFIT_ADDR",
         flag: Some("addr"),
         value_name: "HOST:PORT",
-        default: Fallback::Value("0.0.0.0:8080"),
-        help: "listen address: `host:port`, an address or a host name (`localhost:8080`)",
+        default: Fallback::Value("127.0.0.1:8080"),
+        help: "listen address: `host:port`, an address or a host name (`localhost:8080`); the default serves this machine only, the container's `0.0.0.0:8080` every interface",
         parse: |v, c| listen_addr(v).map(|a| c.addr = a).map_err(str::to_owned),
     },
     Setting {
@@ -168,6 +168,14 @@ pub const SETTINGS: &[Setting] = &[
         default: Fallback::Value("60000"),
         help: "longest a job runs; caps `time_limit_ms`",
         parse: |v, c| millis(v, 1).map(|d| c.limits.job_time_limit = d),
+    },
+    Setting {
+        name: "MESHFIT_JOB_RETENTION_MS",
+        flag: Some("job-retention-ms"),
+        value_name: "MS",
+        default: Fallback::Value("86400000"),
+        help: "how long `GET /v1/jobs` lists a submitted job (at most 10,000 of them); a job's own record, `GET /v1/jobs/{id}`, stays for the latest 10,000 finished",
+        parse: |v, c| millis(v, 1).map(|d| c.pool.job_retention = d),
     },
     Setting {
         name: "MESHFIT_MEMORY_BYTES",

@@ -15,7 +15,7 @@ fn raw(pairs: &[(&str, &str)]) -> RawConfig {
 #[test]
 fn no_variables_give_the_documented_defaults() {
     let c = Config::try_from(RawConfig::default()).unwrap();
-    assert_eq!(c.addr.to_string(), "0.0.0.0:8080");
+    assert_eq!(c.addr.to_string(), "127.0.0.1:8080");
     assert_eq!((c.pool.queue, c.limits.max_vertices, c.limits.max_grid_points), (64, 2_000_000, 4097 * 4097));
     assert_eq!((c.cache.dir, c.cache.dir_bytes), (None, 10 << 30));
 }

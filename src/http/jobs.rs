@@ -5,7 +5,7 @@ use super::negotiate::{self, Wanted};
 use super::problem::ApiError;
 use super::sse;
 use super::state::AppState;
-use crate::api::{JobRequest, JobStatus, JsonError, Links, SolveRequest};
+use crate::api::{JobList, JobRequest, JobStatus, JsonError, Links, SolveRequest};
 use crate::jobs::{Client, Found, JobError, Lifetime, Outcome, Record, Snapshot, Status, Ticket, Waiter};
 use crate::refine::StopReason;
 use crate::result::RunResult;
@@ -18,7 +18,7 @@ use axum::response::{IntoResponse, Response};
 use bytes::Bytes;
 use futures_util::stream;
 use std::sync::Arc;
-use std::time::Duration;
+use std::time::{Duration, SystemTime};
 
 /// The most vertices one progress event carries (about 4 MB of JSON): a client that joins a
 /// large job late, or stops reading, holds at most this much in its stream; the rest comes
@@ -125,9 +125,19 @@ fn status_of(found: &Found) -> Status {
     found.record().status
 }
 
-/// The status document of a job as it is now: the one mapping of [`Record`] to the wire.
+/// The status document of a job as it is now.
 fn status_body(id: &str, found: &Found) -> JobStatus {
-    let r = found.record();
+    status_document(id, found.record())
+}
+
+/// A time as the API writes it: RFC 3339 in UTC, to the millisecond.
+fn timestamp(at: SystemTime) -> String {
+    humantime::format_rfc3339_millis(at).to_string()
+}
+
+/// The status document of job `id` whose state is `r`: the one mapping of [`Record`] to the
+/// wire.
+fn status_document(id: &str, r: Record) -> JobStatus {
     let problem = match (&r.error, r.status) {
         (Some(e), _) => Some(ApiError::from(e.clone()).to_json()),
         (None, Status::Cancelled) => Some(ApiError::Cancelled.to_json()),
@@ -139,6 +149,9 @@ fn status_body(id: &str, found: &Found) -> JobStatus {
         progress: r.progress,
         stats: r.stats,
         elapsed_ms: r.elapsed.map(|d| d.as_secs_f64() * 1e3),
+        created_at: r.times.map(|t| timestamp(t.created)),
+        started_at: r.times.and_then(|t| t.started).map(timestamp),
+        finished_at: r.times.and_then(|t| t.finished).map(timestamp),
         problem,
         links: Links::of(id),
     }
@@ -242,13 +255,19 @@ pub async fn jobs_create(
                 error: Some(e),
                 elapsed: None,
                 last_event: 0,
+                times: None,
             };
             (StatusCode::OK, status_body(&id, &Found::Done(Arc::new(record))))
         }
         Ticket::Job(waiter) => (StatusCode::ACCEPTED, status_body(&id, &Found::Job(waiter.job().clone()))),
     };
     let location = HeaderValue::from_str(&status.links.this).expect("ascii path");
-    Ok((code, [(header::LOCATION, location)], axum::Json(status)).into_response())
+    let mut response = (code, [(header::LOCATION, location)], axum::Json(status)).into_response();
+    if code == StatusCode::ACCEPTED {
+        // When to look again: about when a worker is likely to have news.
+        response.headers_mut().insert(header::RETRY_AFTER, HeaderValue::from(state.jobs.retry_after()));
+    }
+    Ok(response)
 }
 
 async fn find(state: &AppState, id: &str) -> Result<Found, ApiError> {
@@ -259,6 +278,66 @@ async fn find(state: &AppState, id: &str) -> Result<Found, ApiError> {
         None if state.jobs.redis() == Some(false) => Err(ApiError::Unreachable),
         None => Err(ApiError::NotFound(format!("no job with id {id}"))),
     }
+}
+
+/// The query of `GET /v1/jobs`.
+#[derive(Debug, Default, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ListQuery {
+    status: Option<String>,
+    limit: Option<u64>,
+    cursor: Option<String>,
+}
+
+/// The jobs a page lists when the query does not say.
+const DEFAULT_LIST_LIMIT: u64 = 20;
+/// The most a page lists.
+const MAX_LIST_LIMIT: u64 = 100;
+
+/// `GET /v1/jobs?status=&limit=&cursor=`: the jobs submitted to this replica, newest first; a
+/// client's own when API keys are on. `next` is the address of the page of older ones.
+pub async fn jobs_list(
+    State(state): State<AppState>,
+    Extension(client): Extension<Client>,
+    uri: Uri,
+) -> Result<Response, ApiError> {
+    let query: ListQuery = super::extract::query(&uri)?;
+    let status = match query.status.as_deref() {
+        None => None,
+        Some(name) => Some(Status::parse(name).ok_or_else(|| {
+            ApiError::InvalidRequest(format!(
+                "status `{name}` is not one of queued, running, succeeded, failed, cancelled"
+            ))
+        })?),
+    };
+    let limit = query.limit.unwrap_or(DEFAULT_LIST_LIMIT);
+    if !(1..=MAX_LIST_LIMIT).contains(&limit) {
+        return Err(ApiError::InvalidRequest(format!(
+            "limit must be from 1 to {MAX_LIST_LIMIT}, got {limit}"
+        )));
+    }
+    let before = match query.cursor.as_deref() {
+        None => None,
+        Some(text) => Some(text.parse::<u64>().map_err(|_| {
+            ApiError::InvalidRequest(format!("cursor `{text}` is not one a job list gave (its `next`)"))
+        })?),
+    };
+    // Without keys every caller is anonymous to the server: the list is everyone's.
+    let own = state.keyed.then_some(&client);
+    let (page, next) = state.jobs.list(own, status, before, limit as usize).await;
+    let jobs = page
+        .into_iter()
+        .map(|(submission, record)| {
+            let mut status = status_document(&submission.id, record);
+            status.created_at = Some(timestamp(submission.at));
+            status
+        })
+        .collect();
+    let next = next.map(|cursor| {
+        let status = query.status.as_deref().map_or_else(String::new, |s| format!("&status={s}"));
+        format!("/v1/jobs?limit={limit}{status}&cursor={cursor}")
+    });
+    Ok(axum::Json(JobList { jobs, next }).into_response())
 }
 
 /// `GET /v1/jobs/{id}`.
@@ -305,7 +384,7 @@ pub(super) async fn finished_result(
         Some((Outcome::Succeeded(r), elapsed)) => Ok((r, elapsed)),
         Some((Outcome::Failed(e), _)) => Err(e.into()),
         Some((Outcome::Cancelled, _)) => Err(ApiError::Cancelled),
-        None => Err(ApiError::NotFinished(status)),
+        None => Err(ApiError::NotFinished(status, state.jobs.retry_after())),
     }
 }
 

@@ -230,15 +230,18 @@ mod tests {
 
     #[test]
     fn options_out_of_range_are_refused() {
-        assert!(matches!(wanted("/m?size=1", None), Err(ApiError::InvalidRequest(_))));
+        assert!(matches!(wanted("/m?format=png&size=1", None), Err(ApiError::InvalidRequest(_))));
         assert!(matches!(wanted("/m?colour=red", None), Err(ApiError::InvalidRequest(_))));
-        assert_eq!(wanted("/m?z_scale=2.5", None).unwrap().options.z_scale, 2.5);
+        assert_eq!(wanted("/m?format=stl&z_scale=2.5", None).unwrap().options.z_scale, 2.5);
+        // Options the format does not take.
+        assert!(matches!(wanted("/m?z_scale=2.5", None), Err(ApiError::InvalidRequest(_))));
+        assert!(matches!(wanted("/m?format=glb&size=64", None), Err(ApiError::InvalidRequest(_))));
     }
 
     #[test]
     fn each_form_of_a_result_has_its_own_entity_tag() {
         let tag = |uri| wanted(uri, None).unwrap().etag("ab").to_str().unwrap().to_owned();
         assert_eq!(tag("/m"), "\"ab\"");
-        assert_eq!(tag("/m?format=json&z_scale=2"), "\"ab;z=2\"");
+        assert_eq!(tag("/m?format=obj&z_scale=2"), "\"ab.obj;z=2\"");
     }
 }

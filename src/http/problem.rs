@@ -55,8 +55,8 @@ pub enum ApiError {
     MethodNotAllowed,
     /// 406 `not-acceptable`: a format (by `?format=` or `Accept`) that no encoder writes.
     NotAcceptable(String),
-    /// 409 `not-finished`: the job has no mesh yet.
-    NotFinished(&'static str),
+    /// 409 `not-finished`: the job has no mesh yet; ask again in this many seconds.
+    NotFinished(&'static str, u64),
     /// 409 `job-cancelled`: the job was cancelled before it finished.
     Cancelled,
     /// 503 `queue-full`, with `Retry-After`: (jobs waiting, seconds).
@@ -244,7 +244,7 @@ impl ApiError {
                 let detail = format!("no format matches `{asked}`; known formats: {}", Format::names());
                 (StatusCode::NOT_ACCEPTABLE, "not-acceptable", "Format not available", detail)
             }
-            ApiError::NotFinished(status) => {
+            ApiError::NotFinished(status, _) => {
                 ext.insert("job_status".into(), json!(status));
                 (StatusCode::CONFLICT, "not-finished", "Job has no mesh yet", format!("the job is {status}"))
             }
@@ -373,6 +373,7 @@ impl IntoResponse for ApiError {
         match self {
             ApiError::QueueFull(_, seconds)
             | ApiError::ShareUsed(_, seconds)
+            | ApiError::NotFinished(_, seconds)
             | ApiError::OverBudget(_, _, seconds) => {
                 headers.insert(header::RETRY_AFTER, HeaderValue::from(seconds));
             }

@@ -89,7 +89,7 @@ pub fn router(state: AppState, config: &Config) -> Router {
     Router::new()
         .route("/v1/meshes", post(jobs::meshes_create))
         .route("/v1/solutions", post(jobs::solutions_create))
-        .route("/v1/jobs", post(jobs::jobs_create))
+        .route("/v1/jobs", post(jobs::jobs_create).get(jobs::jobs_list))
         .route("/v1/jobs/{id}", get(jobs::jobs_show).delete(jobs::jobs_cancel))
         .route("/v1/jobs/{id}/events", get(jobs::jobs_events))
         .route("/v1/jobs/{id}/mesh", get(jobs::jobs_mesh))

@@ -22,6 +22,8 @@ pub struct Pool {
     /// The memory budget that jobs, bodies and cached meshes are charged to
     /// (`MESHFIT_MEMORY_BYTES`).
     pub memory_bytes: u64,
+    /// How long `GET /v1/jobs` lists a submission (`MESHFIT_JOB_RETENTION_MS`).
+    pub job_retention: std::time::Duration,
 }
 
 /// Why a submission was refused.
@@ -87,7 +89,7 @@ impl Admission {
     /// The admission of `pool`, whose memory budget also counts the bytes `held` reports
     /// (the cache's meshes).
     pub(super) fn new(pool: &Pool, held: impl Fn() -> u64 + Send + Sync + 'static) -> Self {
-        let Pool { workers, queue, client_share, memory_bytes } = *pool;
+        let Pool { workers, queue, client_share, memory_bytes, .. } = *pool;
         let workers = workers.get();
         let shares = Shares::new(client_share, workers, queue);
         Self {

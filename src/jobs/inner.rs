@@ -5,6 +5,7 @@
 use super::Cache;
 use super::admission::Admission;
 use super::families::Families;
+use super::history::History;
 use super::replica::peers::Peers;
 use super::table::Table;
 use crate::metrics::Metrics;
@@ -26,6 +27,8 @@ pub(super) struct Inner {
     pub(super) peers: Arc<dyn Peers>,
     /// A turn per result being read from the store (see `replica::follow::fetch`).
     pub(super) fetching: moka::sync::Cache<String, Arc<tokio::sync::Mutex<()>>>,
+    /// Who submitted which job, for the job list.
+    pub(super) history: History,
     /// Jobs whose state is still being told to the store: shutdown waits for them too, so that a
     /// job handed back gives up its lease before the process ends.
     pub(super) publishing: AtomicUsize,

@@ -9,7 +9,7 @@ use crate::result::Summary;
 use crate::solve::SolveError;
 use std::sync::atomic::{AtomicBool, AtomicU8, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
+use std::time::{Duration, SystemTime};
 use tokio::sync::{Notify, watch};
 
 /// Where a job is in its life.
@@ -114,6 +114,21 @@ pub struct Snapshot {
     pub outcome: Option<Outcome>,
     /// How long the engine ran, once finished.
     pub elapsed: Option<Duration>,
+    /// When the job was made, a worker took it, and it ended.
+    pub times: Times,
+}
+
+/// When a job was made, a worker took it (none for a job cancelled while queued, or one
+/// another replica runs), and it ended. Wall-clock times, for people: never a scheduling
+/// input.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Times {
+    /// Made on this replica (or followed from another).
+    pub created: SystemTime,
+    /// A worker took it.
+    pub started: Option<SystemTime>,
+    /// It ended.
+    pub finished: Option<SystemTime>,
 }
 
 /// How long a submitted job runs.
@@ -199,6 +214,7 @@ impl Job {
             progress: None,
             outcome: None,
             elapsed: None,
+            times: Times { created: SystemTime::now(), started: None, finished: None },
         });
         Self {
             id,
@@ -307,7 +323,10 @@ impl Job {
 
     /// Queued → running: a worker took the job.
     pub(super) fn run(&self) {
-        self.state.send_modify(|s| s.status = Status::Running);
+        self.state.send_modify(|s| {
+            s.status = Status::Running;
+            s.times.started = Some(SystemTime::now());
+        });
     }
 
     /// A progress report, numbered as the next event; `vertices`, a mesh's vertices so far
@@ -343,6 +362,7 @@ impl Job {
         self.state.send_modify(|s| {
             s.seq += 1;
             s.elapsed = elapsed;
+            s.times.finished = Some(SystemTime::now());
             s.status = match outcome {
                 Outcome::Succeeded(_) => Status::Succeeded,
                 Outcome::Failed(_) => Status::Failed,
@@ -400,6 +420,8 @@ pub struct Record {
     /// The id of the job's last server-sent event: its final event once it has finished; 0
     /// where that is not known (a result found in the cache alone).
     pub last_event: u64,
+    /// When the job was made, started and ended, where this replica saw it.
+    pub times: Option<Times>,
 }
 
 impl Record {
@@ -417,6 +439,7 @@ impl Record {
             error,
             elapsed: snapshot.elapsed,
             last_event: snapshot.seq,
+            times: Some(snapshot.times),
         }
     }
 
@@ -430,6 +453,7 @@ impl Record {
             error: None,
             elapsed: None,
             last_event: 0,
+            times: None,
         }
     }
 
@@ -442,6 +466,7 @@ impl Record {
             error: None,
             elapsed: None,
             last_event: 0,
+            times: None,
         }
     }
 }

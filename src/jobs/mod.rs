@@ -35,7 +35,8 @@
 //!   replica died is run again by the first replica to take its expired lease;
 //! - `ticket`: what a submission found or started ([`Ticket`]); `submit`: a submission, a
 //!   small function per step (cache hit, prefix replay, join, claim, remote fetch);
-//! - `registry`: [`Jobs`], the one public face: submit, find, watch, cancel, shut down.
+//! - `history`: who submitted which job and when, for the job list;
+//! - `registry`: [`Jobs`], the one public face: submit, find, list, watch, cancel, shut down.
 
 mod admission;
 mod budget;
@@ -43,6 +44,7 @@ mod cache;
 mod dispatch;
 mod failure;
 mod families;
+mod history;
 mod inner;
 mod job;
 mod registry;
@@ -61,7 +63,8 @@ pub use budget::{
 };
 pub use cache::{Cache, CacheSettings, Hit};
 pub use failure::{Cause, Failure};
-pub use job::{Job, JobError, Lifetime, Outcome, Record, Snapshot, Status};
+pub use history::{SUBMISSIONS_KEPT, Submission};
+pub use job::{Job, JobError, Lifetime, Outcome, Record, Snapshot, Status, Times};
 pub use registry::{Found, Jobs};
 pub use replica::peers;
 pub use share::Client;

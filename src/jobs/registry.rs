@@ -5,6 +5,7 @@
 use super::admission::{Admission, Pool, SubmitError};
 use super::budget::Budget;
 use super::families::Families;
+use super::history::{History, Submission};
 use super::inner::Inner;
 use super::job::{Job, Lifetime, Record, Status};
 use super::replica::peers::{self, Alone, Control, Kept, Peers};
@@ -18,6 +19,7 @@ use crate::result::RunResult;
 use crate::spec::{JobKeys, JobSpec, Limits};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::SystemTime;
 
 /// A job, a finished job's record, or a cached result, for status queries.
 #[derive(Clone)]
@@ -66,6 +68,7 @@ impl Jobs {
                 metrics,
                 peers: Arc::new(Alone),
                 fetching: moka::sync::Cache::new(FETCHES_KEPT),
+                history: History::new(pool.job_retention),
                 publishing: AtomicUsize::new(0),
             }),
         }
@@ -138,7 +141,36 @@ impl Jobs {
         lifetime: Lifetime,
         client: &Client,
     ) -> Result<Ticket, SubmitError> {
-        submit::submit(&self.inner, keys, spec, lifetime, client).await
+        let id = keys.id.clone();
+        let ticket = submit::submit(&self.inner, keys, spec, lifetime, client).await?;
+        self.inner.history.note(&id, client, SystemTime::now());
+        Ok(ticket)
+    }
+
+    /// The jobs submitted to this replica, newest first: of `client` alone when given, with
+    /// `status` when given, numbered below `before` (the cursor); at most `limit`, and the
+    /// cursor of the next page when more are left. A job whose record is gone is left out.
+    pub async fn list(
+        &self,
+        client: Option<&Client>,
+        status: Option<Status>,
+        before: Option<u64>,
+        limit: usize,
+    ) -> (Vec<(Submission, Record)>, Option<u64>) {
+        let mut page = Vec::new();
+        for submission in self.inner.history.newest(client, before, SystemTime::now()) {
+            let Some(found) = self.find(&submission.id).await else { continue };
+            let record = found.record();
+            if status.is_some_and(|s| s != record.status) {
+                continue;
+            }
+            if page.len() == limit {
+                let next = page.last().map(|(s, _): &(Submission, Record)| s.seq);
+                return (page, next);
+            }
+            page.push((submission, record));
+        }
+        (page, None)
     }
 
     /// The job, finished job or cached result with this id: on this replica, or, when
@@ -267,7 +299,13 @@ mod tests {
     fn jobs(workers: usize, queue: usize) -> Jobs {
         let cache = Cache::new(64 << 20, None, 0).unwrap();
         let workers = NonZeroUsize::new(workers).unwrap();
-        let pool = Pool { workers, queue, client_share: 1.0, memory_bytes: 8 << 30 };
+        let pool = Pool {
+            workers,
+            queue,
+            client_share: 1.0,
+            memory_bytes: 8 << 30,
+            job_retention: Duration::from_secs(3600),
+        };
         Jobs::new(&pool, cache, Arc::new(Metrics::default()))
     }
 

@@ -133,6 +133,18 @@ impl SpecError {
     }
 }
 
+/// A request's time limit: none means the server's; zero would stop a job before its first
+/// step, so it is refused rather than answered with the starting mesh.
+pub(super) fn time_limit(ms: Option<u64>) -> Result<Option<std::time::Duration>, SpecError> {
+    match ms {
+        Some(0) => Err(SpecError::Problem {
+            field: "time_limit_ms".into(),
+            detail: "must be at least 1; leave it out for the server's limit".into(),
+        }),
+        ms => Ok(ms.map(std::time::Duration::from_millis)),
+    }
+}
+
 /// The engine's parameters for a request's vertex budget (the default when it names none),
 /// checked against this server's limit rather than the engine's.
 pub(super) fn budget(max_vertices: Option<u64>, limits: &Limits) -> Result<ParamsBuilder, SpecError> {

@@ -145,7 +145,7 @@ impl JobSpec {
             tolerance: request.tolerance,
             min_angle: request.min_angle,
             quality: request.quality.unwrap_or(false),
-            requested_time_limit: request.time_limit_ms.map(Duration::from_millis),
+            requested_time_limit: super::checks::time_limit(request.time_limit_ms)?,
         };
         Self::mesh_from(source.with_domain(domain), domain, knobs, limits)
     }

@@ -299,6 +299,16 @@ impl SolveSpec {
         request: SolveRequest,
         limits: &Limits,
     ) -> Result<(Self, Option<Duration>), SpecError> {
+        // Without a source or boundary values the answer is u = 0 (A = 0), whatever the mesh:
+        // a request that forgot them is told so rather than answered.
+        let sourced = request.f.is_some()
+            || request.g.is_some()
+            || request.regions.iter().any(|r| {
+                r.f.is_some()
+                    || r.magnetization.is_some()
+                    || r.current_density.is_some()
+                    || r.current.is_some()
+            });
         let physics = request.physics.unwrap_or_default();
         let domain = match request.domain {
             None => Rect::unit(),
@@ -342,7 +352,7 @@ impl SolveSpec {
         let (regions, tables) = (request.regions.into_iter().enumerate())
             .map(|(i, r)| region(i, r, domain, physics))
             .collect::<Result<(Vec<_>, Vec<_>), _>>()?;
-        let requested_time_limit = request.time_limit_ms.map(Duration::from_millis);
+        let requested_time_limit = super::checks::time_limit(request.time_limit_ms)?;
         let steering = Steering {
             max_vertices: request.max_vertices,
             tolerance: request.tolerance,
@@ -352,6 +362,19 @@ impl SolveSpec {
             requested_time_limit,
         };
         let settings = steering.settings(limits)?;
+        // Last, so that a more particular error is named first.
+        if !sourced {
+            let (field, what) = match physics {
+                Physics::Poisson => ("f", "f (a source), g (boundary values) or a region's f"),
+                Physics::Magnetostatic => {
+                    ("regions", "a region with a current_density, a current or a magnetization")
+                }
+            };
+            return Err(invalid(
+                field,
+                format!("nothing to solve: the solution is 0 everywhere without {what}"),
+            ));
+        }
         let spec = Self { physics, domain, k, f, g, boundary, regions, tables, exact, settings };
         Ok((spec, requested_time_limit))
     }

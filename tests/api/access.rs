@@ -156,3 +156,35 @@ async fn behind_a_trusted_proxy_each_forwarded_address_is_its_own_client() {
     }
     app.shutdown().await;
 }
+
+#[tokio::test]
+async fn with_keys_the_job_list_shows_each_client_its_own_jobs() {
+    let app = spawn_with(with_keys(test_config())).await;
+    let shared = json!({"function": "x + y", "max_vertices": 40});
+    let a_only = json!({"function": "x - y", "max_vertices": 40});
+    for (key, body) in [(KEY_A, &shared), (KEY_A, &a_only), (KEY_B, &shared)] {
+        let status: Value = post_as(&app, key, "/v1/jobs", body).await.json().await.unwrap();
+        let id = status["id"].as_str().unwrap().to_owned();
+        while status_as(&app, key, &id).await["status"] != "succeeded" {
+            tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+        }
+    }
+    let list = |key: &'static str| {
+        let app = &app;
+        async move {
+            let response = app.client.get(app.url("/v1/jobs")).bearer_auth(key).send().await.unwrap();
+            let doc: Value = response.json().await.unwrap();
+            doc["jobs"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|j| j["id"].as_str().unwrap().to_owned())
+                .collect::<Vec<_>>()
+        }
+    };
+    let (a, b) = (list(KEY_A).await, list(KEY_B).await);
+    assert_eq!(a.len(), 2, "{a:?}");
+    assert_eq!(b.len(), 1, "{b:?}");
+    assert_eq!(b[0], a[1], "the job both asked for is in both lists");
+    app.shutdown().await;
+}

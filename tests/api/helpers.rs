@@ -39,6 +39,7 @@ pub fn test_config() -> Config {
             queue: 8,
             client_share: 1.0,
             memory_bytes: 4 << 30,
+            job_retention: Duration::from_secs(3600),
         },
         cache: CacheSettings { memory_bytes: 256 << 20, dir: None, dir_bytes: 64 << 20 },
         connections: Connections {

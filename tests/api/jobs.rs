@@ -94,6 +94,8 @@ async fn a_job_is_accepted_then_reports_its_status_and_serves_its_mesh() {
     let body = json!({"function": "exp(-10*((x-0.3)^2+(y-0.6)^2))", "max_vertices": 20000});
     let created = app.post("/v1/jobs", &body).await;
     assert_eq!(created.status(), 202);
+    let retry: u64 = created.headers()["retry-after"].to_str().unwrap().parse().unwrap();
+    assert!(retry >= 1, "a 202 says when to look again");
     let location = created.headers()["location"].to_str().unwrap().to_owned();
     let status: Value = created.json().await.unwrap();
     let id = status["id"].as_str().unwrap().to_owned();
@@ -104,6 +106,10 @@ async fn a_job_is_accepted_then_reports_its_status_and_serves_its_mesh() {
     let done = app.wait_finished(&id).await;
     assert_eq!(done["status"], "succeeded");
     assert_eq!(done["stats"]["vertices"], 20000);
+    // RFC 3339 times, which sort as text: made, then started, then finished.
+    let time = |key: &str| done[key].as_str().unwrap_or_else(|| panic!("{key} in {done}")).to_owned();
+    let (made, started, finished) = (time("created_at"), time("started_at"), time("finished_at"));
+    assert!(made.ends_with('Z') && made <= started && started <= finished, "{done}");
     let mesh = app.get(&format!("/v1/jobs/{id}/mesh")).await;
     assert_eq!(mesh.status(), 200);
     let mesh: Value = mesh.json().await.unwrap();
@@ -141,6 +147,7 @@ async fn unknown_jobs_are_404_and_unfinished_meshes_are_409() {
     let id = status["id"].as_str().unwrap();
     let mesh = app.get(&format!("/v1/jobs/{id}/mesh")).await;
     assert_eq!(mesh.status(), 409);
+    assert!(mesh.headers().contains_key("retry-after"), "a 409 says when to look again");
     let problem: Value = mesh.json().await.unwrap();
     assert_eq!(problem["type"], "/problems/not-finished");
     app.delete(&format!("/v1/jobs/{id}")).await;
@@ -386,5 +393,83 @@ async fn the_error_criterion_is_the_default_and_reports_its_max_triangle_error()
     let paper = post(json!({"function": bump, "max_vertices": 2000, "criterion": "variation"})).await;
     assert_ne!(doc["id"], paper["id"], "the criterion is part of the id");
     assert!(paper["stats"].get("max_triangle_error").is_none());
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn the_job_list_pages_newest_first_filters_by_status_and_refuses_a_bad_query() {
+    let app = spawn_app().await;
+    let mut ids = Vec::new();
+    for k in 0..5 {
+        let body = json!({"function": format!("x*y + {k}"), "max_vertices": 50});
+        let status: Value = app.post("/v1/jobs", &body).await.json().await.unwrap();
+        ids.push(status["id"].as_str().unwrap().to_owned());
+        app.wait_finished(ids.last().unwrap()).await;
+    }
+    // A cancelled one, newest of all.
+    let long = json!({"function": "sin(40*x*y)", "max_vertices": 2_000_000});
+    let cancelled: Value = app.post("/v1/jobs", &long).await.json().await.unwrap();
+    let cancelled = cancelled["id"].as_str().unwrap().to_owned();
+    app.delete(&format!("/v1/jobs/{cancelled}")).await;
+    app.wait_finished(&cancelled).await;
+
+    let page = |path: String| {
+        let app = &app;
+        async move {
+            let response = app.get(&path).await;
+            assert_eq!(response.status(), 200, "{path}");
+            response.json::<Value>().await.unwrap()
+        }
+    };
+    let listed = |doc: &Value| -> Vec<String> {
+        doc["jobs"].as_array().unwrap().iter().map(|j| j["id"].as_str().unwrap().to_owned()).collect()
+    };
+    let all = page("/v1/jobs".into()).await;
+    let newest_first: Vec<String> =
+        std::iter::once(cancelled.clone()).chain(ids.iter().rev().cloned()).collect();
+    assert_eq!(listed(&all), newest_first);
+    assert!(all["next"].is_null());
+    assert!(all["jobs"].as_array().unwrap().iter().all(|j| j["created_at"].is_string()), "{all}");
+    // Two at a time, by the cursor each page gives.
+    let mut seen = Vec::new();
+    let mut next = Some("/v1/jobs?limit=2&status=succeeded".to_owned());
+    while let Some(path) = next {
+        let doc = page(path).await;
+        let ids = listed(&doc);
+        assert!(ids.len() <= 2);
+        seen.extend(ids);
+        next = doc["next"].as_str().map(str::to_owned);
+    }
+    assert_eq!(seen, ids.iter().rev().cloned().collect::<Vec<_>>(), "the succeeded, each once");
+    assert_eq!(listed(&page("/v1/jobs?status=cancelled".into()).await), [cancelled]);
+    for query in ["status=done", "limit=0", "limit=101", "cursor=abc", "colour=red"] {
+        let response = app.get(&format!("/v1/jobs?{query}")).await;
+        assert_eq!(response.status(), 422, "{query}");
+    }
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_problem_with_nothing_to_solve_and_a_zero_time_limit_are_refused_naming_the_field() {
+    let app = spawn_app().await;
+    for (path, body, field) in [
+        ("/v1/solutions", json!({}), "f"),
+        (
+            "/v1/solutions",
+            json!({"physics": "magnetostatic", "regions": [{"x": [0, 0.5], "y": [0, 0.5], "mu_r": 1000}]}),
+            "regions",
+        ),
+        ("/v1/solutions", json!({"f": 1, "time_limit_ms": 0}), "time_limit_ms"),
+        ("/v1/meshes", json!({"function": "x*y", "time_limit_ms": 0}), "time_limit_ms"),
+    ] {
+        let response = app.post(path, &body).await;
+        assert_eq!(response.status(), 422, "{body}");
+        let doc: Value = response.json().await.unwrap();
+        let named = doc.to_string();
+        assert!(
+            named.contains(&format!("\"{field}\"")) || doc["detail"].as_str().unwrap().starts_with(field),
+            "{doc}"
+        );
+    }
     app.shutdown().await;
 }

@@ -296,8 +296,9 @@ fn small_png(png: &[u8]) -> Vec<u8> {
 }
 
 async fn bad_expression(app: &TestApp, client: &Client) {
-    // `q` is not a variable: the API names column 8, and the page shows it under the field.
-    client.goto(&app.url("/?function=sin(x)%2Bq")).await.unwrap();
+    // `q` is not a variable: the API names column 8, and the page shows it under the field. The
+    // `+` typed in the address is a plus, not the space a query string would make of it.
+    client.goto(&app.url("/?function=sin(x)+q")).await.unwrap();
     wait_until(client, "body[data-state=failed]").await;
     let text =
         client.find(Locator::Css(".field-error[data-for=function]")).await.unwrap().text().await.unwrap();

@@ -162,7 +162,7 @@ async fn bad_problems_are_422_naming_the_field_and_the_column_or_point() {
     assert_eq!(p["field"], "/method", "{p}");
 
     // k is an expression that turns negative: found where the solver samples it.
-    let p = refused(&app, json!({"k": "x - 0.5", "max_vertices": 100})).await;
+    let p = refused(&app, json!({"k": "x - 0.5", "f": 1, "max_vertices": 100})).await;
     assert_eq!(
         (p["field"].as_str(), p["type"].as_str().unwrap().rsplit('/').next()),
         (Some("/k"), Some("invalid-problem"))

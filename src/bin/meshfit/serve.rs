@@ -75,9 +75,15 @@ pub(crate) fn serve(args: &ServeArgs) -> Result<()> {
             .with_context(|| format!("cannot listen on {}", config.addr))?;
         let addr = listener.local_addr()?;
         let url = page_url(addr);
+        let reach = match addr.ip() {
+            ip if ip.is_loopback() => "this machine only (MESHFIT_ADDR=0.0.0.0:8080 serves others)",
+            ip if ip.is_unspecified() => "every interface",
+            _ => "this address",
+        };
         tracing::info!(
             open = %url,
             %addr,
+            reach,
             workers = config.pool.workers,
             queue = config.pool.queue,
             api_keys = if config.callers.api_keys.is_empty() { "off: the API is open" } else { "on" },

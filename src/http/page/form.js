@@ -55,7 +55,9 @@ function shareAddress(req) {
   }
   if (view.mode !== "flat") q.set("view", view.mode);
   if (view.kind === "solution" && $("solve-colour").value === "b") q.set("colour", "b");
-  return `${location.pathname}?${q}`;
+  // Spaces as %20, not `+`: the page reads a `+` in an address as the plus a person typing
+  // ?function=x+y means (readAddress), so a `+` written here must stand for itself alone.
+  return `${location.pathname}?${q.toString().replace(/\+/g, "%20")}`;
 }
 
 const shellQuote = (s) => `'${s.replace(/'/g, `'\\''`)}'`;

@@ -63,9 +63,28 @@ function setFile(file) {
   if (!file) $("grid-file").value = "";
 }
 
+// The value of `key` in the address, decoded as a path is: a `+` stays a plus, which is what a
+// person typing ?function=x+y means (URLSearchParams would read a space). The page writes
+// spaces as %20 (shareAddress).
+function addressValue(key) {
+  for (const part of location.search.slice(1).split("&")) {
+    const at = part.indexOf("=");
+    if (at < 0 || part.slice(0, at) !== key) continue;
+    try {
+      return decodeURIComponent(part.slice(at + 1));
+    } catch (e) {
+      return part.slice(at + 1); // a stray `%`: shown as typed, and the API names the column
+    }
+  }
+  return null;
+}
+
 // Reads the address: any request field fills the form. True when it names a job to run.
 function readAddress() {
   const q = new URLSearchParams(location.search);
+  for (const key of ["function", "problem"]) {
+    if (q.has(key)) q.set(key, addressValue(key));
+  }
   if (["flat", "surface", "error"].includes(q.get("view"))) selectView(q.get("view"));
   if (/^[0-9a-f]{64}$/.test(q.get("job") || "")) return "job";
   if (q.has("problem")) {

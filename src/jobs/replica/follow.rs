@@ -53,6 +53,8 @@ pub(in crate::jobs) fn view(r: &Posting) -> Record {
         error: (status == Status::Failed).then(|| failure_of(r)),
         elapsed: r.elapsed_ms.map(|ms| Duration::from_secs_f64(ms / 1e3)),
         last_event: r.seq,
+        // Another replica's clock; a posting does not carry it.
+        times: None,
     }
 }
 

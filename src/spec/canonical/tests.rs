@@ -46,7 +46,7 @@ const PROBLEMS: [&str; 4] = [
         "regions": [{"x": [-0.5, 0.5], "y": [-0.2, 0.2], "bh": [[0, 0], [100, 0.5], [1000, 1.2]]},
         {"x": [-0.9, -0.6], "y": [-0.9, 0.9], "current": 10},
         {"x": [0.6, 0.9], "y": [-0.9, 0.9], "mu_r": 1.05, "magnetization": [0, 8e5]}]}"#,
-    r#"{"max_vertices": 400, "method": "recursive"}"#,
+    r#"{"f": 1, "max_vertices": 400, "method": "recursive"}"#,
 ];
 
 #[test]
@@ -69,8 +69,8 @@ fn every_kind_of_spec_comes_back_with_the_same_encoding() {
 fn regions_that_set_only_k_or_only_f_are_different_jobs() {
     // Once both were 8 bytes in one field: two problems shared an id, and a cache answered
     // one with the other's solution.
-    let k = solution(r#"{"regions": [{"x": [0, 0.5], "y": [0, 0.5], "k": 2}]}"#);
-    let f = solution(r#"{"regions": [{"x": [0, 0.5], "y": [0, 0.5], "f": 2}]}"#);
+    let k = solution(r#"{"g": 1, "regions": [{"x": [0, 0.5], "y": [0, 0.5], "k": 2}]}"#);
+    let f = solution(r#"{"g": 1, "regions": [{"x": [0, 0.5], "y": [0, 0.5], "f": 2}]}"#);
     assert_ne!(job_keys(&k).id, job_keys(&f).id);
 }
 

@@ -53,7 +53,13 @@ struct Node {
 fn node(bus: &Bus, name: &str) -> Node {
     let peers = bus.replica(name);
     let cache = Cache::new(64 << 20, None, 0).unwrap();
-    let pool = Pool { workers: NonZeroUsize::MIN, queue: 4, client_share: 1.0, memory_bytes: 8 << 30 };
+    let pool = Pool {
+        workers: NonZeroUsize::MIN,
+        queue: 4,
+        client_share: 1.0,
+        memory_bytes: 8 << 30,
+        job_retention: std::time::Duration::from_secs(3600),
+    };
     let jobs = Jobs::new(&pool, cache, Arc::new(Metrics::default())).shared(peers.clone(), limits());
     Node { jobs, peers }
 }
