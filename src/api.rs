@@ -198,6 +198,26 @@ pub struct JobStatus {
     pub links: Links,
 }
 
+/// The `result` event that ends a stream: the job's status document (its stats, times and
+/// links) and the address of its mesh in each format — not the mesh, which a client fetches
+/// once in the format it wants (or asks inline with `?inline=mesh`).
+#[derive(Debug, Clone, Serialize)]
+pub struct ResultEvent {
+    /// The job as `GET /v1/jobs/{id}` shows it.
+    #[serde(flatten)]
+    pub status: JobStatus,
+    /// `/v1/jobs/{id}/mesh?format=…` by format name.
+    pub formats: std::collections::BTreeMap<&'static str, String>,
+}
+
+impl ResultEvent {
+    /// The event of a finished job with this status, linking its mesh in `formats` (names).
+    pub fn of(status: JobStatus, formats: impl IntoIterator<Item = &'static str>) -> Self {
+        let formats = formats.into_iter().map(|f| (f, format!("{}?format={f}", status.links.mesh))).collect();
+        Self { status, formats }
+    }
+}
+
 /// `GET /v1/jobs`: a page of the jobs submitted, newest first.
 #[derive(Debug, Clone, Serialize)]
 pub struct JobList {
@@ -303,16 +323,61 @@ pub struct ProgressEvent {
     pub vertices: usize,
     /// Triangles so far.
     pub triangles: usize,
-    /// The current worst criterion value: the largest e(T) for error, V_n for variation.
+    /// The current worst criterion value: the largest e(T) for error, V_n for variation; for a
+    /// solution, the estimate after the latest solve. It may rise between events (a split
+    /// measures its new triangles afresh, a solve changes every value): `fraction` is what
+    /// never falls.
     pub worst: f64,
     /// Milliseconds since the job started running.
     pub elapsed_ms: f64,
+    /// Where the job stops: the first of its targets it reaches.
+    #[serde(default)]
+    pub target: Target,
+    /// How far the job is toward its nearest target, in [0, 1], never falling from one event
+    /// to the next: the largest of vertices / `max_vertices`, the error's way down to
+    /// `tolerance` on a log scale (from the first event's `worst`), and the time over
+    /// `time_limit_ms`.
+    #[serde(default)]
+    pub fraction: f64,
     /// A nonlinear solution's Newton steps in its latest solve.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub newton_iterations: Option<u32>,
     /// Newton's final relative residual in that solve.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub newton_residual: Option<f64>,
+}
+
+/// The targets a job stops at, the first it reaches.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Target {
+    /// The vertex budget.
+    pub max_vertices: usize,
+    /// The worst criterion value to reach, when asked for.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub tolerance: Option<f64>,
+    /// The time limit in force (the request's, or the server's).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub time_limit_ms: Option<u64>,
+}
+
+impl Target {
+    /// How far `worst` at `elapsed_ms` with `vertices` is toward the nearest target, in
+    /// [0, 1]: the error's progress measured on a log scale from `first_worst`.
+    pub fn fraction(&self, vertices: usize, worst: f64, elapsed_ms: f64, first_worst: f64) -> f64 {
+        let by_vertices = vertices as f64 / self.max_vertices.max(1) as f64;
+        let by_error = self.tolerance.map_or(0.0, |tolerance| {
+            if worst <= tolerance {
+                1.0
+            } else if first_worst > tolerance && tolerance > 0.0 {
+                (first_worst / worst).ln() / (first_worst / tolerance).ln()
+            } else {
+                0.0
+            }
+        });
+        let by_time = self.time_limit_ms.map_or(0.0, |limit| elapsed_ms / limit.max(1) as f64);
+        let fraction = by_vertices.max(by_error).max(by_time);
+        if fraction.is_nan() { 0.0 } else { fraction.clamp(0.0, 1.0) }
+    }
 }
 
 /// The body of `POST /v1/solutions` (and of `POST /v1/jobs` when it names `physics`): the
@@ -539,4 +604,35 @@ fn strip_position(e: &serde_json::Error) -> String {
         message.truncate(kept);
     }
     message
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_fraction_is_the_nearest_targets_and_stays_in_range() {
+        let budget = Target { max_vertices: 1000, tolerance: None, time_limit_ms: None };
+        assert_eq!(budget.fraction(250, 3.0, 10.0, 5.0), 0.25);
+        assert_eq!(budget.fraction(5000, 3.0, 10.0, 5.0), 1.0);
+        // From an error of 1 down to 0.001: three decades, one of them done.
+        let tolerance = Target { tolerance: Some(1e-3), ..budget };
+        assert!((tolerance.fraction(10, 1e-1, 0.0, 1.0) - 1.0 / 3.0).abs() < 1e-12);
+        assert_eq!(tolerance.fraction(10, 1e-4, 0.0, 1.0), 1.0);
+        // A worst that rose above the first: no progress by error, but never below 0.
+        assert_eq!(tolerance.fraction(0, 2.0, 0.0, 1.0), 0.0);
+        let time = Target { time_limit_ms: Some(2000), ..budget };
+        assert_eq!(time.fraction(10, 1.0, 1500.0, 1.0), 0.75);
+        assert_eq!(Target::default().fraction(0, f64::NAN, 0.0, f64::NAN), 0.0);
+    }
+
+    #[test]
+    fn a_count_reads_as_json_counts_do() {
+        assert_eq!(parse_count("1e4"), Some(10_000));
+        assert_eq!(parse_count(" 250 "), Some(250));
+        assert_eq!(parse_count("10000.0"), Some(10_000));
+        for bad in ["1.5", "-1", "inf", "NaN", "ten", "1e30"] {
+            assert_eq!(parse_count(bad), None, "{bad}");
+        }
+    }
 }

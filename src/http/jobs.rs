@@ -5,8 +5,9 @@ use super::negotiate::{self, Wanted};
 use super::problem::ApiError;
 use super::sse;
 use super::state::AppState;
-use crate::api::{JobList, JobRequest, JobStatus, JsonError, Links, SolveRequest};
+use crate::api::{JobList, JobRequest, JobStatus, JsonError, Links, ResultEvent, SolveRequest};
 use crate::jobs::{Client, Found, JobError, Lifetime, Outcome, Record, Snapshot, Status, Ticket, Waiter};
+use crate::output::Format;
 use crate::refine::StopReason;
 use crate::result::RunResult;
 use crate::result::Stop;
@@ -200,18 +201,35 @@ async fn create(
     kind: Kind,
 ) -> Result<Response, ApiError> {
     let stream = wants_event_stream(&headers);
-    // A format nobody writes is refused before any work is done.
-    let wanted = if stream { None } else { Some(Wanted::from_request(&uri, &headers)?) };
+    // A format nobody writes is refused before any work is done; a stream takes `inline`.
+    let (wanted, inline) = match stream {
+        true => (None, stream_query(&uri)?.inline()?),
+        false => (Some(Wanted::from_request(&uri, &headers)?), false),
+    };
     let (keys, spec) = prepare(&state, &headers, body, kind).await?;
     let id = keys.id.clone();
     let ticket = state.jobs.submit(keys, spec, Lifetime::WhileWaited, client).await?;
     let Some(wanted) = wanted else {
         // An answer at once is the stream's one event, id 1.
-        return Ok(match ticket {
-            Ticket::Cached(r) | Ticket::Prefix(r) => final_stream(&id, &Outcome::Succeeded(r), 1),
-            Ticket::Failed(e) => final_stream(&id, &Outcome::Failed(e), 1),
-            Ticket::Job(waiter) => job_stream(waiter, 0, false),
-        });
+        let mut response = match ticket {
+            Ticket::Cached(r) | Ticket::Prefix(r) => {
+                let status = status_document(&id, Record::cached(&r));
+                final_stream(&status, &Outcome::Succeeded(r), 1, inline)
+            }
+            Ticket::Failed(e) => final_stream(
+                &status_body(&id, &Found::Done(failed(e.clone()))),
+                &Outcome::Failed(e),
+                1,
+                inline,
+            ),
+            Ticket::Job(waiter) => {
+                job_stream(waiter, 0, StreamQuery { vertices: None, inline: inline.then(|| "mesh".into()) })
+            }
+        };
+        // The job the stream's links name, for a client that reads headers.
+        let location = HeaderValue::from_str(&format!("/v1/jobs/{id}")).expect("ascii path");
+        response.headers_mut().insert(header::CONTENT_LOCATION, location);
+        return Ok(response);
     };
     match ticket {
         Ticket::Cached(r) => {
@@ -235,6 +253,19 @@ async fn create(
     }
 }
 
+/// The record of a job that failed before it ran (a replay that failed).
+fn failed(e: JobError) -> Arc<Record> {
+    Arc::new(Record {
+        status: Status::Failed,
+        progress: None,
+        stats: None,
+        error: Some(e),
+        elapsed: None,
+        last_event: 0,
+        times: None,
+    })
+}
+
 /// `POST /v1/jobs`: starts (or finds) a job that runs whether or not anyone waits; a body
 /// that names `physics` is a boundary value problem.
 pub async fn jobs_create(
@@ -247,18 +278,7 @@ pub async fn jobs_create(
     let id = keys.id.clone();
     let (code, status) = match state.jobs.submit(keys, spec, Lifetime::Detached, &client).await? {
         Ticket::Cached(f) | Ticket::Prefix(f) => (StatusCode::OK, status_body(&id, &Found::Cached(f))),
-        Ticket::Failed(e) => {
-            let record = Record {
-                status: Status::Failed,
-                progress: None,
-                stats: None,
-                error: Some(e),
-                elapsed: None,
-                last_event: 0,
-                times: None,
-            };
-            (StatusCode::OK, status_body(&id, &Found::Done(Arc::new(record))))
-        }
+        Ticket::Failed(e) => (StatusCode::OK, status_body(&id, &Found::Done(failed(e)))),
         Ticket::Job(waiter) => (StatusCode::ACCEPTED, status_body(&id, &Found::Job(waiter.job().clone()))),
     };
     let location = HeaderValue::from_str(&status.links.this).expect("ascii path");
@@ -428,7 +448,8 @@ pub async fn jobs_events(
     uri: Uri,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    let points = wants_points(&uri)?;
+    let query = stream_query(&uri)?;
+    let inline = query.inline()?;
     let last_seen = headers
         .get("last-event-id")
         .and_then(|v| v.to_str().ok())
@@ -438,34 +459,57 @@ pub async fn jobs_events(
     if let Found::Job(_) | Found::Remote(_) = &found
         && let Some(waiter) = state.jobs.watch(&id).await
     {
-        return Ok(job_stream(waiter, last_seen, points));
+        return Ok(job_stream(waiter, last_seen, query));
     }
-    if let Some(response) = final_response(&state, &id, found, last_seen).await {
+    if let Some(response) = final_response(&state, &id, found, last_seen, inline).await {
         return Ok(response);
     }
     // Finished between the two looks (its record is there now), or Redis stopped answering.
-    final_response(&state, &id, find(&state, &id).await?, last_seen).await.ok_or(ApiError::Unreachable)
+    let found = find(&state, &id).await?;
+    final_response(&state, &id, found, last_seen, inline).await.ok_or(ApiError::Unreachable)
 }
 
 /// The stream of a finished job's final event, or 204 for a client that has seen it; `None`
 /// when `found` is not finished.
-async fn final_response(state: &AppState, id: &str, found: Found, last_seen: u64) -> Option<Response> {
+async fn final_response(
+    state: &AppState,
+    id: &str,
+    found: Found,
+    last_seen: u64,
+    inline: bool,
+) -> Option<Response> {
     let Some(event_id) = final_event_id(&found, last_seen) else {
         return Some(StatusCode::NO_CONTENT.into_response());
     };
+    let status = status_body(id, &found);
     let (outcome, _) = finished_outcome(state, id, found).await?;
-    Some(final_stream(id, &outcome, event_id))
+    Some(final_stream(&status, &outcome, event_id, inline))
 }
 
-/// `?vertices=true` on the events route: progress events carry the new vertices.
-fn wants_points(uri: &Uri) -> Result<bool, ApiError> {
-    #[derive(serde::Deserialize)]
-    #[serde(deny_unknown_fields)]
-    struct EventsQuery {
-        vertices: Option<bool>,
+/// The query of a stream: `?vertices=true` (the events route: progress events carry the new
+/// vertices) and `?inline=mesh` (the result event carries the mesh document).
+#[derive(Debug, Default, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct StreamQuery {
+    vertices: Option<bool>,
+    inline: Option<String>,
+}
+
+impl StreamQuery {
+    /// Whether the result event carries the mesh.
+    fn inline(&self) -> Result<bool, ApiError> {
+        match self.inline.as_deref() {
+            None => Ok(false),
+            Some("mesh") => Ok(true),
+            Some(other) => {
+                Err(ApiError::InvalidRequest(format!("inline `{other}` is not known; `inline=mesh` is")))
+            }
+        }
     }
-    let query: EventsQuery = super::extract::query(uri)?;
-    Ok(query.vertices.unwrap_or(false))
+}
+
+fn stream_query(uri: &Uri) -> Result<StreamQuery, ApiError> {
+    super::extract::query(uri)
 }
 
 /// `DELETE /v1/jobs/{id}`: cancels the job, wherever it runs, and answers with its status
@@ -495,13 +539,23 @@ pub async fn jobs_cancel(
     Ok(axum::Json(status_body(&id, &Found::Job(job))).into_response())
 }
 
-/// The final event of job `id`, with id `event_id`: its result, or the problem that ended it;
-/// none for a job handed to another replica at shutdown, so that the client reconnects (with
-/// its last event's id) and follows the job there.
-fn final_event(id: &str, outcome: &Outcome, event_id: u64) -> Box<dyn Iterator<Item = Bytes> + Send> {
+/// The final event of the job `status` shows, with id `event_id`: its status and links (with
+/// `inline`, its mesh document), or the problem that ended it; none for a job handed to
+/// another replica at shutdown, so that the client reconnects (with its last event's id) and
+/// follows the job there.
+fn final_event(
+    status: &JobStatus,
+    outcome: &Outcome,
+    event_id: u64,
+    inline: bool,
+) -> Box<dyn Iterator<Item = Bytes> + Send> {
     match outcome {
         Outcome::Failed(JobError::HandedBack) => Box::new(std::iter::empty()),
-        Outcome::Succeeded(r) => Box::new(sse::result(event_id, id, r)),
+        Outcome::Succeeded(r) if inline => Box::new(sse::result(event_id, &status.id, r)),
+        Outcome::Succeeded(_) => {
+            let formats = Format::ALL.iter().map(|f| f.name());
+            Box::new(std::iter::once(sse::finished(event_id, &ResultEvent::of(status.clone(), formats))))
+        }
         Outcome::Failed(e) => {
             Box::new(std::iter::once(sse::error(event_id, &ApiError::from(e.clone()).to_json())))
         }
@@ -510,8 +564,8 @@ fn final_event(id: &str, outcome: &Outcome, event_id: u64) -> Box<dyn Iterator<I
 }
 
 /// Just the final event, for a job that has finished.
-fn final_stream(id: &str, outcome: &Outcome, event_id: u64) -> Response {
-    sse::response(stream::iter(final_event(id, outcome, event_id)))
+fn final_stream(status: &JobStatus, outcome: &Outcome, event_id: u64, inline: bool) -> Response {
+    sse::response(stream::iter(final_event(status, outcome, event_id, inline)))
 }
 
 struct Watch {
@@ -521,6 +575,8 @@ struct Watch {
     last_seen: u64,
     /// With `?vertices=true`: the vertices this client has been sent.
     points_sent: Option<usize>,
+    /// With `?inline=mesh`: the result event carries the mesh.
+    inline: bool,
     /// The rest of the final event, once the job has finished.
     rest: Option<Box<dyn Iterator<Item = Bytes> + Send>>,
 }
@@ -530,10 +586,11 @@ struct Watch {
 /// whenever the job is silent for [`sse::KEEP_ALIVE`]. With `points`, each progress event
 /// carries the vertices added since the last one this client was sent, at most
 /// [`POINTS_PER_EVENT`] (from the first: a reconnecting client starts again at 0).
-fn job_stream(waiter: Waiter, last_seen: u64, points: bool) -> Response {
+fn job_stream(waiter: Waiter, last_seen: u64, query: StreamQuery) -> Response {
     let rx = waiter.job().subscribe();
-    let points_sent = points.then_some(0);
-    let watch = Watch { waiter, rx, last_seen, points_sent, rest: None };
+    let points_sent = query.vertices.unwrap_or(false).then_some(0);
+    let inline = query.inline.is_some();
+    let watch = Watch { waiter, rx, last_seen, points_sent, inline, rest: None };
     let events = stream::unfold(watch, |mut w| async move {
         loop {
             if let Some(rest) = &mut w.rest {
@@ -544,7 +601,8 @@ fn job_stream(waiter: Waiter, last_seen: u64, points: bool) -> Response {
                 if w.last_seen >= snapshot.seq {
                     return None;
                 }
-                w.rest = Some(final_event(w.waiter.job().id(), outcome, snapshot.seq));
+                let status = status_document(w.waiter.job().id(), Record::of(&snapshot));
+                w.rest = Some(final_event(&status, outcome, snapshot.seq, w.inline));
                 continue;
             }
             if let Some(progress) = snapshot.progress.filter(|_| snapshot.seq > w.last_seen) {

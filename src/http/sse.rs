@@ -1,12 +1,13 @@
 //! Server-sent events written as bytes.
 //!
-//! axum's `Event` holds its data in one buffer per client; a `result` event of a 10^6-vertex
-//! mesh would be a copy of the whole document for every client. Here the result event is the
-//! shared result encoded chunk by chunk as the client reads it, so twenty stalled readers hold
-//! twenty chunks, not twenty meshes. The JSON document has no line breaks, so it is one
-//! `data:` line.
+//! A stream ends with a light `result` event: the job's status and the links to its mesh in
+//! each format. Asked for inline (`?inline=mesh`), the event carries the mesh document
+//! instead; axum's `Event` would hold it in one buffer per client, a copy of a 10^6-vertex
+//! mesh for every one. Here the inline event is the shared result encoded chunk by chunk as
+//! the client reads it, so twenty stalled readers hold twenty chunks, not twenty meshes. The
+//! JSON document has no line breaks, so it is one `data:` line.
 
-use crate::api::ProgressEvent;
+use crate::api::{ProgressEvent, ResultEvent};
 use crate::geom::Vertex;
 use crate::output::{self, Format, Options};
 use crate::result::RunResult;
@@ -54,7 +55,14 @@ pub fn error(id: u64, problem: &serde_json::Value) -> Bytes {
     Bytes::from(format!("event: error\nid: {id}\ndata: {problem}\n\n"))
 }
 
-/// A `result` event carrying the JSON document of `result`, in chunks made as they are read.
+/// The light `result` event: the finished job's status and where its mesh is.
+pub fn finished(id: u64, event: &ResultEvent) -> Bytes {
+    let data = serde_json::to_string(event).expect("a status serializes");
+    Bytes::from(format!("event: result\nid: {id}\ndata: {data}\n\n"))
+}
+
+/// A `result` event carrying the JSON document of `result`, in chunks made as they are read
+/// (`?inline=mesh`).
 pub fn result(id: u64, job: &str, result: &Arc<RunResult>) -> impl Iterator<Item = Bytes> + Send + use<> {
     let options = Options { id: Some(job.to_owned()), ..Options::default() };
     let head = Bytes::from(format!("event: result\nid: {id}\ndata: "));

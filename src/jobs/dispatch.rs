@@ -6,10 +6,18 @@
 //! freed worker goes to the oldest waiting job whose client runs fewer than its share; only when
 //! every waiting client is at its share does it go to the oldest job. So a client's second job
 //! never waits behind an idle worker, and a client that arrives at a busy server is the next to
-//! run instead of queueing behind another's backlog. Running jobs are never preempted.
+//! run instead of queueing behind another's backlog.
+//!
+//! And it need not wait for a job to end: a job that waits while its client runs fewer than
+//! its share asks a worker of the client furthest over its share to yield
+//! ([`Worker::is_asked_to_yield`]). That job gives its worker back at its next step
+//! (`worker::JobObserver`, within an insertion or a solve), pauses where it is, holding its
+//! memory, and waits for a worker again ahead of every other waiting job
+//! ([`Worker::take_turn`]); its result is the same bytes, only later.
 
 use super::share::{Client, uncount};
 use std::collections::{HashMap, VecDeque};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use tokio::sync::oneshot;
 
@@ -24,9 +32,50 @@ pub(super) struct Dispatch {
 struct State {
     free: usize,
     running: HashMap<Client, usize>,
-    /// Oldest first. A waiter whose job was cancelled stays until a freed worker finds its
-    /// receiver gone and passes on.
+    /// Oldest first (a paused job goes first). A waiter whose job was cancelled stays until a
+    /// freed worker finds its receiver gone and passes on.
     waiting: VecDeque<(Client, oneshot::Sender<Worker>)>,
+    /// The workers held, by id: whose, and the flag that asks it to yield.
+    held: Vec<(u64, Client, Arc<AtomicBool>)>,
+    /// The next worker's id.
+    next_id: u64,
+}
+
+impl State {
+    /// A worker handed to `client`, counted and listed.
+    fn grant(&mut self, dispatch: &Arc<Dispatch>, client: &Client) -> Worker {
+        *self.running.entry(client.clone()).or_default() += 1;
+        self.next_id += 1;
+        let yield_asked = Arc::new(AtomicBool::new(false));
+        self.held.push((self.next_id, client.clone(), yield_asked.clone()));
+        Worker { dispatch: Some(dispatch.clone()), client: client.clone(), id: self.next_id, yield_asked }
+    }
+
+    /// Forgets worker `id` of `client`.
+    fn ungrant(&mut self, id: u64, client: &Client) {
+        uncount(&mut self.running, client);
+        self.held.retain(|(held, ..)| *held != id);
+    }
+
+    /// Asks one more worker to yield, while fewer are asked than jobs wait whose clients run
+    /// below `share`: one of the client furthest over its share (the newest of its workers).
+    fn ask_to_yield(&mut self, share: usize) {
+        let runs = |c: &Client| self.running.get(c).copied().unwrap_or(0);
+        let under = self.waiting.iter().filter(|(c, tx)| !tx.is_closed() && runs(c) < share).count();
+        let asked = self.held.iter().filter(|(.., flag)| flag.load(Ordering::Relaxed)).count();
+        if asked >= under {
+            return;
+        }
+        // `max_by_key` keeps the last of equals: the newest worker of that client.
+        let over = self
+            .held
+            .iter()
+            .filter(|(_, c, flag)| runs(c) > share && !flag.load(Ordering::Relaxed))
+            .max_by_key(|(_, c, _)| runs(c));
+        if let Some((.., flag)) = over {
+            flag.store(true, Ordering::Relaxed);
+        }
+    }
 }
 
 /// One worker, held by a job's client until dropped.
@@ -35,12 +84,44 @@ pub(super) struct Worker {
     /// its job gone).
     dispatch: Option<Arc<Dispatch>>,
     client: Client,
+    id: u64,
+    /// Set when a job of a client below its share waits for this worker.
+    yield_asked: Arc<AtomicBool>,
+}
+
+impl Worker {
+    /// Whether a waiting job of a client below its share asks for this worker: one load, for
+    /// the engine's step loop.
+    pub(super) fn is_asked_to_yield(&self) -> bool {
+        self.yield_asked.load(Ordering::Relaxed)
+    }
+
+    /// Gives this worker back (to the job that asked for it) and waits for one again, ahead
+    /// of every job that has not started. `None` only if the dispatcher went away first.
+    pub(super) async fn take_turn(mut self) -> Option<Worker> {
+        let dispatch = self.dispatch.take()?;
+        let client = self.client.clone();
+        let waiting = {
+            let mut state = dispatch.lock();
+            let (tx, rx) = oneshot::channel();
+            state.waiting.push_front((client.clone(), tx));
+            rx
+        };
+        dispatch.release(self.id, &client);
+        waiting.await.ok()
+    }
 }
 
 impl Dispatch {
     /// `workers` workers, of which one client runs `share` before others' jobs go first.
     pub(super) fn new(workers: usize, share: usize) -> Arc<Self> {
-        let state = State { free: workers, running: HashMap::new(), waiting: VecDeque::new() };
+        let state = State {
+            free: workers,
+            running: HashMap::new(),
+            waiting: VecDeque::new(),
+            held: Vec::new(),
+            next_id: 0,
+        };
         Arc::new(Self { share, state: Mutex::new(state) })
     }
 
@@ -56,19 +137,19 @@ impl Dispatch {
             let mut state = self.lock();
             if state.free > 0 {
                 state.free -= 1;
-                *state.running.entry(client.clone()).or_default() += 1;
-                return Some(Worker { dispatch: Some(self.clone()), client: client.clone() });
+                return Some(state.grant(self, client));
             }
             let (tx, rx) = oneshot::channel();
             state.waiting.push_back((client.clone(), tx));
+            state.ask_to_yield(self.share);
             rx
         };
         waiting.await.ok()
     }
 
-    fn release(self: &Arc<Self>, client: &Client) {
+    fn release(self: &Arc<Self>, id: u64, client: &Client) {
         let mut state = self.lock();
-        uncount(&mut state.running, client);
+        state.ungrant(id, client);
         let share = self.share;
         loop {
             let under_share =
@@ -80,14 +161,18 @@ impl Dispatch {
                 state.free += 1;
                 return;
             };
-            *state.running.entry(next.clone()).or_default() += 1;
-            match tx.send(Worker { dispatch: Some(self.clone()), client: next.clone() }) {
-                Ok(()) => return,
+            let worker = state.grant(self, &next);
+            match tx.send(worker) {
+                Ok(()) => {
+                    // Still a job under its share waiting? Another worker is asked.
+                    state.ask_to_yield(share);
+                    return;
+                }
                 // The job stopped waiting (cancelled): take the worker back, without the
                 // release its drop would make under this lock, and look again.
                 Err(mut unclaimed) => {
                     unclaimed.dispatch = None;
-                    uncount(&mut state.running, &next);
+                    state.ungrant(unclaimed.id, &next);
                 }
             }
         }
@@ -101,7 +186,7 @@ impl Dispatch {
 impl Drop for Worker {
     fn drop(&mut self) {
         if let Some(dispatch) = self.dispatch.take() {
-            dispatch.release(&self.client);
+            dispatch.release(self.id, &self.client);
         }
     }
 }
@@ -184,5 +269,57 @@ mod tests {
         assert_eq!(dispatch.free(), 0);
         drop(worker);
         assert_eq!(dispatch.free(), 1, "nothing leaked");
+    }
+
+    #[tokio::test]
+    async fn a_client_below_its_share_asks_the_client_furthest_over_to_yield_and_runs_first() {
+        let dispatch = Dispatch::new(2, 1);
+        let (a, b) = (client("a"), client("b"));
+        let running = [dispatch.acquire(&a).await.unwrap(), dispatch.acquire(&a).await.unwrap()];
+        // a's own third job waits without asking anything of a's runs.
+        let mut a_third = Box::pin(dispatch.acquire(&a));
+        assert!(now(a_third.as_mut()).is_none());
+        assert!(running.iter().all(|w| !w.is_asked_to_yield()), "a alone keeps every worker");
+        // b runs nothing and waits: one of a's two is asked, the newest.
+        let mut b_waits = Box::pin(dispatch.acquire(&b));
+        assert!(now(b_waits.as_mut()).is_none());
+        let [first, second] = running;
+        assert!(!first.is_asked_to_yield() && second.is_asked_to_yield());
+        // It yields at its next step: b runs, and the paused run waits first in line.
+        let mut resumed = Box::pin(second.take_turn());
+        assert!(now(resumed.as_mut()).is_none());
+        let b_worker = b_waits.await.expect("b takes the yielded worker");
+        assert!(!b_worker.is_asked_to_yield() && !first.is_asked_to_yield(), "a is at its share now");
+        drop(b_worker);
+        let resumed = resumed.await.expect("the paused run goes on before a's third job starts");
+        assert!(now(a_third.as_mut()).is_none());
+        drop(first);
+        let third = a_third.await.unwrap();
+        drop((resumed, third));
+        assert_eq!(dispatch.free(), 2, "nothing leaked");
+    }
+
+    #[tokio::test]
+    async fn no_more_runs_are_asked_than_jobs_wait_below_their_share() {
+        let dispatch = Dispatch::new(3, 1);
+        let (a, b) = (client("a"), client("b"));
+        let running: Vec<Worker> = vec![
+            dispatch.acquire(&a).await.unwrap(),
+            dispatch.acquire(&a).await.unwrap(),
+            dispatch.acquire(&a).await.unwrap(),
+        ];
+        let mut b_one = Box::pin(dispatch.acquire(&b));
+        assert!(now(b_one.as_mut()).is_none());
+        let mut b_two = Box::pin(dispatch.acquire(&b));
+        assert!(now(b_two.as_mut()).is_none());
+        // b's second waiting job is below b's share too (b runs nothing): two are asked.
+        assert_eq!(running.iter().filter(|w| w.is_asked_to_yield()).count(), 2);
+        drop(b_two);
+        let mut running = running;
+        let asked = running.iter().position(Worker::is_asked_to_yield).unwrap();
+        let mut paused = Box::pin(running.remove(asked).take_turn());
+        assert!(now(paused.as_mut()).is_none(), "the paused run waits");
+        let b_worker = b_one.await.unwrap();
+        drop((running, b_worker, paused));
     }
 }

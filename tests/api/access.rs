@@ -188,3 +188,46 @@ async fn with_keys_the_job_list_shows_each_client_its_own_jobs() {
     assert_eq!(b[0], a[1], "the job both asked for is in both lists");
     app.shutdown().await;
 }
+
+#[tokio::test]
+async fn a_client_below_its_share_runs_at_once_while_another_fills_every_worker() {
+    // Two workers, a share of one each: A's two long jobs fill both.
+    let app = spawn_with(configured(|c| {
+        *c = with_keys(c.clone());
+        c.pool.client_share = 0.5;
+    }))
+    .await;
+    let long = |k: u32| json!({"function": format!("sin(30*x)*cos(30*y) + {k}"), "max_vertices": 300_000});
+    let mut a_ids = Vec::new();
+    for k in 0..2 {
+        let status: Value = post_as(&app, KEY_A, "/v1/jobs", &long(k)).await.json().await.unwrap();
+        a_ids.push(status["id"].as_str().unwrap().to_owned());
+    }
+    for id in &a_ids {
+        while status_as(&app, KEY_A, id).await["status"] != "running" {
+            tokio::time::sleep(std::time::Duration::from_millis(5)).await;
+        }
+    }
+    // B's small job is answered while both of A's still run: one of them paused for it.
+    let b = post_as(&app, KEY_B, "/v1/meshes", &json!({"function": "x*y", "max_vertices": 10})).await;
+    assert_eq!(b.status(), 200);
+    for id in &a_ids {
+        assert_eq!(status_as(&app, KEY_A, id).await["status"], "running", "B did not wait for A's jobs");
+    }
+    // The paused run ends with the bytes of a run nobody paused.
+    let mut paused = Vec::new();
+    for id in &a_ids {
+        while status_as(&app, KEY_A, id).await["status"] != "succeeded" {
+            tokio::time::sleep(std::time::Duration::from_millis(20)).await;
+        }
+        let url = app.url(&format!("/v1/jobs/{id}/mesh?format=ply"));
+        paused.push(app.client.get(url).bearer_auth(KEY_A).send().await.unwrap().bytes().await.unwrap());
+    }
+    app.shutdown().await;
+    let alone = crate::helpers::spawn_app().await;
+    for (k, bytes) in paused.iter().enumerate() {
+        let fresh = alone.post("/v1/meshes?format=ply", &long(k as u32)).await.bytes().await.unwrap();
+        assert!(fresh == *bytes, "job {k}: the same bytes as an unpaused run");
+    }
+    alone.shutdown().await;
+}

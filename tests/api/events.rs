@@ -4,7 +4,7 @@ use crate::helpers::{read_events, spawn_app};
 use serde_json::{Value, json};
 
 #[tokio::test]
-async fn the_stream_sends_progress_before_one_result_equal_to_the_stored_mesh() {
+async fn the_stream_sends_progress_with_a_rising_fraction_then_a_light_result_that_links_the_mesh() {
     let app = spawn_app().await;
     let body = json!({"function": "sin(9*x)*cos(7*y) + x", "max_vertices": 600_000});
     let response = app
@@ -36,11 +36,58 @@ async fn the_stream_sends_progress_before_one_result_equal_to_the_stored_mesh() 
         })
         .collect();
     assert!(counts.windows(2).all(|w| w[0].0 <= w[1].0 && w[0].1 <= w[1].1), "{counts:?}");
+    // Each event names the job's targets, and how far it is, never less than before.
+    let fractions: Vec<f64> = progress
+        .iter()
+        .map(|e| {
+            let p: Value = serde_json::from_str(&e.data).unwrap();
+            assert_eq!(p["target"]["max_vertices"], 600_000, "{p}");
+            let f = p["fraction"].as_f64().unwrap();
+            let by_vertices = p["vertices"].as_f64().unwrap() / 600_000.0;
+            assert!((0.0..=1.0).contains(&f) && f >= by_vertices, "{p}");
+            f
+        })
+        .collect();
+    assert!(fractions.windows(2).all(|w| w[0] <= w[1]), "{fractions:?}");
 
+    // The result names the job, its stats and where the mesh is, in every format; the mesh is
+    // fetched once, from there.
     let result: Value = serde_json::from_str(&last.data).unwrap();
+    // The bound: under 64 kB whatever the mesh (the stats' history is most of it).
+    assert!(last.data.len() < 64 << 10, "a light event: {} bytes", last.data.len());
+    assert!(!last.data.contains("\"vertices\":["), "no mesh in it");
     let id = result["id"].as_str().unwrap();
+    assert_eq!(result["status"], "succeeded");
+    assert_eq!(result["stats"]["vertices"], 600_000);
+    assert_eq!(result["formats"]["obj"], format!("/v1/jobs/{id}/mesh?format=obj"));
+    let stored: Value = app.get(result["formats"]["json"].as_str().unwrap()).await.json().await.unwrap();
+    assert_eq!(stored["stats"], result["stats"]);
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn asked_inline_the_result_event_is_the_mesh_document_and_a_stream_names_its_job() {
+    let app = spawn_app().await;
+    let body = json!({"function": "x*y + sin(3*x)", "max_vertices": 2000});
+    let response = app
+        .client
+        .post(app.url("/v1/meshes?inline=mesh"))
+        .header("accept", "text/event-stream")
+        .json(&body)
+        .send()
+        .await
+        .unwrap();
+    let location = response.headers()["content-location"].to_str().unwrap().to_owned();
+    let events = read_events(response).await;
+    let result: Value = serde_json::from_str(&events.last().unwrap().data).unwrap();
+    let id = result["id"].as_str().unwrap();
+    assert_eq!(location, format!("/v1/jobs/{id}"));
     let stored: Value = app.get(&format!("/v1/jobs/{id}/mesh")).await.json().await.unwrap();
     assert_eq!(result, stored);
+    // The events route takes it too; another value is refused.
+    let events = read_events(app.get(&format!("/v1/jobs/{id}/events?inline=mesh")).await).await;
+    assert_eq!(serde_json::from_str::<Value>(&events[0].data).unwrap(), stored);
+    assert_eq!(app.get(&format!("/v1/jobs/{id}/events?inline=all")).await.status(), 422);
     app.shutdown().await;
 }
 
@@ -161,7 +208,7 @@ async fn with_vertices_progress_events_carry_each_new_vertex_once_in_insertion_o
         json!({"function": "sin(9*x)*cos(7*y) + x", "max_vertices": 600_000, "criterion": "variation"});
     let status: Value = app.post("/v1/jobs", &body).await.json().await.unwrap();
     let id = status["id"].as_str().unwrap();
-    let stream = app.get(&format!("/v1/jobs/{id}/events?vertices=true")).await;
+    let stream = app.get(&format!("/v1/jobs/{id}/events?vertices=true&inline=mesh")).await;
     let events = read_events(stream).await;
     let (last, progress) = events.split_last().unwrap();
     assert_eq!(last.event, "result");

@@ -116,7 +116,7 @@ async fn the_result_event_carries_the_same_document_as_the_mesh_route() {
     let id = created["id"].as_str().unwrap().to_owned();
     app.wait_finished(&id).await;
     let mesh = app.get(&format!("/v1/jobs/{id}/mesh")).await.text().await.unwrap();
-    let events = read_events(app.get(&format!("/v1/jobs/{id}/events")).await).await;
+    let events = read_events(app.get(&format!("/v1/jobs/{id}/events?inline=mesh")).await).await;
     assert_eq!(events.len(), 1);
     assert_eq!((events[0].event.as_str(), events[0].data.as_str()), ("result", mesh.as_str()));
     app.shutdown().await;

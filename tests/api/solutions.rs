@@ -61,7 +61,7 @@ async fn a_solution_carries_u_at_every_vertex_and_a_history_of_every_solve() {
 
 /// The events of `body` posted to /v1/solutions as a stream.
 async fn stream(app: &crate::helpers::TestApp, body: &Value) -> Vec<crate::helpers::SseEvent> {
-    let request = app.client.post(app.url("/v1/solutions")).header("accept", "text/event-stream");
+    let request = app.client.post(app.url("/v1/solutions?inline=mesh")).header("accept", "text/event-stream");
     read_events(request.json(body).send().await.unwrap()).await
 }
 

@@ -125,13 +125,20 @@ export async function openJob(id) {
   }
 }
 
-async function finished(doc) {
+// The result event is the job's status and its links; the mesh is fetched once, from there.
+async function finished(status) {
+  const response = await fetch(status.formats.json, { headers: authHeaders() });
+  if (!response.ok) {
+    showProblem(await response.json());
+    setStatus("failed");
+    return;
+  }
+  const doc = await response.json();
   if (doc.stats.physics && view.kind !== "solution") showTab("solve");
   view.doc = doc;
   view.points = [];
-  const response = await fetch(`/v1/jobs/${doc.id}`, { headers: authHeaders() });
-  view.status = response.ok ? await response.json() : null;
-  const elapsed = view.status && view.status.elapsed_ms;
+  view.status = status;
+  const elapsed = status.elapsed_ms;
   setStatus(`done: ${doc.stats.stop}${elapsed !== undefined && elapsed !== null ? `, ${Math.round(elapsed)} ms` : ", from the cache"}`);
   showStats(doc.stats);
   showDownloads(doc.id);
