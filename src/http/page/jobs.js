@@ -101,7 +101,8 @@ function progress(p) {
     for (let i = skip; i < p.points.length; i++) view.points.push(p.points[i]);
   }
   const worst = view.kind === "solution" ? "estimate" : "worst";
-  setStatus(`running: ${p.vertices} vertices, ${worst} ${fmt(p.worst)}, ${Math.round(p.elapsed_ms)} ms`);
+  const done = typeof p.fraction === "number" ? `${Math.floor(100 * p.fraction)}%: ` : "";
+  setStatus(`running ${done}${p.vertices} vertices, ${worst} ${fmt(p.worst)}, ${Math.round(p.elapsed_ms)} ms`);
   scheduleDraw();
 }
 
