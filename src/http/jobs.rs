@@ -203,7 +203,15 @@ async fn create(
     let stream = wants_event_stream(&headers);
     // A format nobody writes is refused before any work is done; a stream takes `inline`.
     let (wanted, inline) = match stream {
-        true => (None, stream_query(&uri)?.inline()?),
+        true => {
+            let query = stream_query(&uri)?;
+            if query.vertices.is_some() {
+                let detail =
+                    "vertices applies to GET /v1/jobs/{id}/events (a stream's id is in Content-Location)";
+                return Err(ApiError::InvalidRequest(detail.into()));
+            }
+            (None, query.inline()?)
+        }
         false => (Some(Wanted::from_request(&uri, &headers)?), false),
     };
     let (keys, spec) = prepare(&state, &headers, body, kind).await?;
@@ -314,8 +322,9 @@ const DEFAULT_LIST_LIMIT: u64 = 20;
 /// The most a page lists.
 const MAX_LIST_LIMIT: u64 = 100;
 
-/// `GET /v1/jobs?status=&limit=&cursor=`: the jobs submitted to this replica, newest first; a
-/// client's own when API keys are on. `next` is the address of the page of older ones.
+/// `GET /v1/jobs?status=&limit=&cursor=`: the jobs the caller submitted to this replica (by
+/// its key, or its address without keys), newest first. `next` is the address of the page of
+/// older ones.
 pub async fn jobs_list(
     State(state): State<AppState>,
     Extension(client): Extension<Client>,
@@ -342,9 +351,9 @@ pub async fn jobs_list(
             ApiError::InvalidRequest(format!("cursor `{text}` is not one a job list gave (its `next`)"))
         })?),
     };
-    // Without keys every caller is anonymous to the server: the list is everyone's.
-    let own = state.keyed.then_some(&client);
-    let (page, next) = state.jobs.list(own, status, before, limit as usize).await;
+    // A caller's own: its key's, or without keys its address's. Job ids are not guessable;
+    // a list of everyone's would hand them out.
+    let (page, next) = state.jobs.list(Some(&client), status, before, limit as usize);
     let jobs = page
         .into_iter()
         .map(|(submission, record)| {

@@ -57,11 +57,17 @@ impl State {
         self.held.retain(|(held, ..)| *held != id);
     }
 
-    /// Asks one more worker to yield, while fewer are asked than jobs wait whose clients run
-    /// below `share`: one of the client furthest over its share (the newest of its workers).
+    /// Asks one more worker to yield, while fewer are asked than the waiting clients below
+    /// `share` are short of it (each counts the workers it lacks, at most its waiting jobs):
+    /// one of the client furthest over its share (the newest of its workers).
     fn ask_to_yield(&mut self, share: usize) {
         let runs = |c: &Client| self.running.get(c).copied().unwrap_or(0);
-        let under = self.waiting.iter().filter(|(c, tx)| !tx.is_closed() && runs(c) < share).count();
+        let mut short: HashMap<&Client, usize> = HashMap::new();
+        for (c, _) in self.waiting.iter().filter(|(c, tx)| !tx.is_closed() && runs(c) < share) {
+            let lacks = short.entry(c).or_insert(0);
+            *lacks = (*lacks + 1).min(share - runs(c));
+        }
+        let under: usize = short.values().sum();
         let asked = self.held.iter().filter(|(.., flag)| flag.load(Ordering::Relaxed)).count();
         if asked >= under {
             return;
@@ -312,8 +318,8 @@ mod tests {
         assert!(now(b_one.as_mut()).is_none());
         let mut b_two = Box::pin(dispatch.acquire(&b));
         assert!(now(b_two.as_mut()).is_none());
-        // b's second waiting job is below b's share too (b runs nothing): two are asked.
-        assert_eq!(running.iter().filter(|w| w.is_asked_to_yield()).count(), 2);
+        // b lacks one worker of its share, however many of its jobs wait: one run is asked.
+        assert_eq!(running.iter().filter(|w| w.is_asked_to_yield()).count(), 1);
         drop(b_two);
         let mut running = running;
         let asked = running.iter().position(Worker::is_asked_to_yield).unwrap();

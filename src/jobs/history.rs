@@ -57,8 +57,7 @@ impl History {
     }
 
     /// Submissions numbered below `before` (all when `None`), of `client` alone when given,
-    /// newest first, as long as `keep` takes them and until it has taken `limit`; and whether
-    /// older ones remain.
+    /// newest first.
     pub(super) fn newest(
         &self,
         client: Option<&Client>,

@@ -143,14 +143,18 @@ impl Jobs {
     ) -> Result<Ticket, SubmitError> {
         let id = keys.id.clone();
         let ticket = submit::submit(&self.inner, keys, spec, lifetime, client).await?;
+        if let Ticket::Cached(result) | Ticket::Prefix(result) = &ticket {
+            self.inner.table.remember(&id, Record::cached(result));
+        }
         self.inner.history.note(&id, client, SystemTime::now());
         Ok(ticket)
     }
 
     /// The jobs submitted to this replica, newest first: of `client` alone when given, with
     /// `status` when given, numbered below `before` (the cursor); at most `limit`, and the
-    /// cursor of the next page when more are left. A job whose record is gone is left out.
-    pub async fn list(
+    /// cursor of the next page when more are left. Each job as this replica's table holds it
+    /// (never a read of the cache or the store); a job whose record is gone is left out.
+    pub fn list(
         &self,
         client: Option<&Client>,
         status: Option<Status>,
@@ -159,8 +163,11 @@ impl Jobs {
     ) -> (Vec<(Submission, Record)>, Option<u64>) {
         let mut page = Vec::new();
         for submission in self.inner.history.newest(client, before, SystemTime::now()) {
-            let Some(found) = self.find(&submission.id).await else { continue };
-            let record = found.record();
+            let record = match self.inner.table.get(&submission.id) {
+                Some(Listing::Live(job)) => Record::of(&job.snapshot()),
+                Some(Listing::Done(record)) => (*record).clone(),
+                None => continue,
+            };
             if status.is_some_and(|s| s != record.status) {
                 continue;
             }

@@ -79,6 +79,16 @@ impl Drop for Waiter {
     }
 }
 
+/// Drops the oldest finished records past [`FINISHED_KEPT`].
+fn prune(jobs: &mut HashMap<String, Listing>, finished: &mut VecDeque<String>) {
+    while finished.len() > FINISHED_KEPT {
+        let oldest = finished.pop_front().expect("non-empty");
+        if matches!(jobs.get(&oldest), Some(Listing::Done(_))) {
+            jobs.remove(&oldest);
+        }
+    }
+}
+
 impl Table {
     /// An empty table.
     pub(super) fn new() -> Arc<Self> {
@@ -180,6 +190,19 @@ impl Table {
         Started::New(waiter, job)
     }
 
+    /// Keeps `record` for `id` unless the table holds something for it: a result answered from
+    /// the cache, so that the job list and `GET /v1/jobs/{id}` know it without reading the
+    /// cache again. Counted among the finished records kept.
+    pub(super) fn remember(&self, id: &str, record: Record) {
+        let mut table = self.lock();
+        let Map { jobs, finished } = &mut *table.0;
+        if !jobs.contains_key(id) {
+            jobs.insert(id.to_owned(), Listing::Done(Arc::new(record)));
+            finished.push_back(id.to_owned());
+            prune(jobs, finished);
+        }
+    }
+
     /// Replaces a finished job's table entry with its record (waiting clients hold the job,
     /// and its mesh, until they have read it), keeping at most [`FINISHED_KEPT`] records.
     pub(super) fn file(&self, job: &Arc<Job>) {
@@ -190,12 +213,7 @@ impl Table {
             jobs.insert(job.id.clone(), Listing::Done(record));
             finished.push_back(job.id.clone());
         }
-        while finished.len() > FINISHED_KEPT {
-            let oldest = finished.pop_front().expect("non-empty");
-            if matches!(jobs.get(&oldest), Some(Listing::Done(_))) {
-                jobs.remove(&oldest);
-            }
-        }
+        prune(jobs, finished);
     }
 
     /// Whether no client waits on `job`.

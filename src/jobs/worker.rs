@@ -13,7 +13,7 @@ use crate::refine::{Observer, Progress, StopReason, refine};
 use crate::result::{RunResult, Stop};
 use crate::solve::SolveObserver;
 use crate::spec::{JobSpec, Work};
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tokio::runtime::Handle;
@@ -28,7 +28,11 @@ pub(super) async fn run(inner: Arc<Inner>, job: Arc<Job>, spec: JobSpec, admitte
             inner.metrics.jobs_running.inc();
             inner.metrics.engine_runs.inc();
             let (worker_job, worker) = (job.clone(), inner.clone());
-            let turn = Turn { worker: RefCell::new(Some(permit)), runtime: Handle::current() };
+            let turn = Turn {
+                worker: RefCell::new(Some(permit)),
+                runtime: Handle::current(),
+                paused: Cell::default(),
+            };
             // The worker goes into the run, which may give it back and take another (a pause),
             // and is dropped as the run ends.
             let outcome = crate::cpu::spawn(move || compute(&worker_job, &spec, &worker, turn))
@@ -75,6 +79,9 @@ struct Turn {
     worker: RefCell<Option<Worker>>,
     /// The runtime the worker is waited for on: the run itself is on a blocking thread.
     runtime: Handle,
+    /// How long the run has been paused, in all: not the run's time (see
+    /// [`Observer::paused`]).
+    paused: Cell<Duration>,
 }
 
 impl Turn {
@@ -86,6 +93,7 @@ impl Turn {
         }
         let worker = self.worker.borrow_mut().take().expect("held while asked");
         tracing::debug!(job = %job.id, "pausing: another client's job takes the worker");
+        let since = Instant::now();
         let resumed = self.runtime.block_on(async {
             let mut turn = std::pin::pin!(worker.take_turn());
             loop {
@@ -96,6 +104,7 @@ impl Turn {
             }
         });
         *self.worker.borrow_mut() = resumed;
+        self.paused.set(self.paused.get() + since.elapsed());
     }
 }
 
@@ -162,6 +171,10 @@ impl Observer for JobObserver<'_> {
         }
         self.turn.yield_if_asked(self.job);
         self.job.is_cancelled()
+    }
+
+    fn paused(&self) -> Duration {
+        self.turn.paused.get()
     }
 }
 

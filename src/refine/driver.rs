@@ -15,7 +15,7 @@ use super::sampler::{Batch, Sampler};
 use super::variation_criterion;
 use crate::geom::{Mesh, Rect};
 use crate::source::Surface;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 /// Refines S₄ on `rect` until a stop rule of `params` fires. See the [module docs](crate::refine).
 ///
@@ -32,7 +32,7 @@ where
     S: Surface + ?Sized,
     O: Observer,
 {
-    let start = Instant::now();
+    let (start, paused_before) = (Instant::now(), observer.paused());
     let mut sampler = Sampler { surface, evaluations: 0, batch: Batch::default() };
     let [p1, p2, p3, p4] = rect.corners();
     let z = [sampler.eval(p1)?, sampler.eval(p2)?, sampler.eval(p3)?, sampler.eval(p4)?];
@@ -47,7 +47,9 @@ where
         }
         _ => resume(&mut mesh, &mut sampler, params, floors, observer)?,
     };
-    Ok(finished(mesh, round, params, sampler.evaluations, start))
+    // Time paused for another job's turn is not the refinement's.
+    let paused = observer.paused().saturating_sub(paused_before);
+    Ok(finished(mesh, round, params, sampler.evaluations, start, paused))
 }
 
 /// The refinement `round` made of `mesh`, with its stats.
@@ -57,6 +59,7 @@ pub(super) fn finished(
     params: &Params,
     evaluations: u64,
     start: Instant,
+    paused: Duration,
 ) -> Refinement {
     let max_triangle_error =
         round.triangle_errors.as_ref().map(|e: &Vec<f64>| e.iter().copied().fold(0.0, f64::max));
@@ -75,7 +78,12 @@ pub(super) fn finished(
         history: round.history,
         quality: None,
     };
-    Refinement { mesh, triangle_errors: round.triangle_errors, stats, elapsed: start.elapsed() }
+    Refinement {
+        mesh,
+        triangle_errors: round.triangle_errors,
+        stats,
+        elapsed: start.elapsed().saturating_sub(paused),
+    }
 }
 
 /// Refines `mesh` as it stands until a stop rule of `params` fires (the time limit counts

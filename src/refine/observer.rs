@@ -26,8 +26,16 @@ pub trait Observer {
     fn progress(&mut self, _mesh: &Mesh, _progress: &Progress) {}
 
     /// Checked before every insertion; `true` stops the run with [`StopReason::Cancelled`](super::StopReason::Cancelled).
+    /// An observer may also pause the run here (a server giving its worker to another job).
     fn is_cancelled(&self) -> bool {
         false
+    }
+
+    /// How long the run has been paused in [`Observer::is_cancelled`], in all so far: time
+    /// that counts neither toward the time limit nor in the elapsed time reported, so a
+    /// paused run ends as an unpaused one would.
+    fn paused(&self) -> Duration {
+        Duration::ZERO
     }
 
     /// The edge (a, b) was chosen to split, before it is split or retired: the worst edge for

@@ -9,7 +9,7 @@ use super::observer::{Observer, PROGRESS_INTERVAL, Progress};
 use super::outcome::StopReason;
 use super::params::{Method, Params};
 use crate::geom::{Mesh, Point, Split, Vertex};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 /// How many insertions pass between looks at the clock.
 pub(super) const CLOCK_EVERY: u64 = 64;
@@ -35,6 +35,8 @@ pub(super) struct Run<'a, O> {
     pub(super) params: &'a Params,
     pub(super) observer: &'a mut O,
     start: Instant,
+    /// The observer's paused time when the run started: a run counts only its own pauses.
+    paused_before: Duration,
     last_report: Instant,
     steps: u64,
     pub(super) floors: Floors,
@@ -49,10 +51,12 @@ impl<'a, O: Observer> Run<'a, O> {
     /// A run of `params` that starts now.
     pub(super) fn new(params: &'a Params, observer: &'a mut O, floors: Floors) -> Self {
         let start = Instant::now();
+        let paused_before = observer.paused();
         Self {
             params,
             observer,
             start,
+            paused_before,
             last_report: start,
             steps: 0,
             floors,
@@ -79,6 +83,11 @@ impl<'a, O: Observer> Run<'a, O> {
     /// The stop rule that fires before the next insertion, if any: the budget, cancellation,
     /// and every [`CLOCK_EVERY`] steps the time limit; progress is reported on the same beat.
     /// `worst` is the current worst criterion value, asked only for a report.
+    /// The run's time at `now`, its pauses left out.
+    pub(super) fn elapsed_at(&self, now: Instant) -> Duration {
+        (now - self.start).saturating_sub(self.observer.paused().saturating_sub(self.paused_before))
+    }
+
     pub(super) fn stop_before_step(
         &mut self,
         mesh: &Mesh,
@@ -93,7 +102,8 @@ impl<'a, O: Observer> Run<'a, O> {
         self.steps += 1;
         if self.steps.is_multiple_of(CLOCK_EVERY) {
             let now = Instant::now();
-            if self.params.time_limit().is_some_and(|limit| now - self.start >= limit) {
+            let elapsed = self.elapsed_at(now);
+            if self.params.time_limit().is_some_and(|limit| elapsed >= limit) {
                 return Some(StopReason::TimeLimit);
             }
             if now - self.last_report >= PROGRESS_INTERVAL {
@@ -104,7 +114,7 @@ impl<'a, O: Observer> Run<'a, O> {
                         vertices: mesh.num_vertices(),
                         triangles: mesh.num_triangles(),
                         worst: worst(),
-                        elapsed: now - self.start,
+                        elapsed,
                     },
                 );
             }

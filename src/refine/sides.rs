@@ -131,7 +131,8 @@ pub fn refine_with_sides<O: Observer>(
     }
     let (stop, errors) = nodes::refine(&mut mesh, grid, &mut run, &mut evaluations, true, samples);
     let round = run.finish(&mesh, stop, Some(errors));
-    finished(mesh, round, params, evaluations, start)
+    // Tiles are never paused (they run on their own bound, not a job's worker).
+    finished(mesh, round, params, evaluations, start, std::time::Duration::ZERO)
 }
 
 /// A triangle of `mesh` that holds `p`, on its sides included (exact orientation tests); a

@@ -149,6 +149,41 @@ fn a_zero_time_limit_stops_at_the_first_look_at_the_clock() {
     assert!(r.stats.vertices < 4 + CLOCK_EVERY as usize);
 }
 
+/// Pauses the run once, on its first look, for `pause`, and says so.
+struct PausesOnce {
+    pause: Duration,
+    paused: std::cell::Cell<Duration>,
+}
+
+impl Observer for PausesOnce {
+    fn is_cancelled(&self) -> bool {
+        if self.paused.get().is_zero() {
+            std::thread::sleep(self.pause);
+            self.paused.set(self.pause);
+        }
+        false
+    }
+
+    fn paused(&self) -> Duration {
+        self.paused.get()
+    }
+}
+
+#[test]
+fn time_paused_by_the_observer_is_not_the_runs_and_the_mesh_is_an_unpaused_runs() {
+    // A limit shorter than the pause: counted, the pause would stop the run at its first look
+    // at the clock.
+    let f = |x: f64, y: f64| (5.0 * x).sin() * y;
+    let p =
+        Params::builder(4 + 4 * CLOCK_EVERY as usize).time_limit(Duration::from_millis(20)).build().unwrap();
+    let mut observer = PausesOnce { pause: Duration::from_millis(60), paused: Default::default() };
+    let paused = refine(&f, Rect::unit(), &p, &mut observer).unwrap();
+    assert_eq!(paused.stats.stop, StopReason::MaxVertices);
+    let alone = refine(&f, Rect::unit(), &p, &mut ()).unwrap();
+    assert_eq!(paused.mesh.vertices(), alone.mesh.vertices());
+    assert_eq!(paused.stats, alone.stats);
+}
+
 #[test]
 fn non_finite_f_is_an_error_that_names_the_point() {
     let ln = Expression::parse("ln(x)").unwrap();

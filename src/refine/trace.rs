@@ -119,6 +119,10 @@ impl<O: Observer> Observer for Recorder<'_, O> {
         self.inner.is_cancelled()
     }
 
+    fn paused(&self) -> std::time::Duration {
+        self.inner.paused()
+    }
+
     fn selected(&mut self, mesh: &Mesh, a: u32, b: u32) {
         self.inner.selected(mesh, a, b);
     }

@@ -170,7 +170,8 @@ pub fn adapt<O: SolveObserver>(
             newton_iterations: solution.newton.as_ref().map(|n| n.iterations),
             newton_residual: solution.newton.as_ref().map(|n| n.residual),
         });
-        let elapsed = start.elapsed();
+        // Time paused for another job's turn is not the solve's.
+        let elapsed = start.elapsed().saturating_sub(forward.0.paused());
         run.times.push(elapsed);
         let progress = Progress { vertices: n, triangles: mesh.num_triangles(), worst: estimate, elapsed };
         forward.0.solved(&mesh, &progress, solution.newton.as_ref().map(|n| (n.iterations, n.residual)));
@@ -339,6 +340,10 @@ struct Forward<'o, O>(&'o mut O);
 impl<O: SolveObserver> Observer for Forward<'_, O> {
     fn is_cancelled(&self) -> bool {
         self.0.is_cancelled()
+    }
+
+    fn paused(&self) -> Duration {
+        self.0.paused()
     }
 
     fn inserted(&mut self, mesh: &Mesh, vertex: u32) {

@@ -19,7 +19,8 @@ use std::collections::HashMap;
 use std::io::{Read, Seek, SeekFrom};
 use std::sync::Arc;
 
-/// The memory each DEM keeps its latest blocks in, decoded.
+/// The memory each DEM keeps its latest blocks in, decoded (or one block, when a block is
+/// larger).
 pub const BLOCK_CACHE_BYTES: u64 = 64 << 20;
 
 /// A DEM on longitude and latitude.
@@ -162,9 +163,13 @@ impl Dem {
         // A block wholly nodata is level at the mean of the blocks of data nearest it, layer
         // by layer over the blocks: a function of the file alone, as a block's own fill is.
         fill_holes(&mut means, [across, down], f64::is_nan).expect("a block holds data");
+        // At least one block, however large (a file in one strip): a tile then decodes it
+        // once, not for every tile.
         let decoded = (nx as u64).saturating_mul(ny as u64).saturating_mul(8);
+        let [bw, bh] = file.block_size();
+        let block = (bw as u64).saturating_mul(bh as u64).saturating_mul(8);
         let cache = moka::sync::Cache::builder()
-            .max_capacity(decoded.min(BLOCK_CACHE_BYTES))
+            .max_capacity(decoded.min(BLOCK_CACHE_BYTES.max(block)))
             .weigher(|_: &usize, b: &Arc<Block>| u32::try_from(b.values.len() * 8).unwrap_or(u32::MAX))
             .build();
         Ok(Self { file, frame, bounds, heights, filled, data, holes, means, cache })

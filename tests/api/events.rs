@@ -88,6 +88,9 @@ async fn asked_inline_the_result_event_is_the_mesh_document_and_a_stream_names_i
     let events = read_events(app.get(&format!("/v1/jobs/{id}/events?inline=mesh")).await).await;
     assert_eq!(serde_json::from_str::<Value>(&events[0].data).unwrap(), stored);
     assert_eq!(app.get(&format!("/v1/jobs/{id}/events?inline=all")).await.status(), 422);
+    // A POST stream takes `inline` alone: its vertices are the events route's.
+    let request = app.client.post(app.url("/v1/meshes?vertices=true")).header("accept", "text/event-stream");
+    assert_eq!(request.json(&body).send().await.unwrap().status(), 422);
     app.shutdown().await;
 }
 

@@ -11,7 +11,7 @@ use super::error::GridFileError;
 use super::fill::fill_holes;
 use super::tiff::{Crs, KIND, error, header, samples};
 use crate::geom::Rect;
-use ::tiff::decoder::{ChunkType, Decoder};
+use ::tiff::decoder::{ChunkType, Decoder, Limits};
 use std::io::{Read, Seek};
 use std::sync::{Mutex, PoisonError};
 
@@ -67,6 +67,13 @@ impl TiffBlocks {
             let detail = format!("blocks of {} x {} pixels", block[0], block[1]);
             return Err(GridFileError::Corrupt { kind: KIND, detail });
         }
+        // A block decodes to at most its samples at 8 bytes: the default cap (256 MiB) would
+        // refuse a large strip the whole-file decoder took.
+        let bytes = block[0].saturating_mul(block[1]).saturating_mul(8);
+        let mut limits = Limits::default();
+        limits.decoding_buffer_size = limits.decoding_buffer_size.max(bytes);
+        limits.intermediate_buffer_size = limits.intermediate_buffer_size.max(bytes);
+        let decoder = decoder.with_limits(limits);
         Ok(Self {
             decoder: Mutex::new(decoder),
             size: [header.shape.nx, header.shape.ny],
