@@ -202,17 +202,9 @@ async fn create(
 ) -> Result<Response, ApiError> {
     let stream = wants_event_stream(&headers);
     // A format nobody writes is refused before any work is done; a stream takes `inline`.
-    let (wanted, inline) = match stream {
-        true => {
-            let query = stream_query(&uri)?;
-            if query.vertices.is_some() {
-                let detail =
-                    "vertices applies to GET /v1/jobs/{id}/events (a stream's id is in Content-Location)";
-                return Err(ApiError::InvalidRequest(detail.into()));
-            }
-            (None, query.inline()?)
-        }
-        false => (Some(Wanted::from_request(&uri, &headers)?), false),
+    let (wanted, options) = match stream {
+        true => (None, StreamOptions::of(&uri, false)?),
+        false => (Some(Wanted::from_request(&uri, &headers)?), StreamOptions::default()),
     };
     let (keys, spec) = prepare(&state, &headers, body, kind).await?;
     let id = keys.id.clone();
@@ -222,17 +214,15 @@ async fn create(
         let mut response = match ticket {
             Ticket::Cached(r) | Ticket::Prefix(r) => {
                 let status = status_document(&id, Record::cached(&r));
-                final_stream(&status, &Outcome::Succeeded(r), 1, inline)
+                final_stream(&status, &Outcome::Succeeded(r), 1, options.inline)
             }
             Ticket::Failed(e) => final_stream(
                 &status_body(&id, &Found::Done(failed(e.clone()))),
                 &Outcome::Failed(e),
                 1,
-                inline,
+                options.inline,
             ),
-            Ticket::Job(waiter) => {
-                job_stream(waiter, 0, StreamQuery { vertices: None, inline: inline.then(|| "mesh".into()) })
-            }
+            Ticket::Job(waiter) => job_stream(waiter, 0, options),
         };
         // The job the stream's links name, for a client that reads headers.
         let location = HeaderValue::from_str(&format!("/v1/jobs/{id}")).expect("ascii path");
@@ -457,8 +447,7 @@ pub async fn jobs_events(
     uri: Uri,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    let query = stream_query(&uri)?;
-    let inline = query.inline()?;
+    let options = StreamOptions::of(&uri, true)?;
     let last_seen = headers
         .get("last-event-id")
         .and_then(|v| v.to_str().ok())
@@ -468,14 +457,14 @@ pub async fn jobs_events(
     if let Found::Job(_) | Found::Remote(_) = &found
         && let Some(waiter) = state.jobs.watch(&id).await
     {
-        return Ok(job_stream(waiter, last_seen, query));
+        return Ok(job_stream(waiter, last_seen, options));
     }
-    if let Some(response) = final_response(&state, &id, found, last_seen, inline).await {
+    if let Some(response) = final_response(&state, &id, found, last_seen, options.inline).await {
         return Ok(response);
     }
     // Finished between the two looks (its record is there now), or Redis stopped answering.
     let found = find(&state, &id).await?;
-    final_response(&state, &id, found, last_seen, inline).await.ok_or(ApiError::Unreachable)
+    final_response(&state, &id, found, last_seen, options.inline).await.ok_or(ApiError::Unreachable)
 }
 
 /// The stream of a finished job's final event, or 204 for a client that has seen it; `None`
@@ -495,30 +484,40 @@ async fn final_response(
     Some(final_stream(&status, &outcome, event_id, inline))
 }
 
-/// The query of a stream: `?vertices=true` (the events route: progress events carry the new
+/// What a client asks of a stream: `?vertices=true` (progress events carry the new
 /// vertices) and `?inline=mesh` (the result event carries the mesh document).
-#[derive(Debug, Default, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-struct StreamQuery {
-    vertices: Option<bool>,
-    inline: Option<String>,
+#[derive(Debug, Clone, Copy, Default)]
+struct StreamOptions {
+    points: bool,
+    inline: bool,
 }
 
-impl StreamQuery {
-    /// Whether the result event carries the mesh.
-    fn inline(&self) -> Result<bool, ApiError> {
-        match self.inline.as_deref() {
-            None => Ok(false),
-            Some("mesh") => Ok(true),
-            Some(other) => {
-                Err(ApiError::InvalidRequest(format!("inline `{other}` is not known; `inline=mesh` is")))
-            }
+impl StreamOptions {
+    /// The options `uri` asks for; `vertices` only where `points` are sent (the events route).
+    fn of(uri: &Uri, points: bool) -> Result<Self, ApiError> {
+        #[derive(serde::Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct Query {
+            vertices: Option<bool>,
+            inline: Option<String>,
         }
+        let query: Query = super::extract::query(uri)?;
+        if query.vertices.is_some() && !points {
+            let detail =
+                "vertices applies to GET /v1/jobs/{id}/events (a stream's id is in Content-Location)";
+            return Err(ApiError::InvalidRequest(detail.into()));
+        }
+        let inline = match query.inline.as_deref() {
+            None => false,
+            Some("mesh") => true,
+            Some(other) => {
+                return Err(ApiError::InvalidRequest(format!(
+                    "inline `{other}` is not known; `inline=mesh` is"
+                )));
+            }
+        };
+        Ok(Self { points: query.vertices.unwrap_or(false), inline })
     }
-}
-
-fn stream_query(uri: &Uri) -> Result<StreamQuery, ApiError> {
-    super::extract::query(uri)
 }
 
 /// `DELETE /v1/jobs/{id}`: cancels the job, wherever it runs, and answers with its status
@@ -595,11 +594,10 @@ struct Watch {
 /// whenever the job is silent for [`sse::KEEP_ALIVE`]. With `points`, each progress event
 /// carries the vertices added since the last one this client was sent, at most
 /// [`POINTS_PER_EVENT`] (from the first: a reconnecting client starts again at 0).
-fn job_stream(waiter: Waiter, last_seen: u64, query: StreamQuery) -> Response {
+fn job_stream(waiter: Waiter, last_seen: u64, options: StreamOptions) -> Response {
     let rx = waiter.job().subscribe();
-    let points_sent = query.vertices.unwrap_or(false).then_some(0);
-    let inline = query.inline.is_some();
-    let watch = Watch { waiter, rx, last_seen, points_sent, inline, rest: None };
+    let points_sent = options.points.then_some(0);
+    let watch = Watch { waiter, rx, last_seen, points_sent, inline: options.inline, rest: None };
     let events = stream::unfold(watch, |mut w| async move {
         loop {
             if let Some(rest) = &mut w.rest {

@@ -15,7 +15,7 @@
 //! memory, and waits for a worker again ahead of every other waiting job
 //! ([`Worker::take_turn`]); its result is the same bytes, only later.
 
-use super::share::{Client, uncount};
+use super::share::Client;
 use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -30,30 +30,38 @@ pub(super) struct Dispatch {
 }
 
 struct State {
-    free: usize,
-    running: HashMap<Client, usize>,
+    workers: usize,
     /// Oldest first (a paused job goes first). A waiter whose job was cancelled stays until a
     /// freed worker finds its receiver gone and passes on.
     waiting: VecDeque<(Client, oneshot::Sender<Worker>)>,
-    /// The workers held, by id: whose, and the flag that asks it to yield.
+    /// The workers held, by id: whose, and the flag that asks it to yield. How many are free
+    /// and how many each client runs are counted from it.
     held: Vec<(u64, Client, Arc<AtomicBool>)>,
     /// The next worker's id.
     next_id: u64,
 }
 
 impl State {
-    /// A worker handed to `client`, counted and listed.
+    /// Workers no job holds.
+    fn free(&self) -> usize {
+        self.workers - self.held.len()
+    }
+
+    /// Workers `client`'s jobs hold.
+    fn runs(&self, client: &Client) -> usize {
+        self.held.iter().filter(|(_, c, _)| c == client).count()
+    }
+
+    /// A worker handed to `client`, listed.
     fn grant(&mut self, dispatch: &Arc<Dispatch>, client: &Client) -> Worker {
-        *self.running.entry(client.clone()).or_default() += 1;
         self.next_id += 1;
         let yield_asked = Arc::new(AtomicBool::new(false));
         self.held.push((self.next_id, client.clone(), yield_asked.clone()));
         Worker { dispatch: Some(dispatch.clone()), client: client.clone(), id: self.next_id, yield_asked }
     }
 
-    /// Forgets worker `id` of `client`.
-    fn ungrant(&mut self, id: u64, client: &Client) {
-        uncount(&mut self.running, client);
+    /// Forgets worker `id`.
+    fn ungrant(&mut self, id: u64) {
         self.held.retain(|(held, ..)| *held != id);
     }
 
@@ -61,7 +69,7 @@ impl State {
     /// `share` are short of it (each counts the workers it lacks, at most its waiting jobs):
     /// one of the client furthest over its share (the newest of its workers).
     fn ask_to_yield(&mut self, share: usize) {
-        let runs = |c: &Client| self.running.get(c).copied().unwrap_or(0);
+        let runs = |c: &Client| self.runs(c);
         let mut short: HashMap<&Client, usize> = HashMap::new();
         for (c, _) in self.waiting.iter().filter(|(c, tx)| !tx.is_closed() && runs(c) < share) {
             let lacks = short.entry(c).or_insert(0);
@@ -113,7 +121,7 @@ impl Worker {
             state.waiting.push_front((client.clone(), tx));
             rx
         };
-        dispatch.release(self.id, &client);
+        dispatch.release(self.id);
         waiting.await.ok()
     }
 }
@@ -121,19 +129,13 @@ impl Worker {
 impl Dispatch {
     /// `workers` workers, of which one client runs `share` before others' jobs go first.
     pub(super) fn new(workers: usize, share: usize) -> Arc<Self> {
-        let state = State {
-            free: workers,
-            running: HashMap::new(),
-            waiting: VecDeque::new(),
-            held: Vec::new(),
-            next_id: 0,
-        };
+        let state = State { workers, waiting: VecDeque::new(), held: Vec::new(), next_id: 0 };
         Arc::new(Self { share, state: Mutex::new(state) })
     }
 
     /// Workers free now: none while any job waits.
     pub(super) fn free(&self) -> usize {
-        self.lock().free
+        self.lock().free()
     }
 
     /// A worker for a job of `client`: at once when one is free, else when the order above
@@ -141,8 +143,7 @@ impl Dispatch {
     pub(super) async fn acquire(self: &Arc<Self>, client: &Client) -> Option<Worker> {
         let waiting = {
             let mut state = self.lock();
-            if state.free > 0 {
-                state.free -= 1;
+            if state.free() > 0 {
                 return Some(state.grant(self, client));
             }
             let (tx, rx) = oneshot::channel();
@@ -153,18 +154,16 @@ impl Dispatch {
         waiting.await.ok()
     }
 
-    fn release(self: &Arc<Self>, id: u64, client: &Client) {
+    fn release(self: &Arc<Self>, id: u64) {
         let mut state = self.lock();
-        state.ungrant(id, client);
+        state.ungrant(id);
         let share = self.share;
         loop {
-            let under_share =
-                state.waiting.iter().position(|(c, _)| state.running.get(c).is_none_or(|&n| n < share));
+            let under_share = state.waiting.iter().position(|(c, _)| state.runs(c) < share);
             let Some((next, tx)) = under_share
                 .or((!state.waiting.is_empty()).then_some(0))
                 .and_then(|i| state.waiting.remove(i))
             else {
-                state.free += 1;
                 return;
             };
             let worker = state.grant(self, &next);
@@ -178,7 +177,7 @@ impl Dispatch {
                 // release its drop would make under this lock, and look again.
                 Err(mut unclaimed) => {
                     unclaimed.dispatch = None;
-                    state.ungrant(unclaimed.id, &next);
+                    state.ungrant(unclaimed.id);
                 }
             }
         }
@@ -192,7 +191,7 @@ impl Dispatch {
 impl Drop for Worker {
     fn drop(&mut self) {
         if let Some(dispatch) = self.dispatch.take() {
-            dispatch.release(self.id, &self.client);
+            dispatch.release(self.id);
         }
     }
 }

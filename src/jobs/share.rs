@@ -87,7 +87,7 @@ impl Drop for Seat {
 
 /// Takes one off `client`'s count, forgetting a client whose count reaches 0, so that the map
 /// holds only clients that hold something.
-pub(super) fn uncount(counts: &mut HashMap<Client, usize>, client: &Client) {
+fn uncount(counts: &mut HashMap<Client, usize>, client: &Client) {
     if let Some(n) = counts.get_mut(client) {
         *n -= 1;
         if *n == 0 {

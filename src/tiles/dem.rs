@@ -140,9 +140,11 @@ impl Dem {
                 let mask = block.holes.as_deref();
                 let is_data = |k: usize| mask.is_none_or(|m| !m[k]);
                 let (mut known, mut sum) = (0usize, 0.0);
-                for (_, &v) in block.values.iter().enumerate().filter(|&(k, _)| is_data(k)) {
-                    heights = [heights[0].min(v), heights[1].max(v)];
-                    (known, sum) = (known + 1, sum + v);
+                for (k, &v) in block.values.iter().enumerate() {
+                    if is_data(k) {
+                        heights = [heights[0].min(v), heights[1].max(v)];
+                        (known, sum) = (known + 1, sum + v);
+                    }
                 }
                 filled += (block.values.len() - known) as u64;
                 if let Some(mask) = mask.filter(|_| known > 0) {
@@ -214,9 +216,8 @@ impl Dem {
         if !self.has_holes() {
             return true;
         }
-        let Frame { nx, ny, rect } = self.frame;
-        let u = |x| crate::source::grid_coordinate(x, nx, rect.x0(), rect.x1());
-        let v = |y| crate::source::grid_coordinate(y, ny, rect.y0(), rect.y1());
+        let (nx, ny, frame) = (self.frame.nx, self.frame.ny, &self.frame);
+        let (u, v) = (|x| frame.u(x), |y| frame.v(y));
         // The samples inside: columns ceil(u0)..=floor(u1), rows likewise, a sample within a
         // rounding of a side counted in (as the side is).
         const SLACK: f64 = 1e-9;
@@ -271,32 +272,36 @@ impl Dem {
         step: f64,
         max_window: usize,
     ) -> Result<View<'_>, DemError> {
-        let n = steps + 1;
-        let lattice = |lo: f64, hi: f64| {
-            let nodes = (0..n).map(move |k| node_coordinate(k, n, lo, hi));
-            nodes.flat_map(move |c| [c - step, c, c + step])
-        };
-        let mut columns: Vec<usize> =
-            lattice(rect.x0(), rect.x1()).flat_map(|x| self.frame.columns_at(x)).collect();
-        let mut rows: Vec<usize> =
-            lattice(rect.y0(), rect.y1()).flat_map(|y| self.frame.rows_at(y)).collect();
-        match self.frame.inside(rect, clearance(rect, steps)) {
-            Some(inside) if count(inside) <= max_window => {
-                let [i0, i1, j0, j1] = inside;
-                let span = |list: &[usize], lo: usize, hi: usize| {
-                    list.iter().fold((lo, hi), |(lo, hi), &c| (lo.min(c), hi.max(c)))
-                };
-                let ((i0, i1), (j0, j1)) = (span(&columns, i0, i1), span(&rows, j0, j1));
+        let frame = &self.frame;
+        match frame.inside(rect, clearance(rect, steps)) {
+            Some(inside @ [i0, i1, j0, j1]) if count(inside) <= max_window => {
+                // The lattice's extreme positions, a step beyond its sides, bound what the
+                // lattice and its normals read (a cell's columns grow with x).
+                let (west, east) = (frame.columns_at(rect.x0() - step), frame.columns_at(rect.x1() + step));
+                let (south, north) = (frame.rows_at(rect.y0() - step), frame.rows_at(rect.y1() + step));
+                let (i0, i1) = (i0.min(west[0]), i1.max(east[1]));
+                let (j0, j1) = (j0.min(south[0]), j1.max(north[1]));
                 let columns: Vec<usize> = (i0..=i1).collect();
                 let rows: Vec<usize> = (j0..=j1).collect();
                 let values = self.read(&columns, &rows)?;
                 Ok(View::window(self.frame, [i0, j0], i1 - i0 + 1, values))
             }
             _ => {
-                columns.sort_unstable();
-                columns.dedup();
-                rows.sort_unstable();
-                rows.dedup();
+                let n = steps + 1;
+                // Each lattice position and a step either side (the normals'), and the two
+                // samples either side of each.
+                let read_at = |lo: f64, hi: f64, at: fn(&Frame, f64) -> [usize; 2]| {
+                    let mut list: Vec<usize> = (0..n)
+                        .map(|k| node_coordinate(k, n, lo, hi))
+                        .flat_map(|c| [c - step, c, c + step])
+                        .flat_map(|c| at(frame, c))
+                        .collect();
+                    list.sort_unstable();
+                    list.dedup();
+                    list
+                };
+                let columns = read_at(rect.x0(), rect.x1(), Frame::columns_at);
+                let rows = read_at(rect.y0(), rect.y1(), Frame::rows_at);
                 let values = self.read(&columns, &rows)?;
                 Ok(View::sparse(self.frame, columns, rows, values))
             }
@@ -309,26 +314,27 @@ impl Dem {
         let [across, _] = self.file.blocks();
         let ny = self.frame.ny;
         let mut values = vec![0.0; columns.len() * rows.len()];
-        // Each block once: the columns and rows it holds are runs of the sorted lists.
-        let runs = |list: &[usize], size: usize, flip: Option<usize>| {
-            let mut runs: Vec<(usize, Vec<usize>)> = Vec::new();
+        // Each block once: the columns (and rows) one block holds are a run of the sorted list,
+        // as (block, positions in the list).
+        let runs = |list: &[usize], block: &dyn Fn(usize) -> usize| {
+            let mut runs: Vec<(usize, std::ops::Range<usize>)> = Vec::new();
             for (at, &c) in list.iter().enumerate() {
-                let b = flip.map_or(c, |n| n - 1 - c) / size;
-                match runs.iter_mut().find(|(block, _)| *block == b) {
-                    Some((_, ats)) => ats.push(at),
-                    None => runs.push((b, vec![at])),
+                match runs.last_mut() {
+                    Some((b, range)) if *b == block(c) => range.end = at + 1,
+                    _ => runs.push((block(c), at..at + 1)),
                 }
             }
             runs
         };
-        let (column_runs, row_runs) = (runs(columns, bw, None), runs(rows, bh, Some(ny)));
+        // Image rows run down from the north.
+        let (column_runs, row_runs) = (runs(columns, &|i| i / bw), runs(rows, &|j| (ny - 1 - j) / bh));
         for (by, row_ats) in &row_runs {
             for (bx, column_ats) in &column_runs {
                 let block = self.block(by * across + bx, [*bx, *by])?;
-                for &b in row_ats {
+                for b in row_ats.clone() {
                     let r = ny - 1 - rows[b] - by * bh;
                     let line = &block.values[r * block.size[0]..(r + 1) * block.size[0]];
-                    for &a in column_ats {
+                    for a in column_ats.clone() {
                         values[b * columns.len() + a] = line[columns[a] - bx * bw];
                     }
                 }

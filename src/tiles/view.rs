@@ -26,12 +26,12 @@ pub struct Frame {
 
 impl Frame {
     /// The continuous column of longitude `x`.
-    fn u(&self, x: f64) -> f64 {
+    pub(super) fn u(&self, x: f64) -> f64 {
         grid_coordinate(x, self.nx, self.rect.x0(), self.rect.x1())
     }
 
     /// The continuous row of latitude `y`.
-    fn v(&self, y: f64) -> f64 {
+    pub(super) fn v(&self, y: f64) -> f64 {
         grid_coordinate(y, self.ny, self.rect.y0(), self.rect.y1())
     }
 
@@ -60,12 +60,12 @@ impl Frame {
             let last = (hi.ceil() + 2.0).clamp(0.0, (n - 1) as f64) as usize;
             first..=last
         };
-        let columns = span(self.u(x0), self.u(x1), self.nx)
-            .filter(|&i| (x0..=x1).contains(&node_coordinate(i, self.nx, r.x0(), r.x1())));
-        let rows = span(self.v(y0), self.v(y1), self.ny)
-            .filter(|&j| (y0..=y1).contains(&node_coordinate(j, self.ny, r.y0(), r.y1())));
-        let (columns, rows): (Vec<usize>, Vec<usize>) = (columns.collect(), rows.collect());
-        Some([*columns.first()?, *columns.last()?, *rows.first()?, *rows.last()?])
+        let column_in = |&i: &usize| (x0..=x1).contains(&node_coordinate(i, self.nx, r.x0(), r.x1()));
+        let row_in = |&j: &usize| (y0..=y1).contains(&node_coordinate(j, self.ny, r.y0(), r.y1()));
+        let (mut columns, mut rows) =
+            (span(self.u(x0), self.u(x1), self.nx), span(self.v(y0), self.v(y1), self.ny));
+        let [i0, i1] = [columns.clone().find(column_in)?, columns.rfind(column_in)?];
+        Some([i0, i1, rows.clone().find(row_in)?, rows.rfind(row_in)?])
     }
 }
 
