@@ -1,12 +1,13 @@
 //! Wire types of the HTTP API (serde only). Field docs here are the ones in openapi.yaml.
 
 use crate::refine::{Criterion, Method};
-use crate::result::Summary;
+use crate::result::{Summary, Unit};
 use crate::solve::{Indicator, Physics, Side};
 use crate::source::{Encoding, RawType};
 use serde::de::{self, Deserializer, Visitor};
 use serde::{Deserialize, Serialize};
 use serde_json::value::RawValue;
+use std::collections::BTreeMap;
 use std::fmt::{self, Write};
 
 /// The body of `POST /v1/meshes` and `POST /v1/jobs`. Unknown fields are rejected, so a typo
@@ -396,6 +397,19 @@ pub struct SolveRequest {
     pub f: Option<Coefficient>,
     /// The boundary values g (default 0) on the Dirichlet sides; A there for magnetostatics.
     pub g: Option<Coefficient>,
+    /// The unit of every length in the request and the answer: `m` (default), `cm` or `mm`
+    /// (magnetostatic). Field values stay SI.
+    pub unit: Option<Unit>,
+    /// A planar device's depth, in `unit`: forces, torques, energies and inductances are then
+    /// totals rather than per metre (magnetostatic).
+    pub depth: Option<f64>,
+    /// Materials by name, for regions' `material` (magnetostatic); a name not here is looked
+    /// up in the built-in library (`GET /v1/materials`).
+    #[serde(default)]
+    pub materials: BTreeMap<String, MaterialInput>,
+    /// Circuits by name, each a current through coil regions in series (magnetostatic).
+    #[serde(default)]
+    pub circuits: BTreeMap<String, CircuitInput>,
     /// Each side's condition: `dirichlet` (u = g, the default) or `neumann` (zero normal flux).
     pub boundary: Option<BoundaryInput>,
     /// Rectangles and polygons inside the domain, later entries winning, that override k and
@@ -483,6 +497,50 @@ pub struct RegionInput {
     /// The current through the region in A, spread evenly over its area, instead of
     /// `current_density` (magnetostatic).
     pub current: Option<f64>,
+    /// The name its figures carry in the answer.
+    pub name: Option<String>,
+    /// A material by name, from `materials` or the built-in library, instead of `mu_r`, `bh`
+    /// and `magnetization` (magnetostatic).
+    pub material: Option<String>,
+    /// A magnet's direction of magnetization in degrees counter-clockwise from +x (default
+    /// the material's, else 0).
+    pub angle: Option<f64>,
+    /// The turns of a coil side (default 1 when it names a `circuit`).
+    pub turns: Option<f64>,
+    /// The circuit whose current its turns carry: a key of `circuits`.
+    pub circuit: Option<String>,
+    /// +1 (the default) where the turns carry the current out of the plane, −1 into it.
+    pub direction: Option<i8>,
+    /// The point its torque is taken about, [x, y] (default the origin).
+    pub torque_about: Option<[f64; 2]>,
+}
+
+/// A material's law, as a request's `materials` names it: linear (`mu_r`), a B–H table
+/// (`bh`), or a magnet (two of `br`, `hc`, `mu_r`).
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialInput {
+    /// Relative permeability (a magnet's recoil permeability).
+    pub mu_r: Option<f64>,
+    /// A B–H curve [[H in A/m, B in T], …] from [0, 0], both strictly increasing.
+    pub bh: Option<Vec<[f64; 2]>>,
+    /// A magnet's remanence in T.
+    pub br: Option<f64>,
+    /// A magnet's coercivity H_cB in A/m.
+    pub hc: Option<f64>,
+    /// A magnet's direction in degrees counter-clockwise from +x (default 0; a region's
+    /// `angle` overrides it).
+    pub angle: Option<f64>,
+    /// Electrical conductivity in S/m (kept for eddy currents; magnetostatics ignores it).
+    pub conductivity: Option<f64>,
+}
+
+/// A circuit: its current flows through every turn of the coil regions that name it.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CircuitInput {
+    /// The current in A.
+    pub current: f64,
 }
 
 /// The condition on each side of the domain; a side left out is `dirichlet`.

@@ -32,7 +32,8 @@
 //! - [`output`]: the formats (json, obj, ply, stl, vtu, msh, glb, svg, png), each streamed
 //!   from a result and looping over its fields; shared by the command line and the API.
 //! - [`spec`]: a request checked against the server's limits and mapped to the engine's
-//!   types, whose constructors hold the engine's rules, as a canonical, hashed job spec.
+//!   types, whose constructors hold the engine's rules, as a canonical, hashed job spec; and a
+//!   solution's result mapped back to the request's units.
 //! - [`jobs`]: the job table, admission (the bounded worker pool, each client's share of it,
 //!   the memory budget), the worker, the cache of results, and the replica protocol behind
 //!   one trait ([`jobs::peers::Peers`]).
@@ -57,7 +58,7 @@
 //! output    ──▶ geom, result
 //! tiles     ──▶ geom, refine, source
 //! api       ──▶ refine, result, solve, source
-//! spec      ──▶ api, geom, refine, solve, source
+//! spec      ──▶ api, geom, refine, result, solve, source
 //! jobs      ──▶ api, cpu, geom, metrics, refine, result, solve, source, spec
 //! datasets  ──▶ cpu, jobs, source, spec, tiles
 //! cluster   ──▶ config, jobs

@@ -2,8 +2,8 @@
 //!
 //! - `routes`: [`router`], every route to its handler, and the layers, outside-in;
 //! - `state`: [`AppState`], what every handler can reach;
-//! - `jobs`, `evaluate`, `tiles`, `health`, `page`: the handlers, by resource (`tiles` holds
-//!   datasets and their terrain tiles);
+//! - `jobs`, `evaluate`, `materials`, `tiles`, `health`, `page`: the handlers, by resource
+//!   (`tiles` holds datasets and their terrain tiles);
 //! - `extract`, `negotiate`, `head`, [`access`]: what a request carries, and what it may do;
 //! - [`problem`]: every error as an RFC 9457 problem document; `sse`: the event streams;
 //! - [`conn`]: the connections themselves, their cap and timeouts.
@@ -15,6 +15,7 @@ mod extract;
 mod head;
 mod health;
 mod jobs;
+mod materials;
 pub mod negotiate;
 mod page;
 pub mod problem;

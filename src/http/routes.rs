@@ -2,7 +2,7 @@
 
 use super::problem::ApiError;
 use super::state::AppState;
-use super::{access, evaluate, head, health, jobs, page, tiles};
+use super::{access, evaluate, head, health, jobs, materials, page, tiles};
 use crate::config::Config;
 use crate::metrics::RequestLabels;
 use axum::Router;
@@ -33,6 +33,7 @@ pub const ROUTES: &[(&str, &str)] = &[
     ("get", "/v1/jobs/{id}/events"),
     ("get", "/v1/jobs/{id}/mesh"),
     ("post", "/v1/jobs/{id}/evaluate"),
+    ("get", "/v1/materials"),
     ("post", "/v1/datasets"),
     ("get", "/v1/datasets"),
     ("get", "/v1/datasets/{id}"),
@@ -95,6 +96,7 @@ pub fn router(state: AppState, config: &Config) -> Router {
         .route("/v1/jobs/{id}/events", get(jobs::jobs_events))
         .route("/v1/jobs/{id}/mesh", get(jobs::jobs_mesh))
         .route("/v1/jobs/{id}/evaluate", post(evaluate::jobs_evaluate))
+        .route("/v1/materials", get(materials::materials_list))
         .route("/v1/datasets", post(tiles::datasets_create).get(tiles::datasets_list))
         .route("/v1/datasets/{id}", get(tiles::datasets_show).delete(tiles::datasets_delete))
         .route("/v1/tiles/{id}/layer.json", get(tiles::tiles_layer))

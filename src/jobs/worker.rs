@@ -216,7 +216,7 @@ fn compute(job: &Job, spec: &JobSpec, inner: &Inner, turn: Turn) -> (Outcome, Op
                 Err(e) => return (Outcome::Failed(JobError::Solve(e)), None),
             };
             let elapsed = adapted.times.last().copied().unwrap_or_default();
-            (adapted.into_result(solve.physics), None, elapsed)
+            (solve.result(adapted), None, elapsed)
         }
     };
     let elapsed = Some(elapsed);

@@ -22,7 +22,8 @@ mod stats;
 pub use field::{Field, Lines, Location, Role};
 pub use finished::{RunResult, triangle_errors};
 pub use stats::{
-    Checkpoint, MeshStats, Physics, Quality, RegionStats, SolutionStats, SolveStats, Step, Stop, Summary,
+    Checkpoint, CircuitStats, MeshStats, Physics, Quality, RegionStats, SolutionStats, SolveStats, Step,
+    Stop, Summary, Unit,
 };
 
 #[cfg(test)]

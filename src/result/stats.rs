@@ -9,6 +9,7 @@
 
 use crate::refine::{ErrorEstimate, Sample, Stats, StopReason};
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 
 /// What a result's run reports: a mesh's stats or a solution's.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -129,6 +130,14 @@ impl From<ErrorEstimate> for Quality {
 pub struct SolutionStats {
     /// What u stands for.
     pub physics: Physics,
+    /// The unit of every length in the request and the answer (vertices, areas in its
+    /// square), when the request named one; fields and integrals stay SI.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub unit: Option<Unit>,
+    /// The planar device's depth in `unit`, when given: forces, torques, energies, flux
+    /// linkages and inductances are then totals (N, N·m, J, Wb, H), not per metre of depth.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub depth: Option<f64>,
     /// The adaptive loop's counters, estimate, energy and history.
     #[serde(flatten)]
     pub run: SolveStats,
@@ -208,6 +217,31 @@ pub enum Physics {
     Magnetostatic,
 }
 
+/// A unit of length for a device's geometry.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Unit {
+    /// Metres.
+    #[default]
+    M,
+    /// Centimetres.
+    Cm,
+    /// Millimetres.
+    Mm,
+}
+
+impl Unit {
+    /// How many of this unit make a metre: a length in metres is the length in this unit
+    /// divided by it, and back again multiplied, each one correctly rounded operation.
+    pub fn per_metre(self) -> f64 {
+        match self {
+            Unit::M => 1.0,
+            Unit::Cm => 100.0,
+            Unit::Mm => 1000.0,
+        }
+    }
+}
+
 /// One solve of the loop.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Step {
@@ -268,6 +302,9 @@ pub struct SolveStats {
     /// One entry per region, in the problem's order.
     #[serde(skip_serializing_if = "Vec::is_empty", default)]
     pub regions: Vec<RegionStats>,
+    /// One entry per circuit, by name.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty", default)]
+    pub circuits: BTreeMap<String, CircuitStats>,
     /// One entry per solve, in order.
     pub history: Vec<Step>,
 }
@@ -277,19 +314,42 @@ fn is_zero(n: &usize) -> bool {
 }
 
 /// One region's figures, in the request's order of regions.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RegionStats {
-    /// The area the region's shape encloses (m²).
+    /// The region's name, when the request gave one.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub name: Option<String>,
+    /// The area the region's shape encloses (m², or the square of the request's unit).
     pub area: f64,
-    /// f over that area: the region's current in A/m (per metre of depth) in magnetostatics.
+    /// f over that area: the region's current in A (ampere-turns for a coil side) in
+    /// magnetostatics.
     pub current: f64,
     /// The mean of u over the triangles inside (Wb/m: flux linkage per turn is the difference
     /// of two coil sides' means).
     pub mean_a: f64,
-    /// The force on everything inside, [fx, fy] (N/m).
+    /// The force on everything inside, [fx, fy] (N/m, or N for a depth).
     pub force: [f64; 2],
-    /// The torque about the origin (N·m/m).
+    /// The torque about the region's `torque_about` point, the origin by default (N·m/m, or
+    /// N·m for a depth).
     pub torque: f64,
+}
+
+/// One circuit's figures: the coil sides that name it in series, each turn carrying its
+/// current.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CircuitStats {
+    /// The current in every turn (A).
+    pub current: f64,
+    /// λ = Σ over its coil sides of direction · turns · the side's mean A (Wb/m, or Wb for a
+    /// depth).
+    pub flux_linkage: f64,
+    /// The apparent inductance λ/I (H/m, or H for a depth); absent at zero current.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub inductance: Option<f64>,
+    /// The incremental inductance dλ/dI at this operating point, from the tangent system of
+    /// the final solve (H/m, or H for a depth): equal to λ/I for a linear device without
+    /// magnets, below it for saturated iron.
+    pub incremental_inductance: f64,
 }
 
 #[cfg(test)]

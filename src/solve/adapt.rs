@@ -8,6 +8,7 @@
 //! [`Floors::Resolution`]: a singular point gets vertices as close as floating point resolves.
 //! The loop always ends on a solve, so the mesh it returns carries the solution.
 
+use super::circuits;
 use super::coefficients::TriangleCoefficients;
 use super::element::Element;
 use super::error::SolveError;
@@ -258,6 +259,7 @@ impl Finish<'_, '_> {
             delaunay: mesh.is_delaunay(),
             constrained_edges: mesh.num_constrained(),
             regions: Vec::new(),
+            circuits: Default::default(),
             history: self.history,
         };
         let mut adapted = Adapted { mesh, indicators, stats, fields: Vec::new(), times: self.times };
@@ -302,6 +304,7 @@ fn measure_fields(
         })
         .collect();
     adapted.stats.regions = regions::measure(problem, &points, &u, &triangles, &gradients, coefficients);
+    adapted.stats.circuits = circuits::measure(problem, &points, &u, &triangles, coefficients)?;
     Ok(())
 }
 
@@ -361,6 +364,8 @@ fn gradient(u: Exact<'_>, x: f64, y: f64) -> [f64; 2] {
     [(u(xp, y) - u(xm, y)) / (xp - xm), (u(x, yp) - u(x, ym)) / (yp - ym)]
 }
 
+#[cfg(test)]
+mod circuit_tests;
 #[cfg(test)]
 mod physics_tests;
 #[cfg(test)]

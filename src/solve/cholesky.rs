@@ -113,6 +113,21 @@ impl Analysis {
         Ok(b)
     }
 
+    /// Solves A x = b for each b of `bs`, with one factor of the A that `entries` assemble.
+    pub(super) fn solve_many(
+        &self,
+        entries: Vec<(usize, usize, f64)>,
+        mut bs: Vec<Vec<f64>>,
+    ) -> Result<Vec<Vec<f64>>, SolveError> {
+        let values = self.assemble(&entries);
+        drop(entries);
+        let factor = self.factorise(&values)?;
+        for b in &mut bs {
+            factor.solve_in_place(b);
+        }
+        Ok(bs)
+    }
+
     /// Factorises the P A Pᵀ whose lower triangle's values [`Analysis::assemble`] gave.
     fn factorise(&self, values: &[f64]) -> Result<Cholesky<'_>, SolveError> {
         let mut factor = Cholesky { analysis: self, values: try_zeros(self.supernodal().len_val())? };

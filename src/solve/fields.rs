@@ -23,7 +23,7 @@ impl Adapted {
             vertices,
             triangles,
             fields,
-            stats: Summary::Solution(SolutionStats { physics, run: self.stats }),
+            stats: Summary::Solution(SolutionStats { physics, unit: None, depth: None, run: self.stats }),
             trace: None,
         }
     }

@@ -46,12 +46,14 @@
 mod adapt;
 mod bh;
 mod cholesky;
+mod circuits;
 mod coefficients;
 mod cut;
 mod dofs;
 mod element;
 mod error;
 mod fields;
+pub mod materials;
 mod nonlinear;
 mod periodic;
 mod physics;
@@ -73,7 +75,7 @@ pub(crate) use fields::flux_density;
 pub use nonlinear::{MAX_NEWTON_ITERATIONS, NEWTON_TOLERANCE, Newton};
 pub use physics::MU_0;
 pub use polygon::{MAX_POLYGON_POINTS, Polygon, PolygonError};
-pub use problem::{Boundary, OutsideDomain, Problem, Region, Shape, Side};
+pub use problem::{Boundary, Circuit, Coil, OutsideDomain, Problem, Region, Shape, Side};
 pub use solution::{ErrorNorms, Solution, solve};
 // A solution's report is data of its result, which knows nothing of the solver.
-pub use crate::result::{Physics, RegionStats, SolveStats, Step};
+pub use crate::result::{CircuitStats, Physics, RegionStats, SolveStats, Step};

@@ -153,7 +153,7 @@ impl System<'_, '_> {
 
     /// R(u) by unknown index and, when `jacobian` is given, the lower triangle of its
     /// Jacobian (column, row, value) written there.
-    fn residual(&self, u: &[f64], mut jacobian: Option<&mut Vec<(usize, usize, f64)>>) -> Vec<f64> {
+    pub fn residual(&self, u: &[f64], mut jacobian: Option<&mut Vec<(usize, usize, f64)>>) -> Vec<f64> {
         let mut r = vec![0.0; self.unknowns];
         if let Some(j) = jacobian.as_deref_mut() {
             j.clear();

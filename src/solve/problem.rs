@@ -123,6 +123,31 @@ pub struct Region {
     /// A vector source s inside, the weak form gaining ∫ s · (∂φ/∂y, −∂φ/∂x): a permanent
     /// magnet's M/μr in A/m. Goes with the material: it applies where `k` or `curve` does.
     pub source: Option<[f64; 2]>,
+    /// The name its figures carry.
+    pub name: Option<String>,
+    /// The circuit whose turns it holds, when it is a coil side: its `f` is then that
+    /// circuit's current times `turns` over its area.
+    pub coil: Option<Coil>,
+    /// The point its torque is taken about.
+    pub torque_about: Point,
+}
+
+/// A coil side: `turns` turns of a circuit, signed by their direction (+ out of the plane).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Coil {
+    /// The circuit's index in [`Problem::circuits`].
+    pub circuit: usize,
+    /// The turns, negative where they return into the plane.
+    pub turns: f64,
+}
+
+/// A circuit: coil sides in series, each turn carrying `current`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Circuit {
+    /// The name its figures carry.
+    pub name: String,
+    /// The current in every turn, in A.
+    pub current: f64,
 }
 
 /// A region's shape reaches outside the problem's domain.
@@ -134,7 +159,8 @@ impl Region {
     /// A region of `shape` that sets nothing yet. [`Region::try_new`] also checks that it
     /// lies inside the domain, which a problem's regions must.
     pub fn new(shape: Shape) -> Self {
-        Self { shape, k: None, f: None, curve: None, source: None }
+        let torque_about = Point::new(0.0, 0.0);
+        Self { shape, k: None, f: None, curve: None, source: None, name: None, coil: None, torque_about }
     }
 
     /// A region of `shape`, which must lie inside `domain` (boundary included), that sets
@@ -244,6 +270,7 @@ pub struct Problem<'a> {
     f: ScalarField<'a>,
     g: ScalarField<'a>,
     regions: Vec<Region>,
+    circuits: Vec<Circuit>,
     boundary: Boundary,
 }
 
@@ -256,6 +283,7 @@ impl<'a> Problem<'a> {
             f: Box::new(|_, _| 0.0),
             g: Box::new(|_, _| 0.0),
             regions: Vec::new(),
+            circuits: Vec::new(),
             boundary: Boundary::default(),
         }
     }
@@ -282,6 +310,17 @@ impl<'a> Problem<'a> {
     pub fn with_region(mut self, region: Region) -> Self {
         self.regions.push(region);
         self
+    }
+
+    /// Adds a circuit, which coil regions name by its index in [`Problem::circuits`].
+    pub fn with_circuit(mut self, circuit: Circuit) -> Self {
+        self.circuits.push(circuit);
+        self
+    }
+
+    /// The circuits, in the order they were added.
+    pub fn circuits(&self) -> &[Circuit] {
+        &self.circuits
     }
 
     /// Sets each side's condition (every side Dirichlet by default).
@@ -384,6 +423,7 @@ impl std::fmt::Debug for Problem<'_> {
         f.debug_struct("Problem")
             .field("domain", &self.domain)
             .field("regions", &self.regions)
+            .field("circuits", &self.circuits)
             .field("boundary", &self.boundary)
             .finish_non_exhaustive()
     }

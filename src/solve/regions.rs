@@ -6,8 +6,9 @@
 //! and w the piecewise linear weight that is 1 at every vertex of the closed region and 0
 //! elsewhere. ∇w is nonzero only on the ring of triangles just outside the region, so the
 //! region must be surrounded by air (ν = 1/μ0) for T to be the vacuum's stress; the mesh
-//! follows the region's sides, so that ring never cuts into it. The torque about the origin
-//! is −∫ (x (T∇w)_y − y (T∇w)_x), T∇w being constant on each triangle.
+//! follows the region's sides, so that ring never cuts into it. The torque about the region's
+//! point p is −∫ ((x − p_x) (T∇w)_y − (y − p_y) (T∇w)_x), T∇w being constant on each
+//! triangle.
 
 use super::coefficients::TriangleCoefficients;
 use super::element::Element;
@@ -60,11 +61,13 @@ pub(crate) fn measure(
                     ];
                     force[0] -= e.area() * tg[0];
                     force[1] -= e.area() * tg[1];
-                    torque -= e.area() * (centre.x * tg[1] - centre.y * tg[0]);
+                    let (x, y) = (centre.x - region.torque_about.x, centre.y - region.torque_about.y);
+                    torque -= e.area() * (x * tg[1] - y * tg[0]);
                 }
             }
             let area = region.shape.area();
             RegionStats {
+                name: region.name.clone(),
                 area,
                 current: region.f.unwrap_or(0.0) * area,
                 mean_a: if inside > 0.0 { integral / inside } else { 0.0 },

@@ -15,7 +15,7 @@ use super::checks::{Limits, SpecError, domain_error, expression, grid_error};
 use super::job::{JobSpec, Knobs, MeshSpec, Work};
 use super::solution::{BhTable, Function, MAX_CORNERS, MAX_REGIONS, SolveSpec, Steering};
 use crate::geom::{Point, Rect};
-use crate::solve::{BhCurve, Boundary, Region, Shape};
+use crate::solve::{BhCurve, Boundary, Circuit, Coil, Region, Shape};
 use crate::source::{Grid, GridError, GridFileError, Source};
 use serde::Serialize;
 use serde::de::DeserializeOwned;
@@ -172,6 +172,30 @@ fn write_solution<S: Sink>(w: &mut Writer<'_, S>, spec: &SolveSpec) {
         w.optional("region.f", r.f);
         w.floats("region.bh", &table.iter().flatten().flatten().copied().collect::<Vec<_>>());
         w.floats("region.source", r.source.as_ref().map_or(&[][..], |s| &s[..]));
+        // What a device adds is written only when given, so a spec without it keeps its id.
+        if let Some(name) = &r.name {
+            w.field("region.name", name.as_bytes());
+        }
+        if let Some(coil) = r.coil {
+            w.u64("region.circuit", coil.circuit as u64);
+            w.floats("region.turns", &[coil.turns]);
+        }
+        if r.torque_about != Point::new(0.0, 0.0) {
+            w.floats("region.torque_about", &[r.torque_about.x, r.torque_about.y]);
+        }
+    }
+    if !spec.circuits.is_empty() {
+        w.u64("circuits", spec.circuits.len() as u64);
+        for c in &spec.circuits {
+            w.field("circuit.name", c.name.as_bytes());
+            w.floats("circuit.current", &[c.current]);
+        }
+    }
+    if let Some(unit) = spec.unit {
+        w.name("unit", &unit);
+    }
+    if let Some(depth) = spec.depth {
+        w.floats("depth", &[depth]);
     }
     let s = &spec.settings;
     w.field("method", s.method.to_string().as_bytes());
@@ -399,6 +423,34 @@ fn read_solution(r: &mut Reader<'_>, limits: &Limits) -> Result<JobSpec, DecodeE
         regions.push(region);
         tables.push(table);
     }
+    let mut circuits = Vec::new();
+    if r.next_is("circuits") {
+        let count = r.u64("circuits")?;
+        if count > MAX_REGIONS as u64 {
+            return Err(r.malformed(format!("{count} circuits, more than the regions may name")));
+        }
+        for _ in 0..count {
+            let name = r.text("circuit.name")?.to_owned();
+            let [current] = r.exactly("circuit.current")?;
+            if !current.is_finite() {
+                return Err(r.malformed(format!("circuit {name}'s current is not finite")));
+            }
+            circuits.push(Circuit { name, current });
+        }
+    }
+    if let Some(i) = regions.iter().position(|g| g.coil.is_some_and(|c| c.circuit >= circuits.len())) {
+        return Err(r.malformed(format!("region {i} names a circuit past the {} given", circuits.len())));
+    }
+    let unit = if r.next_is("unit") { Some(r.name("unit")?) } else { None };
+    let depth = if r.next_is("depth") {
+        let [depth] = r.exactly("depth")?;
+        if !(depth.is_finite() && depth > 0.0) {
+            return Err(r.malformed("depth is not finite and positive"));
+        }
+        Some(depth)
+    } else {
+        None
+    };
     let method = r.parsed("method")?;
     let indicator = r.name("criterion")?;
     let [growth] = r.exactly("growth")?;
@@ -407,7 +459,21 @@ fn read_solution(r: &mut Reader<'_>, limits: &Limits) -> Result<JobSpec, DecodeE
     let requested_time_limit = time_limit(r)?;
     let steering = Steering { max_vertices, tolerance, method, indicator, growth, requested_time_limit };
     let settings = steering.settings(limits)?;
-    let spec = SolveSpec { physics, domain, k, f, g, boundary, regions, tables, exact, settings };
+    let spec = SolveSpec {
+        physics,
+        domain,
+        k,
+        f,
+        g,
+        boundary,
+        regions,
+        tables,
+        exact,
+        settings,
+        circuits,
+        unit,
+        depth,
+    };
     Ok(JobSpec { work: Work::Solve(Arc::new(spec)), requested_time_limit })
 }
 
@@ -450,6 +516,24 @@ fn read_region(
         [x, y] => Some([x, y]),
         _ => return Err(r.malformed(format!("region {i}'s source is not two numbers"))),
     };
+    if r.next_is("region.name") {
+        region.name = Some(r.text("region.name")?.to_owned());
+    }
+    if r.next_is("region.circuit") {
+        let circuit = r.u64("region.circuit")? as usize;
+        let [turns] = r.exactly("region.turns")?;
+        if !(turns.is_finite() && turns != 0.0) {
+            return Err(r.malformed(format!("region {i}'s turns are not finite and nonzero")));
+        }
+        region.coil = Some(Coil { circuit, turns });
+    }
+    if r.next_is("region.torque_about") {
+        let [x, y] = r.exactly("region.torque_about")?;
+        if !(x.is_finite() && y.is_finite()) {
+            return Err(r.malformed(format!("region {i}'s torque point is not finite")));
+        }
+        region.torque_about = Point::new(x, y);
+    }
     let finite = region.f.iter().chain(region.source.iter().flatten()).all(|v| v.is_finite());
     if !finite || region.k.is_some_and(|k| !(k.is_finite() && k > 0.0)) {
         return Err(invalid("k must be finite and > 0, f and the source finite".into()).into());

@@ -18,6 +18,7 @@ mod job;
 mod key;
 mod solution;
 
+pub use crate::solve::materials;
 pub use canonical::ENGINE_VERSION;
 pub use checks::{DEFAULT_MAX_VERTICES, Limits, SpecError, grid_error};
 pub use job::{JobSpec, MeshSpec, Work};

@@ -1,14 +1,16 @@
 //! SolveSpec: a boundary value problem request, validated and in canonical form.
 
 use super::checks::{Limits, SpecError, budget, build, domain_of, expression};
-use crate::api::{BoundaryInput, Coefficient, RegionInput, SolveRequest};
+use crate::api::{BoundaryInput, CircuitInput, Coefficient, MaterialInput, RegionInput, SolveRequest};
 use crate::geom::{Point, Rect};
 use crate::refine::Method;
+use crate::result::{RunResult, Summary, Unit};
 use crate::solve::{
-    Adapted, BhCurve, Boundary, Exact, Indicator, MU_0, Physics, Problem, Region, Settings, Shape,
-    SolveError, SolveObserver, adapt,
+    Adapted, BhCurve, Boundary, Circuit, Coil, Exact, Indicator, MU_0, Physics, Problem, Region, Settings,
+    Shape, SolveError, SolveObserver, adapt, materials,
 };
 use crate::source::Expression;
+use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -54,6 +56,13 @@ pub struct SolveSpec {
     pub exact: Option<Function>,
     /// The loop's stop rules and method, the time limit already capped.
     pub settings: Settings,
+    /// The circuits coil regions name, by index (in the order of their names).
+    pub circuits: Vec<Circuit>,
+    /// The unit the request's and the answer's lengths are in, when it named one; the spec
+    /// itself holds metres.
+    pub unit: Option<Unit>,
+    /// The planar device's depth in metres, when given.
+    pub depth: Option<f64>,
 }
 
 /// The growth a request gets when it names none.
@@ -107,20 +116,21 @@ pub const MAX_CORNERS: usize = 10_000;
 
 /// Region `i`'s shape, a rectangle or a simple polygon, as a region inside `domain`: the
 /// checks are the domain types' own, with their errors named by the request's fields.
-fn shaped(i: usize, r: &RegionInput, domain: Rect) -> Result<Region, SpecError> {
+fn shaped(i: usize, r: &RegionInput, domain: Rect, per_metre: f64) -> Result<Region, SpecError> {
     let here = format!("regions[{i}]");
+    let m = |v: f64| v / per_metre + 0.0;
     let shape = match (&r.x, &r.y, &r.polygon) {
         (Some(x), Some(y), None) => {
             let (x, y) = match (x.as_slice(), y.as_slice()) {
                 (&[x0, x1], &[y0, y1]) => ([x0, x1], [y0, y1]),
                 _ => return Err(invalid(here, "x and y must each be [low, high]")),
             };
-            let rect = Rect::new(x[0] + 0.0, x[1] + 0.0, y[0] + 0.0, y[1] + 0.0)
-                .map_err(|e| invalid(&here, e.to_string()))?;
+            let rect =
+                Rect::new(m(x[0]), m(x[1]), m(y[0]), m(y[1])).map_err(|e| invalid(&here, e.to_string()))?;
             Shape::Rect(rect)
         }
         (None, None, Some(points)) => {
-            let corners = points.iter().map(|&[x, y]| Point::new(x, y)).collect();
+            let corners = points.iter().map(|&[x, y]| Point::new(m(x), m(y))).collect();
             Shape::polygon(corners, domain).map_err(|e| match e.corner() {
                 Some(k) => invalid(format!("{here}.polygon[{k}]"), e.to_string()),
                 None => invalid(format!("{here}.polygon"), e.to_string()),
@@ -136,47 +146,178 @@ fn shaped(i: usize, r: &RegionInput, domain: Rect) -> Result<Region, SpecError> 
     Region::try_new(shape, domain).map_err(|e| invalid(here, e.to_string()))
 }
 
-/// Region `i`, inside `domain`, with k and f for `physics`, and its B–H table if it has one.
-fn region(
-    i: usize,
-    r: RegionInput,
-    domain: Rect,
+/// What the regions of a request read besides their own fields: the request's materials
+/// and circuits, and its unit.
+struct Device<'r> {
     physics: Physics,
-) -> Result<(Region, Option<BhTable>), SpecError> {
-    let at = |name: &str| format!("regions[{i}].{name}");
-    let mut region = shaped(i, &r, domain)?;
-    let mut table = None;
-    // Whether the region sets any of the magnetostatic fields.
-    let magnetic = [r.mu_r, r.current_density, r.current].iter().any(Option::is_some)
-        || r.bh.is_some()
-        || r.magnetization.is_some();
-    match physics {
-        Physics::Poisson => {
-            if magnetic {
-                return Err(invalid(
-                    format!("regions[{i}]"),
-                    "mu_r, bh, magnetization, current_density and current are for physics magnetostatic; use k and f",
-                ));
+    domain: Rect,
+    per_metre: f64,
+    materials: &'r BTreeMap<String, MaterialInput>,
+    circuits: &'r [Circuit],
+}
+
+/// A material's law, checked: μr (a magnet's recoil permeability), or a B–H table, and a
+/// magnet's magnetization M = Br/μ0 with its direction.
+struct Named {
+    mu_r: f64,
+    bh: Option<BhTable>,
+    magnet: Option<(f64, Option<f64>)>,
+}
+
+/// The law of a material as the request's `materials` or the library gives it, its fields
+/// named under `at`.
+fn law(at: &str, m: &MaterialInput) -> Result<Named, SpecError> {
+    let field = |name: &str| format!("{at}.{name}");
+    let mu_r = m.mu_r.map(|v| positive(&field("mu_r"), v)).transpose()?;
+    let br = m.br.map(|v| positive(&field("br"), v)).transpose()?;
+    let hc = m.hc.map(|v| positive(&field("hc"), v)).transpose()?;
+    if let Some(c) = m.conductivity
+        && !(c.is_finite() && c >= 0.0)
+    {
+        return Err(invalid(field("conductivity"), format!("must be finite and >= 0, got {c}")));
+    }
+    let angle = m.angle.map(|a| finite(&field("angle"), a)).transpose()?;
+    if let Some(bh) = &m.bh {
+        if mu_r.is_some() || br.is_some() || hc.is_some() {
+            return Err(invalid(
+                field("bh"),
+                "a B–H table is the whole law: give bh, or mu_r, or a magnet's br, hc and mu_r",
+            ));
+        }
+        BhCurve::new(bh).map_err(|e| match e.index() {
+            Some(k) => invalid(format!("{at}.bh[{k}]"), e.to_string()),
+            None => invalid(field("bh"), e.to_string()),
+        })?;
+        return Ok(Named { mu_r: 1.0, bh: Some(bh.clone()), magnet: None });
+    }
+    let magnet = match (br, hc, mu_r) {
+        (None, None, _) => None,
+        (Some(br), _, Some(mu_r)) => Some((br, mu_r)),
+        (Some(br), Some(hc), None) => Some((br, positive(&field("hc"), br / (MU_0 * hc))?)),
+        (None, Some(hc), Some(mu_r)) => Some((finite(&field("hc"), MU_0 * mu_r * hc)?, mu_r)),
+        _ => return Err(invalid(at, "a magnet needs two of br, hc and mu_r")),
+    };
+    if angle.is_some() && magnet.is_none() {
+        return Err(invalid(field("angle"), "an angle is a magnet's direction: give br, hc or both"));
+    }
+    Ok(match magnet {
+        Some((br, mu_r)) => Named { mu_r, bh: None, magnet: Some((br / MU_0, angle)) },
+        None => Named { mu_r: mu_r.unwrap_or(1.0), bh: None, magnet: None },
+    })
+}
+
+/// The unit vector `degrees` counter-clockwise from +x: exact at multiples of 90°, and
+/// otherwise libm's sine and cosine, the same bits on every machine.
+fn direction(degrees: f64) -> [f64; 2] {
+    match degrees.rem_euclid(360.0) {
+        0.0 => [1.0, 0.0],
+        90.0 => [0.0, 1.0],
+        180.0 => [-1.0, 0.0],
+        270.0 => [0.0, -1.0],
+        d => {
+            let t = d.to_radians();
+            [libm::cos(t), libm::sin(t)]
+        }
+    }
+}
+
+impl Device<'_> {
+    /// Region `i`, inside the domain, with k and f for the physics, and its B–H table if it
+    /// has one.
+    fn region(&self, i: usize, r: RegionInput) -> Result<(Region, Option<BhTable>), SpecError> {
+        let at = |name: &str| format!("regions[{i}].{name}");
+        let mut region = shaped(i, &r, self.domain, self.per_metre)?;
+        region.name = r.name.clone();
+        if let Some([x, y]) = r.torque_about {
+            let (x, y) = (finite(&at("torque_about[0]"), x)?, finite(&at("torque_about[1]"), y)?);
+            region.torque_about = Point::new(x / self.per_metre + 0.0, y / self.per_metre + 0.0);
+        }
+        let mut table = None;
+        // Whether the region sets any of the magnetostatic fields.
+        let magnetic = [r.mu_r, r.current_density, r.current, r.turns, r.angle].iter().any(Option::is_some)
+            || r.bh.is_some()
+            || r.magnetization.is_some()
+            || r.material.is_some()
+            || r.circuit.is_some()
+            || r.direction.is_some();
+        match self.physics {
+            Physics::Poisson => {
+                if magnetic {
+                    return Err(invalid(
+                        format!("regions[{i}]"),
+                        "mu_r, bh, magnetization, material, current_density, current and coils are for physics magnetostatic; use k and f",
+                    ));
+                }
+                region.k = r.k.map(|k| positive(&at("k"), k)).transpose()?;
+                region.f = r.f.map(|f| finite(&at("f"), f)).transpose()?;
+                if region.k.is_none() && region.f.is_none() {
+                    return Err(invalid(format!("regions[{i}]"), "a region must set at least one value"));
+                }
             }
-            region.k = r.k.map(|k| positive(&at("k"), k)).transpose()?;
-            region.f = r.f.map(|f| finite(&at("f"), f)).transpose()?;
-            if region.k.is_none() && region.f.is_none() {
-                return Err(invalid(format!("regions[{i}]"), "a region must set at least one value"));
+            Physics::Magnetostatic => {
+                if r.k.is_some() || r.f.is_some() {
+                    return Err(invalid(
+                        format!("regions[{i}]"),
+                        "k and f are for physics poisson; use a material (or mu_r, bh), and a circuit or current",
+                    ));
+                }
+                if !magnetic {
+                    return Err(invalid(
+                        format!("regions[{i}]"),
+                        "a region must set at least one of material, mu_r, bh, magnetization, circuit, current_density and current",
+                    ));
+                }
+                let law = self.law(i, &r)?;
+                // Where regions overlap the later one's whole material wins: air (μr = 1) and no
+                // current are set explicitly, never inherited.
+                match law.bh {
+                    Some(points) => {
+                        region.curve = Some(Arc::new(
+                            BhCurve::new(&points).map_err(|e| invalid(at("bh"), e.to_string()))?,
+                        ));
+                        table = Some(points);
+                    }
+                    None => region.k = Some(1.0 / (MU_0 * law.mu_r)),
+                }
+                region.source = Some(match law.magnet {
+                    // M/μr must stay finite too: μr = 1e-10 under M = 1e300 would not.
+                    Some([mx, my]) => [
+                        finite(&at("magnetization[0]"), mx / law.mu_r)?,
+                        finite(&at("magnetization[1]"), my / law.mu_r)?,
+                    ],
+                    None => [0.0; 2],
+                });
+                region.coil = self.coil(i, &r)?;
+                let density = match (region.coil, r.current_density, r.current) {
+                    (Some(_), Some(_), _) | (Some(_), _, Some(_)) => {
+                        return Err(invalid(
+                            at("circuit"),
+                            "a coil's current is its circuit's: drop current and current_density",
+                        ));
+                    }
+                    (_, Some(_), Some(_)) => {
+                        return Err(invalid(at("current"), "give current_density or current, not both"));
+                    }
+                    (Some(coil), None, None) => {
+                        let current = self.circuits[coil.circuit].current * coil.turns;
+                        finite(&at("turns"), current / region.shape.area())?
+                    }
+                    (None, Some(j), None) => finite(&at("current_density"), j)?,
+                    (None, None, Some(i)) => finite(&at("current"), i)? / region.shape.area(),
+                    (None, None, None) => 0.0,
+                };
+                region.f = Some(density);
             }
         }
-        Physics::Magnetostatic => {
-            if r.k.is_some() || r.f.is_some() {
-                return Err(invalid(
-                    format!("regions[{i}]"),
-                    "k and f are for physics poisson; use mu_r or bh, and current_density or current",
-                ));
-            }
-            if !magnetic {
-                return Err(invalid(
-                    format!("regions[{i}]"),
-                    "a region must set at least one of mu_r, bh, magnetization, current_density and current",
-                ));
-            }
+        Ok((region, table))
+    }
+
+    /// Region `i`'s material: named, or given by its own `mu_r`, `bh` and `magnetization`,
+    /// as magnetization [Mx, My] for a magnet.
+    fn law(&self, i: usize, r: &RegionInput) -> Result<Material, SpecError> {
+        let at = |name: &str| format!("regions[{i}].{name}");
+        let direct = r.mu_r.is_some() || r.bh.is_some() || r.magnetization.is_some();
+        let Some(name) = &r.material else {
             if r.mu_r.is_some() && r.bh.is_some() {
                 return Err(invalid(at("bh"), "give mu_r or bh, not both"));
             }
@@ -186,40 +327,121 @@ fn region(
                     "a magnet takes mu_r (its recoil permeability), not bh",
                 ));
             }
-            if r.current_density.is_some() && r.current.is_some() {
-                return Err(invalid(at("current"), "give current_density or current, not both"));
+            if r.angle.is_some() {
+                return Err(invalid(
+                    at("angle"),
+                    "an angle turns a named magnet material; give magnetization [Mx, My] here",
+                ));
             }
-            // Where regions overlap the later one's whole material wins: air (μr = 1) and no
-            // current are set explicitly, never inherited.
             let mu_r = r.mu_r.map(|m| positive(&at("mu_r"), m)).transpose()?.unwrap_or(1.0);
-            match r.bh {
-                Some(points) => {
-                    let curve = BhCurve::new(&points).map_err(|e| match e.index() {
-                        Some(k) => invalid(format!("regions[{i}].bh[{k}]"), e.to_string()),
-                        None => invalid(at("bh"), e.to_string()),
-                    })?;
-                    region.curve = Some(Arc::new(curve));
-                    table = Some(points);
-                }
-                None => region.k = Some(1.0 / (MU_0 * mu_r)),
+            if let Some(points) = &r.bh {
+                BhCurve::new(points).map_err(|e| match e.index() {
+                    Some(k) => invalid(format!("regions[{i}].bh[{k}]"), e.to_string()),
+                    None => invalid(at("bh"), e.to_string()),
+                })?;
             }
-            if let Some([mx, my]) = r.magnetization {
-                // M/μr must stay finite too: μr = 1e-10 under M = 1e300 would not.
-                let sx = finite(&at("magnetization[0]"), mx / mu_r)?;
-                let sy = finite(&at("magnetization[1]"), my / mu_r)?;
-                region.source = Some([sx, sy]);
-            } else {
-                region.source = Some([0.0; 2]);
-            }
-            let density = match (r.current_density, r.current) {
-                (Some(j), _) => finite(&at("current_density"), j)?,
-                (None, Some(i)) => finite(&at("current"), i)? / region.shape.area(),
-                (None, None) => 0.0,
-            };
-            region.f = Some(density);
+            return Ok(Material { mu_r, bh: r.bh.clone(), magnet: r.magnetization });
+        };
+        if direct {
+            return Err(invalid(at("material"), "give material, or mu_r, bh and magnetization, not both"));
         }
+        let law = match (self.materials.get(name), materials::find(name)) {
+            (Some(own), _) => law(&format!("materials.{name}"), own)?,
+            (None, Some(built_in)) => {
+                let input = MaterialInput {
+                    mu_r: built_in.mu_r,
+                    bh: built_in.bh.clone(),
+                    br: built_in.br,
+                    hc: built_in.hc,
+                    angle: None,
+                    conductivity: built_in.conductivity,
+                };
+                law(&format!("materials.{name}"), &input)?
+            }
+            (None, None) => {
+                return Err(invalid(
+                    at("material"),
+                    format!(
+                        "no material {name:?} in materials or the built-in library (GET /v1/materials lists it)"
+                    ),
+                ));
+            }
+        };
+        let magnet = match law.magnet {
+            Some((m, angle)) => {
+                let degrees = r.angle.map(|a| finite(&at("angle"), a)).transpose()?.or(angle).unwrap_or(0.0);
+                let [c, s] = direction(degrees);
+                Some([m * c, m * s])
+            }
+            None if r.angle.is_some() => {
+                return Err(invalid(at("angle"), format!("material {name:?} is not a magnet")));
+            }
+            None => None,
+        };
+        Ok(Material { mu_r: law.mu_r, bh: law.bh, magnet })
     }
-    Ok((region, table))
+
+    /// Region `i`'s coil: the circuit it names, its turns signed by its direction.
+    fn coil(&self, i: usize, r: &RegionInput) -> Result<Option<Coil>, SpecError> {
+        let at = |name: &str| format!("regions[{i}].{name}");
+        let Some(name) = &r.circuit else {
+            if r.turns.is_some() || r.direction.is_some() {
+                return Err(invalid(
+                    at("circuit"),
+                    "a coil (turns, direction) needs a circuit: a key of circuits",
+                ));
+            }
+            return Ok(None);
+        };
+        let Some(circuit) = self.circuits.iter().position(|c| &c.name == name) else {
+            let known: Vec<&str> = self.circuits.iter().map(|c| c.name.as_str()).collect();
+            return Err(invalid(
+                at("circuit"),
+                format!(
+                    "no circuit {name:?} in circuits (it has {})",
+                    if known.is_empty() { "none".into() } else { known.join(", ") }
+                ),
+            ));
+        };
+        let turns = r.turns.map(|t| positive(&at("turns"), t)).transpose()?.unwrap_or(1.0);
+        let sign = match r.direction {
+            None | Some(1) => 1.0,
+            Some(-1) => -1.0,
+            Some(d) => return Err(invalid(at("direction"), format!("must be 1 or -1, got {d}"))),
+        };
+        Ok(Some(Coil { circuit, turns: sign * turns }))
+    }
+}
+
+/// A region's material, resolved: μr, or a B–H table, and a magnet's magnetization [Mx, My].
+struct Material {
+    mu_r: f64,
+    bh: Option<BhTable>,
+    magnet: Option<[f64; 2]>,
+}
+
+/// The longest name of a region, a material or a circuit.
+pub const MAX_NAME: usize = 100;
+
+/// A key of `map` (materials or circuits): a name that errors can point at, so without the
+/// `.` and `[` that separate a field's parts.
+fn key(map: &str, name: &str) -> Result<(), SpecError> {
+    if name.is_empty() || name.chars().count() > MAX_NAME || name.contains(['.', '[', ']']) {
+        let detail = format!("{name:?}: a name is 1 to {MAX_NAME} characters, without '.', '[' or ']'");
+        return Err(invalid(map, detail));
+    }
+    Ok(())
+}
+
+/// The circuits, checked, in the order of their names.
+fn circuits(input: BTreeMap<String, CircuitInput>) -> Result<Vec<Circuit>, SpecError> {
+    input
+        .into_iter()
+        .map(|(name, c)| {
+            let current = finite(&format!("circuits.{name}.current"), c.current)?;
+            Ok(Circuit { name, current })
+        })
+        .collect()
 }
 
 /// Each side's condition; at least one must be Dirichlet, or u is fixed only up to a constant.
@@ -299,8 +521,37 @@ impl SolveSpec {
         request: SolveRequest,
         limits: &Limits,
     ) -> Result<(Self, Option<Duration>), SpecError> {
+        let physics = request.physics.unwrap_or_default();
+        if physics == Physics::Poisson {
+            let device = [
+                ("unit", request.unit.is_some()),
+                ("depth", request.depth.is_some()),
+                ("materials", !request.materials.is_empty()),
+                ("circuits", !request.circuits.is_empty()),
+            ];
+            if let Some((field, _)) = device.iter().find(|(_, given)| *given) {
+                return Err(invalid(
+                    *field,
+                    "is for physics magnetostatic: a poisson problem has no units or devices",
+                ));
+            }
+        }
+        let per_metre = request.unit.unwrap_or_default().per_metre();
+        let depth = match request.depth {
+            Some(d) => Some(positive("depth", d)? / per_metre),
+            None => None,
+        };
+        let domain = match request.domain {
+            None => Rect::unit(),
+            Some(d) => {
+                let r = domain_of(&d)?;
+                let m = |v: f64| v / per_metre;
+                Rect::new(m(r.x0()), m(r.x1()), m(r.y0()), m(r.y1())).map_err(super::checks::domain_error)?
+            }
+        };
         // Without a source or boundary values the answer is u = 0 (A = 0), whatever the mesh:
-        // a request that forgot them is told so rather than answered.
+        // a request that forgot them is told so rather than answered. A coil counts at any
+        // current: its inductance at zero current is an answer.
         let sourced = request.f.is_some()
             || request.g.is_some()
             || request.regions.iter().any(|r| {
@@ -308,12 +559,15 @@ impl SolveSpec {
                     || r.magnetization.is_some()
                     || r.current_density.is_some()
                     || r.current.is_some()
+                    || r.circuit.is_some()
+                    || r.material.as_ref().is_some_and(|name| {
+                        let own = request.materials.get(name);
+                        own.map_or_else(
+                            || materials::find(name).is_some_and(|m| m.br.is_some()),
+                            |m| m.br.is_some() || m.hc.is_some(),
+                        )
+                    })
             });
-        let physics = request.physics.unwrap_or_default();
-        let domain = match request.domain {
-            None => Rect::unit(),
-            Some(d) => domain_of(&d)?,
-        };
         let (k, f) = match physics {
             Physics::Poisson => {
                 (coefficient("k", request.k, 1.0, limits)?, coefficient("f", request.f, 0.0, limits)?)
@@ -323,7 +577,7 @@ impl SolveSpec {
                     if given {
                         return Err(invalid(
                             field,
-                            "not allowed with physics magnetostatic: regions give mu_r and current_density",
+                            "not allowed with physics magnetostatic: regions give materials and currents",
                         ));
                     }
                 }
@@ -339,6 +593,24 @@ impl SolveSpec {
             Some(e) => Some(coefficient("exact", Some(e), 0.0, limits)?),
         };
         let boundary = boundary(request.boundary)?;
+        for (name, m) in &request.materials {
+            key("materials", name)?;
+            law(&format!("materials.{name}"), m)?;
+        }
+        for name in request.circuits.keys() {
+            key("circuits", name)?;
+        }
+        for (i, r) in request.regions.iter().enumerate() {
+            if let Some(name) = &r.name
+                && name.chars().count() > MAX_NAME
+            {
+                return Err(invalid(
+                    format!("regions[{i}].name"),
+                    format!("longer than {MAX_NAME} characters"),
+                ));
+            }
+        }
+        let circuits = circuits(request.circuits)?;
         if request.regions.len() > MAX_REGIONS {
             return Err(invalid(
                 "regions",
@@ -349,9 +621,21 @@ impl SolveSpec {
         if corners > MAX_CORNERS {
             return Err(invalid("regions", format!("{corners} corners in all, more than {MAX_CORNERS}")));
         }
+        let device =
+            Device { physics, domain, per_metre, materials: &request.materials, circuits: &circuits };
         let (regions, tables) = (request.regions.into_iter().enumerate())
-            .map(|(i, r)| region(i, r, domain, physics))
+            .map(|(i, r)| device.region(i, r))
             .collect::<Result<(Vec<_>, Vec<_>), _>>()?;
+        if let Some(unused) = circuits
+            .iter()
+            .enumerate()
+            .find(|(c, _)| !regions.iter().any(|r| r.coil.is_some_and(|coil| coil.circuit == *c)))
+        {
+            return Err(invalid(
+                format!("circuits.{}", unused.1.name),
+                "no region is a coil of this circuit",
+            ));
+        }
         let requested_time_limit = super::checks::time_limit(request.time_limit_ms)?;
         let steering = Steering {
             max_vertices: request.max_vertices,
@@ -367,7 +651,7 @@ impl SolveSpec {
             let (field, what) = match physics {
                 Physics::Poisson => ("f", "f (a source), g (boundary values) or a region's f"),
                 Physics::Magnetostatic => {
-                    ("regions", "a region with a current_density, a current or a magnetization")
+                    ("regions", "a region with a circuit, a current_density, a current or a magnet")
                 }
             };
             return Err(invalid(
@@ -375,21 +659,84 @@ impl SolveSpec {
                 format!("nothing to solve: the solution is 0 everywhere without {what}"),
             ));
         }
-        let spec = Self { physics, domain, k, f, g, boundary, regions, tables, exact, settings };
+        let unit = request.unit;
+        let spec = Self {
+            physics,
+            domain,
+            k,
+            f,
+            g,
+            boundary,
+            regions,
+            tables,
+            exact,
+            settings,
+            circuits,
+            unit,
+            depth,
+        };
         Ok((spec, requested_time_limit))
     }
 
     /// The problem to solve, its fields reading this spec.
     pub fn problem(&self) -> Problem<'_> {
+        // The expressions read x and y in the request's unit; the problem is in metres.
+        let per = self.per_metre();
         let mut problem = Problem::new(self.domain)
-            .with_k(|x, y| self.k.eval(x, y))
-            .with_f(|x, y| self.f.eval(x, y))
-            .with_g(|x, y| self.g.eval(x, y))
+            .with_k(move |x, y| self.k.eval(x * per, y * per))
+            .with_f(move |x, y| self.f.eval(x * per, y * per))
+            .with_g(move |x, y| self.g.eval(x * per, y * per))
             .with_boundary(self.boundary);
+        for circuit in &self.circuits {
+            problem = problem.with_circuit(circuit.clone());
+        }
         for region in &self.regions {
             problem = problem.with_region(region.clone());
         }
         problem
+    }
+
+    /// How many of the request's unit make a metre.
+    fn per_metre(&self) -> f64 {
+        self.unit.unwrap_or_default().per_metre()
+    }
+
+    /// The result of a finished loop as the request asked for it: lengths back in its unit
+    /// (vertices, areas), and per-metre figures times the depth when it gave one.
+    pub fn result(&self, adapted: Adapted) -> RunResult {
+        let mut result = adapted.into_result(self.physics);
+        let per = self.per_metre();
+        if per != 1.0 {
+            for v in &mut result.vertices {
+                v.x *= per;
+                v.y *= per;
+            }
+        }
+        if let Summary::Solution(stats) = &mut result.stats {
+            stats.unit = self.unit;
+            stats.depth = self.depth.map(|d| d * per);
+            let run = &mut stats.run;
+            for region in &mut run.regions {
+                region.area *= per * per;
+            }
+            if let Some(depth) = self.depth {
+                run.energy *= depth;
+                run.coenergy *= depth;
+                for step in &mut run.history {
+                    step.energy *= depth;
+                }
+                for region in &mut run.regions {
+                    region.force = region.force.map(|f| f * depth);
+                    region.torque *= depth;
+                }
+                for circuit in run.circuits.values_mut() {
+                    circuit.flux_linkage *= depth;
+                    circuit.inductance = circuit.inductance.map(|l| l * depth);
+                    circuit.incremental_inductance *= depth;
+                }
+            }
+        }
+        result
     }
 
     /// Runs the adaptive loop on this problem, measuring against `exact` when given; what
@@ -398,7 +745,8 @@ impl SolveSpec {
     /// # Errors
     /// As [`adapt`].
     pub fn solve<O: SolveObserver>(&self, observer: &mut O) -> Result<Adapted, SolveError> {
-        let exact = self.exact.as_ref().map(|e| move |x: f64, y: f64| e.eval(x, y));
+        let per = self.per_metre();
+        let exact = self.exact.as_ref().map(|e| move |x: f64, y: f64| e.eval(x * per, y * per));
         adapt(&self.problem(), exact.as_ref().map(|u| u as Exact<'_>), &self.settings, observer)
     }
 }

@@ -67,7 +67,15 @@ async fn the_readme_quick_start_runs_as_written_and_says_what_the_readme_says() 
         .map(|l| l.split(',').next().unwrap().parse().unwrap())
         .collect();
     assert_eq!(forces.len(), 4, "{stdout}");
-    assert!((-1700.0..-1550.0).contains(&forces[1]), "the armature's force is {}", forces[1]);
+    assert!((-85.0..-78.0).contains(&forces[1]), "the armature's force is {} N", forces[1]);
+    // Its regions by name, in order, and its circuit with the apparent inductance it says.
+    let names: Vec<&str> =
+        (stdout.lines()).filter_map(|l| l.strip_prefix(r#""name":""#)?.strip_suffix(r#"","area"#)).collect();
+    assert_eq!(names, ["core", "armature", "coil+", "coil-"], "{stdout}");
+    let circuit = stdout.lines().find_map(|l| l.strip_prefix(r#""circuits":"#)).expect("the circuit's line");
+    let circuit: serde_json::Value = serde_json::from_str(circuit).unwrap();
+    let inductance = circuit["coil"]["inductance"].as_f64().unwrap();
+    assert!((5.0e-3..5.6e-3).contains(&inductance), "{circuit}");
     let file = |name: &str| std::fs::read(dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
     for (name, starts) in [
         ("mesh.ply", &b"ply\n"[..]),

@@ -294,3 +294,144 @@ async fn bad_materials_shapes_and_sides_are_422_naming_the_entry() {
     assert_eq!(p["field"], "/boundary/left", "{p}");
     app.shutdown().await;
 }
+
+/// The issue's device, as an engineer writes it: lengths in mm, 40 mm deep, a steel of their
+/// own and one from the library, a coil of two named sides on one circuit.
+fn engineered(max_vertices: u64) -> Value {
+    json!({
+        "physics": "magnetostatic", "unit": "mm", "depth": 40,
+        "domain": {"x": [-60, 60], "y": [-60, 60]},
+        "materials": {"my-steel": {"bh": [[0, 0], [100, 0.5], [1000, 1.3]]}},
+        "circuits": {"main": {"current": 2.5}},
+        "regions": [
+            {"name": "core", "material": "M400-50A", "polygon": [[-20, -20], [20, -20], [20, 20], [-20, 20]]},
+            {"name": "keeper", "material": "my-steel", "x": [-20, 20], "y": [24, 30]},
+            {"name": "coil+", "material": "copper", "turns": 200, "circuit": "main", "direction": 1,
+             "x": [22, 30], "y": [-10, 10]},
+            {"name": "coil-", "material": "copper", "turns": 200, "circuit": "main", "direction": -1,
+             "x": [-30, -22], "y": [-10, 10]}
+        ],
+        "max_vertices": max_vertices
+    })
+}
+
+#[tokio::test]
+async fn the_material_library_lists_every_law_with_its_source() {
+    let app = spawn_app().await;
+    let response = app.get("/v1/materials").await;
+    assert_eq!(response.status(), 200);
+    assert!(response.headers()["cache-control"].to_str().unwrap().contains("max-age"));
+    let doc: Value = response.json().await.unwrap();
+    let materials = doc["materials"].as_array().unwrap();
+    let by_name =
+        |name: &str| materials.iter().find(|m| m["name"] == name).unwrap_or_else(|| panic!("{name}"));
+    assert_eq!(by_name("M400-50A")["bh"].as_array().unwrap().len(), 44);
+    assert_eq!(by_name("M400-50A")["kind"], "steel");
+    assert!(by_name("N52")["br"].as_f64().unwrap() > 1.3);
+    assert_eq!(by_name("copper")["mu_r"], 1.0);
+    assert!(materials.iter().all(|m| !m["source"].as_str().unwrap().is_empty()), "{doc}");
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_device_in_mm_with_a_depth_answers_in_its_units_with_named_regions_and_its_circuit() {
+    let app = spawn_app().await;
+    let response = app.post("/v1/solutions", &engineered(3000)).await;
+    assert_eq!(response.status(), 200);
+    let doc: Value = response.json().await.unwrap();
+    let stats = &doc["stats"];
+    assert_eq!((stats["unit"].as_str(), stats["depth"].as_f64()), (Some("mm"), Some(40.0)), "{stats}");
+    // Vertices in mm: the domain's corners are there as the request wrote them.
+    let xy: Vec<[f64; 2]> = (doc["vertices"].as_array().unwrap().iter())
+        .map(|v| [v[0].as_f64().unwrap(), v[1].as_f64().unwrap()])
+        .collect();
+    for corner in [[-60.0, -60.0], [60.0, -60.0], [60.0, 60.0], [-60.0, 60.0]] {
+        assert!(xy.contains(&corner), "no corner {corner:?}");
+    }
+    assert!(xy.iter().all(|&[x, y]| x.abs() <= 60.0 && y.abs() <= 60.0));
+    let regions = stats["regions"].as_array().unwrap();
+    let names: Vec<&str> = regions.iter().map(|r| r["name"].as_str().unwrap()).collect();
+    assert_eq!(names, ["core", "keeper", "coil+", "coil-"]);
+    // Areas in mm², currents in ampere-turns.
+    assert!((regions[0]["area"].as_f64().unwrap() - 1600.0).abs() < 1e-9, "{}", regions[0]);
+    assert!((regions[2]["current"].as_f64().unwrap() - 500.0).abs() < 1e-9, "{}", regions[2]);
+    assert!((regions[3]["current"].as_f64().unwrap() + 500.0).abs() < 1e-9, "{}", regions[3]);
+    // λ is the turns times the sides' mean A, times the depth in metres.
+    let circuit = &stats["circuits"]["main"];
+    let mean = |i: usize| regions[i]["mean_a"].as_f64().unwrap();
+    let flux_linkage = 0.04 * 200.0 * (mean(2) - mean(3));
+    assert!(
+        (circuit["flux_linkage"].as_f64().unwrap() - flux_linkage).abs() < 1e-9 * flux_linkage,
+        "{circuit}"
+    );
+    let inductance = circuit["inductance"].as_f64().unwrap();
+    assert!((inductance - flux_linkage / 2.5).abs() < 1e-9 * inductance, "{circuit}");
+    assert!(circuit["incremental_inductance"].as_f64().unwrap() > 0.0, "{circuit}");
+
+    // The same device in metres, per metre of depth: the same mesh and solution, and every
+    // total is the per-metre figure times the depth.
+    let mut metres = engineered(3000);
+    fn m(v: &Value) -> Value {
+        match v {
+            Value::Number(n) => json!(n.as_f64().unwrap() / 1000.0),
+            Value::Array(items) => Value::Array(items.iter().map(m).collect()),
+            other => other.clone(),
+        }
+    }
+    metres["domain"] = json!({"x": m(&metres["domain"]["x"]), "y": m(&metres["domain"]["y"])});
+    for region in metres["regions"].as_array_mut().unwrap() {
+        for field in ["x", "y", "polygon"] {
+            if region.get(field).is_some() {
+                region[field] = m(&region[field]);
+            }
+        }
+    }
+    let object = metres.as_object_mut().unwrap();
+    object.remove("unit");
+    object.remove("depth");
+    let per_metre: Value = app.post("/v1/solutions", &metres).await.json().await.unwrap();
+    let per = &per_metre["stats"];
+    assert!(per.get("unit").is_none() && per.get("depth").is_none(), "{per}");
+    assert_eq!(per["regions"][2]["mean_a"], regions[2]["mean_a"], "the same solution");
+    let force = |s: &Value, i: usize| s["regions"][i]["force"][0].as_f64().unwrap();
+    assert!((force(stats, 1) - 0.04 * force(per, 1)).abs() < 1e-12 * force(per, 1).abs());
+    let energy = |s: &Value| s["energy"].as_f64().unwrap();
+    assert!((energy(stats) - 0.04 * energy(per)).abs() < 1e-12 * energy(per));
+    let l = per["circuits"]["main"]["inductance"].as_f64().unwrap();
+    assert!((inductance - 0.04 * l).abs() < 1e-12 * l, "{inductance} against {l} H/m");
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_device_with_unknown_names_or_loose_coils_is_422_naming_the_field() {
+    let app = spawn_app().await;
+    type Change = fn(&mut Value);
+    let cases: [(Change, &str, &str); 9] = [
+        (|b| b["regions"][0]["material"] = json!("unobtainium"), "/regions/0/material", "unobtainium"),
+        (|b| b["regions"][2]["circuit"] = json!("spare"), "/regions/2/circuit", "main"),
+        (
+            |b| {
+                b["regions"][2].as_object_mut().unwrap().remove("circuit");
+            },
+            "/regions/2/circuit",
+            "needs a circuit",
+        ),
+        (|b| b["regions"][3]["direction"] = json!(2), "/regions/3/direction", "1 or -1"),
+        (|b| b["circuits"]["spare"] = json!({"current": 1}), "/circuits/spare", "no region"),
+        (|b| b["materials"]["my-steel"]["bh"][2] = json!([90, 1.3]), "/materials/my-steel/bh/2", "increas"),
+        (|b| b["regions"][0]["mu_r"] = json!(1000), "/regions/0/material", "not both"),
+        (|b| b["regions"][1]["angle"] = json!(90), "/regions/1/angle", "not a magnet"),
+        (|b| b["materials"]["a.b"] = json!({"mu_r": 2}), "/materials", "without"),
+    ];
+    for (change, field, says) in cases {
+        let mut body = engineered(100);
+        change(&mut body);
+        let p = refused(&app, body).await;
+        assert_eq!(p["field"], field, "{p}");
+        assert!(p["detail"].as_str().unwrap().contains(says), "{p}");
+    }
+    // Units and devices are magnetostatics'.
+    let p = refused(&app, json!({"f": 1, "unit": "mm"})).await;
+    assert_eq!(p["field"], "/unit", "{p}");
+    app.shutdown().await;
+}

@@ -36,12 +36,12 @@ pub(crate) fn solve(args: &SolveArgs) -> Result<()> {
     let adapted = spec.solve(&mut ())?;
     if args.stats {
         let times: Vec<f64> = adapted.times.iter().map(|t| t.as_secs_f64() * 1e3).collect();
-        let result = adapted.into_result(spec.physics);
+        let result = spec.result(adapted);
         let doc = serde_json::json!({"stats": result.stats, "solve_times_ms": times});
         return to_stdout(|out| {
             serde_json::to_writer_pretty(&mut *out, &doc)?;
             writeln!(out)
         });
     }
-    args.output.write(adapted.into_result(spec.physics), format)
+    args.output.write(spec.result(adapted), format)
 }

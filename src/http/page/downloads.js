@@ -13,15 +13,20 @@ export function showStats(s) {
     ? [["vertices", s.vertices], ["triangles", s.triangles], ["unknowns", s.unknowns], ["solves", s.solves],
       ["estimate", s.estimate], ["energy", s.energy], ["coenergy", s.coenergy], ["flips", s.flips], ["stop", s.stop],
       ["delaunay", s.delaunay], ["constrained_edges", s.constrained_edges],
-      // One row per region: the force on everything inside it, [fx, fy] in N/m.
-      ...(s.regions || []).map((r, i) => [`force_${i}`, r.force])]
+      // One row per region: the force on everything inside it, [fx, fy]; one per circuit: its
+      // apparent and incremental inductance.
+      ...(s.regions || []).map((r, i) => [`force_${i}`, r.force]),
+      ...Object.entries(s.circuits || {}).map(([name, c]) => [`circuit_${name}`, [c.inductance, c.incremental_inductance]])]
     : [["vertices", s.vertices], ["triangles", s.triangles], ["variation", s.variation],
       ["max_triangle_error", s.max_triangle_error], ["max_error", q.max_error], ["rms_error", q.rms_error],
       ["min_angle_deg", q.min_angle_deg], ["evaluations", s.evaluations], ["flips", s.flips], ["stop", s.stop],
       ["delaunay", s.delaunay]];
   const labels = { variation: "V_n", max_triangle_error: "worst e(T)", max_error: "E_n estimate",
     rms_error: "RMS error", min_angle_deg: "smallest angle (°)", constrained_edges: "edges on region sides" };
-  (s.regions || []).forEach((_, i) => (labels[`force_${i}`] = `force on region ${i} (N/m)`));
+  // With a depth the figures are the device's totals, else per metre of depth.
+  const [newtons, henries] = s.depth ? ["N", "H"] : ["N/m", "H/m"];
+  (s.regions || []).forEach((r, i) => (labels[`force_${i}`] = `force on ${r.name || `region ${i}`} (${newtons})`));
+  for (const name of Object.keys(s.circuits || {})) labels[`circuit_${name}`] = `inductance of ${name}, apparent, incremental (${henries})`;
   const body = $("stats").tBodies[0];
   body.replaceChildren();
   for (const [key, value] of rows) {

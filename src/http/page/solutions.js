@@ -32,8 +32,8 @@ export function drawRegions(g, f) {
         ? [[r.x[0], r.y[0]], [r.x[1], r.y[0]], [r.x[1], r.y[1]], [r.x[0], r.y[1]]]
         : null;
     if (!corners || corners.length < 3) continue;
-    const current = r.current_density || r.current;
-    g.fillStyle = current ? "rgba(214, 96, 77, 0.35)" : r.mu_r || r.bh || r.magnetization ? "rgba(90, 110, 140, 0.35)" : "rgba(47, 95, 208, 0.25)";
+    const current = r.current_density || r.current || r.circuit;
+    g.fillStyle = current ? "rgba(214, 96, 77, 0.35)" : r.mu_r || r.bh || r.magnetization || r.material ? "rgba(90, 110, 140, 0.35)" : "rgba(47, 95, 208, 0.25)";
     g.beginPath();
     corners.forEach(([x, y], i) => (i ? g.lineTo(f.x(x), f.y(y)) : g.moveTo(f.x(x), f.y(y))));
     g.closePath();
@@ -42,8 +42,11 @@ export function drawRegions(g, f) {
     g.stroke();
     g.fillStyle = "#1d2330";
     g.font = "13px system-ui, sans-serif";
-    const label = r.current_density ? `J ${fmt(r.current_density)}` : r.current ? `I ${fmt(r.current)} A`
+    const law = r.circuit ? `${r.direction === -1 ? "−" : "+"}${fmt(r.turns || 1)} turns of ${r.circuit}`
+      : r.current_density ? `J ${fmt(r.current_density)}` : r.current ? `I ${fmt(r.current)} A`
+      : r.material ? r.material
       : r.magnetization ? `M ${r.magnetization.map(fmt).join(", ")}` : r.bh ? "B–H" : r.mu_r ? `μr ${fmt(r.mu_r)}` : `k ${fmt(r.k)} f ${fmt(r.f)}`;
+    const label = r.name ? `${r.name}: ${law}` : law;
     const left = Math.min(...corners.map(([x]) => f.x(x)));
     const top = Math.min(...corners.map(([, y]) => f.y(y)));
     g.fillText(label, left + 4, top + 15);

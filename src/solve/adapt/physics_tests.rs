@@ -324,7 +324,7 @@ fn two_long_parallel_conductors_attract_with_mu0_i1_i2_over_2_pi_d() {
         .with_region(conductor(d / 2.0, 0.0, 0.01, i));
     let a = adapt(&problem, None, &Settings::new(30_000), &mut ()).unwrap();
     let expected = MU_0 * i * i / (2.0 * PI * d);
-    let [left, right] = [a.stats.regions[0], a.stats.regions[1]];
+    let [left, right] = [&a.stats.regions[0], &a.stats.regions[1]];
     assert!((left.current - i).abs() < 1e-9 * i);
     // Attraction: the left one is pulled right, the right one left.
     assert!((left.force[0] - expected).abs() < 1e-2 * expected, "{:?} against {expected}", left.force);

@@ -32,12 +32,18 @@ fn round_trips(spec: &JobSpec) {
             assert_eq!(a.settings, b.settings);
             let curves = |s: &SolveSpec| s.regions.iter().map(|r| r.curve.is_some()).collect::<Vec<_>>();
             assert_eq!(curves(a), curves(b));
+            let device = |s: &SolveSpec| {
+                let regions: Vec<_> =
+                    s.regions.iter().map(|r| (r.name.clone(), r.coil, r.torque_about)).collect();
+                (regions, s.circuits.clone(), s.unit, s.depth)
+            };
+            assert_eq!(device(a), device(b));
         }
         _ => panic!("a mesh came back as a solution, or the other way round"),
     }
 }
 
-const PROBLEMS: [&str; 4] = [
+const PROBLEMS: [&str; 5] = [
     r#"{"f": "sin(x)*y", "exact": "x*x", "boundary": {"left": "neumann"}, "tolerance": 0.01}"#,
     r#"{"k": 2.5, "g": 1, "regions": [{"x": [0, 0.5], "y": [0, 0.5], "k": 3},
         {"polygon": [[0.6, 0.6], [0.9, 0.6], [0.7, 0.9]], "f": -1}],
@@ -47,6 +53,14 @@ const PROBLEMS: [&str; 4] = [
         {"x": [-0.9, -0.6], "y": [-0.9, 0.9], "current": 10},
         {"x": [0.6, 0.9], "y": [-0.9, 0.9], "mu_r": 1.05, "magnetization": [0, 8e5]}]}"#,
     r#"{"f": 1, "max_vertices": 400, "method": "recursive"}"#,
+    r#"{"physics": "magnetostatic", "unit": "mm", "depth": 40, "domain": {"x": [-60, 60], "y": [-60, 60]},
+        "materials": {"my-steel": {"bh": [[0, 0], [100, 0.5], [1000, 1.3]]}, "my-magnet": {"br": 1.2, "hc": 9e5, "angle": 30}},
+        "circuits": {"main": {"current": 2.5}, "aux": {"current": -1}},
+        "regions": [{"name": "core", "material": "M400-50A", "x": [-20, 20], "y": [-20, 20], "torque_about": [1, 2]},
+        {"material": "my-magnet", "x": [-50, -40], "y": [-5, 5]},
+        {"name": "a", "circuit": "aux", "x": [40, 50], "y": [-5, 5]},
+        {"name": "coil+", "material": "copper", "turns": 200, "circuit": "main", "x": [22, 30], "y": [-10, 10]},
+        {"name": "coil-", "material": "my-steel", "turns": 200, "circuit": "main", "direction": -1, "x": [-30, -22], "y": [-10, 10]}]}"#,
 ];
 
 #[test]
@@ -63,6 +77,35 @@ fn every_kind_of_spec_comes_back_with_the_same_encoding() {
     for body in PROBLEMS {
         round_trips(&solution(body));
     }
+}
+
+#[test]
+fn a_device_in_another_unit_or_with_other_names_is_another_job_and_a_named_magnet_points_its_way() {
+    let id = |body: &str| crate::spec::job_id(&solution(body));
+    let device = PROBLEMS[4];
+    assert_ne!(id(device), id(&device.replace(r#""name": "core", "#, "")));
+    assert_ne!(id(device), id(&device.replace(r#""unit": "mm", "#, r#""unit": "cm", "#)));
+    assert_ne!(id(device), id(&device.replace(r#""depth": 40, "#, "")));
+    assert_ne!(id(device), id(&device.replace(r#""torque_about": [1, 2]"#, r#""torque_about": [0, 0]"#)));
+    // A built-in magnet along +y holds its Br / (μ0 μr) exactly, with no rounding from a sine.
+    let magnet = |angle: f64| {
+        let body = format!(
+            r#"{{"physics": "magnetostatic", "regions": [{{"material": "N45", "angle": {angle}, "x": [0.2, 0.4], "y": [0.2, 0.4]}}]}}"#
+        );
+        match solution(&body).work {
+            Work::Solve(s) => s.regions[0].source.unwrap(),
+            Work::Mesh(_) => unreachable!(),
+        }
+    };
+    let n45 = crate::solve::materials::find("N45").unwrap();
+    let strength = n45.br.unwrap() / crate::solve::MU_0 / n45.mu_r.unwrap();
+    assert_eq!(magnet(90.0), [0.0, strength]);
+    assert_eq!(magnet(-180.0), [-strength, 0.0]);
+    let [x, y] = magnet(30.0);
+    assert!(
+        (x - strength * 3f64.sqrt() / 2.0).abs() < 1e-12 * strength
+            && (y - strength / 2.0).abs() < 1e-12 * strength
+    );
 }
 
 #[test]
