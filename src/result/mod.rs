@@ -22,15 +22,15 @@ mod stats;
 pub use field::{Field, Lines, Location, Role};
 pub use finished::{RunResult, triangle_errors};
 pub use stats::{
-    Checkpoint, CircuitStats, MeshStats, Physics, Quality, RegionStats, SolutionStats, SolveStats, Step,
-    Stop, Summary, Unit,
+    Checkpoint, CircuitStats, Geometry, MeshStats, Physics, Quality, RegionStats, SolutionStats, SolveStats,
+    Step, Stop, Summary, Unit,
 };
 
 #[cfg(test)]
 pub(crate) mod testing {
     //! A small result for the tests of stores and encoders.
 
-    use super::RunResult;
+    use super::{Geometry, RunResult};
     use crate::geom::Rect;
     use crate::refine::trace::Recorder;
     use crate::refine::{Criterion, Params, refine};
@@ -66,7 +66,7 @@ pub(crate) mod testing {
     /// from it.
     pub(crate) fn with_potential(mut result: RunResult, a: impl Fn(f64, f64) -> f64) -> RunResult {
         result.vertices.iter_mut().for_each(|v| v.z = a(v.x, v.y));
-        let b = crate::solve::flux_density(&result.vertices, &result.triangles);
+        let b = crate::solve::flux_density(Geometry::Planar, &result.vertices, &result.triangles);
         let at = result.fields.iter().position(|f| f.name == "B").expect("a magnetostatic solution");
         result.fields[at] = b;
         result

@@ -130,6 +130,9 @@ impl From<ErrorEstimate> for Quality {
 pub struct SolutionStats {
     /// What u stands for.
     pub physics: Physics,
+    /// `axisymmetric` when the problem is solved in (r, z) for A_φ; absent when planar.
+    #[serde(skip_serializing_if = "Geometry::is_planar", default)]
+    pub geometry: Geometry,
     /// The unit of every length in the request and the answer (vertices, areas in its
     /// square), when the request named one; fields and integrals stay SI.
     #[serde(skip_serializing_if = "Option::is_none", default)]
@@ -215,6 +218,25 @@ pub enum Physics {
     /// u is the vector potential A_z (Wb/m): k = 1/(μ0 μr), f = J_z (A/m²), and the flux
     /// density is B = (∂A/∂y, −∂A/∂x) in tesla.
     Magnetostatic,
+}
+
+/// How the plane is read: a slice of an infinitely deep device, or a half-plane (r, z) turned
+/// about the axis r = 0.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Geometry {
+    /// x and y; u is A_z; figures per metre of depth.
+    #[default]
+    Planar,
+    /// x is r ≥ 0 and y is z; u is A_φ; figures for the whole turn about the axis.
+    Axisymmetric,
+}
+
+impl Geometry {
+    /// Whether it is the default, planar.
+    pub fn is_planar(&self) -> bool {
+        *self == Geometry::Planar
+    }
 }
 
 /// A unit of length for a device's geometry.

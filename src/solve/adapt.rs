@@ -19,7 +19,7 @@ use super::residual::Residual;
 use super::solution::{ErrorNorms, solve_with};
 use crate::geom::Mesh;
 use crate::refine::{Criterion, Floors, Method, Observer, Params, Progress, StopReason, resume, variation};
-use crate::result::{SolveStats, Step, Stop};
+use crate::result::{Geometry, SolveStats, Step, Stop};
 use serde::{Deserialize, Serialize};
 use std::time::{Duration, Instant};
 
@@ -87,6 +87,8 @@ pub struct Adapted {
     /// Time from the start to the end of each solve, in step order: the one thing that
     /// differs between identical runs, so kept out of the stats.
     pub times: Vec<Duration>,
+    /// How the problem read the plane.
+    pub geometry: Geometry,
 }
 
 /// An exact solution to measure u_h against.
@@ -262,7 +264,9 @@ impl Finish<'_, '_> {
             circuits: Default::default(),
             history: self.history,
         };
-        let mut adapted = Adapted { mesh, indicators, stats, fields: Vec::new(), times: self.times };
+        let geometry = self.problem.geometry();
+        let mut adapted =
+            Adapted { mesh, indicators, stats, fields: Vec::new(), times: self.times, geometry };
         measure_fields(self.problem, &mut adapted, residual, indicator)?;
         Ok(adapted)
     }
@@ -287,8 +291,8 @@ fn measure_fields(
     let mut gradients = Vec::with_capacity(triangles.len());
     let mut measured = Vec::new();
     for (t, &tri) in triangles.iter().enumerate() {
-        let e = Element::new(&points, tri, t)?;
-        gradients.push(e.gradient(tri.map(|v| u[v as usize])));
+        let e = Element::in_geometry(problem.geometry(), &points, tri, t)?;
+        gradients.push(e.field(tri.map(|v| u[v as usize])));
         if indicator == Indicator::Variation {
             measured.push(TriangleCoefficients::of(problem, &e, t)?);
         }

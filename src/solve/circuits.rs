@@ -7,6 +7,8 @@
 //! K_t du = b dI with K_t the Jacobian Newton factors (the stiffness of a linear problem), so
 //! dλ/dI = bᵀ K_t⁻¹ b, one solve with the factor of the final mesh and no second nonlinear
 //! solve. For a linear device without magnets λ = I bᵀ K⁻¹ b, and the two agree to rounding.
+//! Axisymmetric, the integrals are over r dA, so λ and the inductances are per radian: the
+//! answer turns them about the axis (2π).
 
 use super::cholesky::Analysis;
 use super::coefficients::TriangleCoefficients;
@@ -16,7 +18,7 @@ use super::error::SolveError;
 use super::nonlinear::System;
 use super::problem::Problem;
 use crate::geom::Point;
-use crate::result::CircuitStats;
+use crate::result::{CircuitStats, Geometry};
 use std::collections::BTreeMap;
 
 /// The figures of every circuit of `problem` on a solved mesh: `points` and `u` by vertex,
@@ -40,7 +42,7 @@ pub(crate) fn measure(
         return Ok(BTreeMap::new());
     }
     let elements = (triangles.iter().enumerate())
-        .map(|(t, &tri)| Element::new(points, tri, t))
+        .map(|(t, &tri)| Element::in_geometry(problem.geometry(), points, tri, t))
         .collect::<Result<Vec<_>, _>>()?;
     // b of each circuit, by vertex.
     let mut b = vec![vec![0.0; points.len()]; circuits.len()];
@@ -49,9 +51,13 @@ pub(crate) fn measure(
         let side = problem.regions().iter().rev().find(|r| r.f.is_some() && r.contains(centre));
         let Some(coil) = side.and_then(|r| r.coil.map(|c| (c, r.shape.area()))) else { continue };
         let (coil, area) = coil;
-        let share = coil.turns / area * e.area() / 3.0;
-        for v in tri {
-            b[coil.circuit][v as usize] += share;
+        for (i, v) in tri.into_iter().enumerate() {
+            // ∫ φᵢ dA = |T| / 3; axisymmetric ∫ φᵢ r dA = |T| (3 r̄ + rᵢ) / 12.
+            let integral = match problem.geometry() {
+                Geometry::Planar => e.area() / 3.0,
+                Geometry::Axisymmetric => e.area() * (3.0 * e.radius + e.p[i].x) / 12.0,
+            };
+            b[coil.circuit][v as usize] += coil.turns / area * integral;
         }
     }
     let Numbering { unknown, sign, masters, .. } = Numbering::new(problem, points)?;
@@ -64,6 +70,7 @@ pub(crate) fn measure(
         unknown: &unknown,
         sign: &sign,
         unknowns: n,
+        open: super::nonlinear::open_edges(problem, triangles, &elements, coefficients),
     };
     let mut entries = Vec::with_capacity(6 * triangles.len());
     system.residual(u, Some(&mut entries));

@@ -8,6 +8,7 @@ use super::error::SolveError;
 use super::problem::Problem;
 use super::quadrature::RULE;
 use crate::geom::Point;
+use crate::result::Geometry;
 
 /// What the quadrature rule measures of k and f on one triangle.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -16,7 +17,8 @@ pub(crate) struct TriangleCoefficients {
     pub k: f64,
     /// The rule's mean of f².
     pub f_sq: f64,
-    /// ∫ f φᵢ / area for the three hat functions.
+    /// ∫ f φᵢ over the triangle's weight (its area; |T| r̄ of ∫ f φᵢ r dA axisymmetric) for
+    /// the three hat functions.
     pub load: [f64; 3],
     /// The region whose curve replaces `k` on this triangle (read at its centroid).
     pub curve: Option<u32>,
@@ -30,6 +32,7 @@ impl TriangleCoefficients {
     pub(crate) fn of(problem: &Problem<'_>, e: &Element, t: usize) -> Result<Self, SolveError> {
         let mut c = Self { k: 0.0, f_sq: 0.0, load: [0.0; 3], curve: None, source: [0.0; 2] };
         let materials = problem.has_materials();
+        let axisymmetric = problem.geometry() == Geometry::Axisymmetric;
         cut::try_for_each_piece(e.p, problem.regions(), |piece, share| {
             for (l, w) in &RULE {
                 let (q, hats, w) = match share {
@@ -48,8 +51,10 @@ impl TriangleCoefficients {
                     return Err(SolveError::NonFiniteF { x: q.x, y: q.y, value: f, triangle: t });
                 }
                 c.f_sq += w * f * f;
+                // ∫ f φ r dA over the weight |T| r̄, axisymmetric.
+                let wr = if axisymmetric { w * q.x / e.radius } else { w };
                 for (load, phi) in c.load.iter_mut().zip(hats) {
-                    *load += w * f * phi;
+                    *load += wr * f * phi;
                 }
                 if materials {
                     let (_, source) = problem.material_at(q);

@@ -1,8 +1,18 @@
-//! The P1 element: a triangle's corners, its area and the gradients of its hat functions.
+//! The P1 element: a triangle's corners, its area and the gradients of its hat functions,
+//! and what the weak form reads of them in the problem's geometry.
+//!
+//! Planar, the field of u is ∇u and integrals are over area. Axisymmetric, x is r and y is z,
+//! u is A_φ, and B = (−∂A/∂z, ∂A/∂r + A/r) = (g_y, −g_x) for g = −(∂A/∂r + A/r, ∂A/∂z);
+//! integrals are per radian, over r dA. The element takes A/r as the mean of A at the corners
+//! over r̄, the centroid's r, and weighs the triangle by |T| r̄: exact for A = c·r, which is A
+//! near the axis, and second order elsewhere. Its B is then constant on each triangle, as ∇u
+//! is planar, so the linear and Newton solves, the energy, the fluxes and the forces are the
+//! planar ones with `d` for the hat functions' gradients and `weight` for the area.
 
 use super::error::SolveError;
 use crate::geom::predicates::signed_area_x2;
 use crate::geom::{Point, Vertex};
+use crate::result::Geometry;
 
 /// Anything with a position in the plane: [`Point`] and [`Vertex`].
 pub trait Position {
@@ -27,6 +37,13 @@ pub struct Element {
     pub(super) p: [Point; 3],
     pub(super) area: f64,
     pub(super) grad: [[f64; 2]; 3],
+    /// What each hat function adds to the field g: its gradient, planar.
+    pub(super) d: [[f64; 2]; 3],
+    /// What the triangle weighs in the weak form's integrals: its area, planar; |T| r̄
+    /// axisymmetric.
+    pub(super) weight: f64,
+    /// r̄ axisymmetric, 1 planar: what weighs the triangle's share of an integral over r dA.
+    pub(super) radius: f64,
 }
 
 impl Element {
@@ -45,7 +62,27 @@ impl Element {
             let (j, k) = ((i + 1) % 3, (i + 2) % 3);
             [(p[j].y - p[k].y) / det, (p[k].x - p[j].x) / det]
         });
-        Ok(Self { p, area: det / 2.0, grad })
+        Ok(Self { p, area: det / 2.0, grad, d: grad, weight: det / 2.0, radius: 1.0 })
+    }
+
+    /// Triangle `t` with corners `tri` in `geometry`; see the module's documentation.
+    ///
+    /// # Errors
+    /// As [`Element::new`].
+    pub fn in_geometry<P: Position>(
+        geometry: Geometry,
+        vertices: &[P],
+        tri: [u32; 3],
+        t: usize,
+    ) -> Result<Self, SolveError> {
+        let mut e = Self::new(vertices, tri, t)?;
+        if geometry == Geometry::Axisymmetric {
+            let r = (e.p[0].x + e.p[1].x + e.p[2].x) / 3.0;
+            e.d = e.grad.map(|[gr, gz]| [-(gr + 1.0 / (3.0 * r)), -gz]);
+            e.weight = e.area * r;
+            e.radius = r;
+        }
+        Ok(e)
     }
 
     pub(super) fn point(&self, l: &[f64; 3]) -> Point {
@@ -53,6 +90,17 @@ impl Element {
             l[0] * self.p[0].x + l[1] * self.p[1].x + l[2] * self.p[2].x,
             l[0] * self.p[0].y + l[1] * self.p[1].y + l[2] * self.p[2].y,
         )
+    }
+
+    /// The field g of the linear function with `values` at the corners: ∇u planar (B is
+    /// (g_y, −g_x) in magnetostatics, either geometry).
+    pub fn field(&self, values: [f64; 3]) -> [f64; 2] {
+        let mut g = [0.0; 2];
+        for (v, d) in values.iter().zip(&self.d) {
+            g[0] += v * d[0];
+            g[1] += v * d[1];
+        }
+        g
     }
 
     /// ∇ of the linear function with `values` at the corners.
@@ -66,7 +114,7 @@ impl Element {
     }
 
     /// The three hat functions at `q`: its barycentric coordinates.
-    pub(super) fn hats(&self, q: Point) -> [f64; 3] {
+    pub(crate) fn hats(&self, q: Point) -> [f64; 3] {
         std::array::from_fn(|i| {
             let p = self.p[i];
             1.0 + self.grad[i][0] * (q.x - p.x) + self.grad[i][1] * (q.y - p.y)
@@ -76,5 +124,10 @@ impl Element {
     /// The triangle's area.
     pub(crate) fn area(&self) -> f64 {
         self.area
+    }
+
+    /// What the triangle weighs in the weak form: its area, or |T| r̄ axisymmetric.
+    pub(crate) fn weight(&self) -> f64 {
+        self.weight
     }
 }

@@ -6,7 +6,7 @@ use super::adapt::Adapted;
 use super::element::Element;
 use super::physics::MU_0;
 use crate::geom::Vertex;
-use crate::result::{Field, Lines, Physics, Role, RunResult, SolutionStats, Summary};
+use crate::result::{Field, Geometry, Lines, Physics, Role, RunResult, SolutionStats, Summary};
 
 impl Adapted {
     /// The result of this solve: z = u at every vertex, η_T per triangle and the fields of
@@ -17,13 +17,19 @@ impl Adapted {
         let mut fields: Vec<Field> =
             self.indicators.map(crate::result::triangle_errors).into_iter().collect();
         if physics == Physics::Magnetostatic {
-            fields.extend(magnetostatic(&vertices, &triangles, &self.fields));
+            fields.extend(magnetostatic(self.geometry, &vertices, &triangles, &self.fields));
         }
         RunResult {
             vertices,
             triangles,
             fields,
-            stats: Summary::Solution(SolutionStats { physics, unit: None, depth: None, run: self.stats }),
+            stats: Summary::Solution(SolutionStats {
+                physics,
+                geometry: self.geometry,
+                unit: None,
+                depth: None,
+                run: self.stats,
+            }),
             trace: None,
         }
     }
@@ -32,9 +38,14 @@ impl Adapted {
 /// B = (∂A/∂y, −∂A/∂x) from the potential at the vertices, in tesla; H = (q_y, −q_x) from the
 /// flux q the weak form tests, in A/m; and μr = 1/(μ0 ν), the secant permeability B/(μ0 H)
 /// on a B–H curve. `flux` holds [q_x, q_y, ν] per triangle.
-fn magnetostatic(vertices: &[Vertex], triangles: &[[u32; 3]], flux: &[[f64; 3]]) -> [Field; 3] {
+fn magnetostatic(
+    geometry: Geometry,
+    vertices: &[Vertex],
+    triangles: &[[u32; 3]],
+    flux: &[[f64; 3]],
+) -> [Field; 3] {
     [
-        flux_density(vertices, triangles),
+        flux_density(geometry, vertices, triangles),
         Field::cell_vector(
             "H",
             "magnetic_field",
@@ -53,12 +64,13 @@ fn magnetostatic(vertices: &[Vertex], triangles: &[[u32; 3]], flux: &[[f64; 3]])
 }
 
 /// B = (∂A/∂y, −∂A/∂x) per triangle, in tesla, from A = z at the vertices; its field lines
-/// are the contours of A.
-pub(crate) fn flux_density(vertices: &[Vertex], triangles: &[[u32; 3]]) -> Field {
+/// are the contours of A. Axisymmetric, B = (B_r, B_z) from A_φ (see [`Element`]), and the
+/// field lines are the contours of r·A_φ.
+pub(crate) fn flux_density(geometry: Geometry, vertices: &[Vertex], triangles: &[[u32; 3]]) -> Field {
     let b = triangles.iter().enumerate().map(|(t, &tri)| {
         let z = tri.map(|v| vertices[v as usize].z);
         // The solver's triangles are counter-clockwise, so this never fails.
-        let g = Element::new(vertices, tri, t).map_or([0.0; 2], |e| e.gradient(z));
+        let g = Element::in_geometry(geometry, vertices, tri, t).map_or([0.0; 2], |e| e.field(z));
         [g[1], -g[0]]
     });
     let lines = Lines { name: "field lines".into(), z: "A".into(), z_unit: "Wb/m".into() };

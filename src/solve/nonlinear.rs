@@ -50,6 +50,58 @@ pub(super) struct System<'s, 'p> {
     pub sign: &'s [f64],
     /// How many unknowns there are.
     pub unknowns: usize,
+    /// The edges on open sides, with their Robin terms ([`open_edges`]).
+    pub open: Vec<OpenEdge>,
+}
+
+/// An edge on an open side: its ends, k ∫ c φₐ φ_b and k ∫ h φₐ over it (times r
+/// axisymmetric), which the weak form adds for k ∂u/∂n = k (h − c u).
+pub(super) struct OpenEdge {
+    ends: [u32; 2],
+    matrix: [[f64; 2]; 2],
+    load: [f64; 2],
+}
+
+/// The edges of `triangles` that lie on an open side of `problem`, each with its Robin terms
+/// by the 2-point Gauss rule, for the net source ∫ f the loads give.
+pub(super) fn open_edges(
+    problem: &Problem<'_>,
+    triangles: &[[u32; 3]],
+    elements: &[Element],
+    coefficients: &[TriangleCoefficients],
+) -> Vec<OpenEdge> {
+    if !problem.boundary().has_open() {
+        return Vec::new();
+    }
+    // Σ_T weight · Σᵢ ∫ f φᵢ / weight = ∫ f, the hat functions summing to 1.
+    let net: f64 =
+        (elements.iter().zip(coefficients)).map(|(e, c)| e.weight * c.load.iter().sum::<f64>()).sum();
+    let axisymmetric = problem.geometry() == crate::result::Geometry::Axisymmetric;
+    let gauss = [0.5 - 0.5 / 3f64.sqrt(), 0.5 + 0.5 / 3f64.sqrt()];
+    let mut edges = Vec::new();
+    for ((e, c), &tri) in elements.iter().zip(coefficients).zip(triangles) {
+        for i in 0..3 {
+            let (a, b) = (e.p[i], e.p[(i + 1) % 3]);
+            let Some(n) = problem.open_normal(a, b) else { continue };
+            let half = 0.5 * (b.x - a.x).hypot(b.y - a.y);
+            let mut edge =
+                OpenEdge { ends: [tri[i], tri[(i + 1) % 3]], matrix: [[0.0; 2]; 2], load: [0.0; 2] };
+            for s in gauss {
+                let x = crate::geom::Point::new(a.x + s * (b.x - a.x), a.y + s * (b.y - a.y));
+                let (robin, data) = problem.open(x, n, net, c.k);
+                let w = half * c.k * if axisymmetric { x.x } else { 1.0 };
+                let phi = [1.0 - s, s];
+                for alpha in 0..2 {
+                    edge.load[alpha] += w * data * phi[alpha];
+                    for beta in 0..2 {
+                        edge.matrix[alpha][beta] += w * robin * phi[alpha] * phi[beta];
+                    }
+                }
+            }
+            edges.push(edge);
+        }
+    }
+    edges
 }
 
 impl System<'_, '_> {
@@ -61,12 +113,12 @@ impl System<'_, '_> {
             for i in 0..3 {
                 let Some(row) = self.unknown[tri[i] as usize] else { continue };
                 let si = self.sign[tri[i] as usize];
-                rhs[row] += si * e.area * c.load[i];
+                rhs[row] += si * e.weight * c.load[i];
                 if c.source != [0.0; 2] {
-                    rhs[row] += si * e.area * (c.source[0] * e.grad[i][1] - c.source[1] * e.grad[i][0]);
+                    rhs[row] += si * e.weight * (c.source[0] * e.d[i][1] - c.source[1] * e.d[i][0]);
                 }
                 for j in 0..3 {
-                    let a = c.k * e.area * (e.grad[i][0] * e.grad[j][0] + e.grad[i][1] * e.grad[j][1]);
+                    let a = c.k * e.weight * (e.d[i][0] * e.d[j][0] + e.d[i][1] * e.d[j][1]);
                     match self.unknown[tri[j] as usize] {
                         // Lower triangle only, stored as (column, row).
                         Some(col) if row >= col => {
@@ -74,6 +126,21 @@ impl System<'_, '_> {
                         }
                         Some(_) => {}
                         None => rhs[row] -= si * a * u[tri[j] as usize],
+                    }
+                }
+            }
+        }
+        for edge in &self.open {
+            for alpha in 0..2 {
+                let Some(row) = self.unknown[edge.ends[alpha] as usize] else { continue };
+                let si = self.sign[edge.ends[alpha] as usize];
+                rhs[row] += si * edge.load[alpha];
+                for beta in 0..2 {
+                    let (vj, a) = (edge.ends[beta] as usize, edge.matrix[alpha][beta]);
+                    match self.unknown[vj] {
+                        Some(col) if row >= col => entries.push((col, row, si * self.sign[vj] * a)),
+                        Some(_) => {}
+                        None => rhs[row] -= si * a * u[vj],
                     }
                 }
             }
@@ -159,7 +226,7 @@ impl System<'_, '_> {
             j.clear();
         }
         for ((e, c), &tri) in self.elements.iter().zip(self.coefficients).zip(self.triangles) {
-            let g = e.gradient(tri.map(|v| u[v as usize]));
+            let g = e.field(tri.map(|v| u[v as usize]));
             let b = g[0].hypot(g[1]);
             let (nu, dh) = c.nu(self.problem, b);
             let q = [nu * g[0] + c.source[1], nu * g[1] - c.source[0]];
@@ -167,10 +234,10 @@ impl System<'_, '_> {
             let along = if c.curve.is_some() && b > 0.0 { (dh - nu) / (b * b) } else { 0.0 };
             for i in 0..3 {
                 let Some(row) = self.unknown[tri[i] as usize] else { continue };
-                let (gi, si) = (e.grad[i], self.sign[tri[i] as usize]);
-                r[row] += si * e.area * (q[0] * gi[0] + q[1] * gi[1] - c.load[i]);
+                let (gi, si) = (e.d[i], self.sign[tri[i] as usize]);
+                r[row] += si * e.weight * (q[0] * gi[0] + q[1] * gi[1] - c.load[i]);
                 let Some(jac) = jacobian.as_deref_mut() else { continue };
-                for (&vj, gj) in tri.iter().zip(e.grad) {
+                for (&vj, gj) in tri.iter().zip(e.d) {
                     let Some(col) = self.unknown[vj as usize] else { continue };
                     if row < col {
                         continue;
@@ -179,7 +246,25 @@ impl System<'_, '_> {
                     if along != 0.0 {
                         a += along * (g[0] * gi[0] + g[1] * gi[1]) * (g[0] * gj[0] + g[1] * gj[1]);
                     }
-                    jac.push((col, row, si * self.sign[vj as usize] * e.area * a));
+                    jac.push((col, row, si * self.sign[vj as usize] * e.weight * a));
+                }
+            }
+        }
+        for edge in &self.open {
+            for alpha in 0..2 {
+                let Some(row) = self.unknown[edge.ends[alpha] as usize] else { continue };
+                let si = self.sign[edge.ends[alpha] as usize];
+                let m = edge.matrix[alpha];
+                let [ua, ub] = edge.ends.map(|v| u[v as usize]);
+                r[row] += si * (m[0] * ua + m[1] * ub - edge.load[alpha]);
+                let Some(jac) = jacobian.as_deref_mut() else { continue };
+                for (&vj, a) in edge.ends.iter().zip(m) {
+                    let vj = vj as usize;
+                    if let Some(col) = self.unknown[vj]
+                        && row >= col
+                    {
+                        jac.push((col, row, si * self.sign[vj] * a));
+                    }
                 }
             }
         }

@@ -4,6 +4,7 @@
 use super::bh::Curve;
 use super::polygon::{Polygon, PolygonError};
 use crate::geom::{Point, Rect};
+use crate::result::Geometry;
 use std::sync::Arc;
 
 /// A scalar field on the plane, evaluated at (x, y).
@@ -203,6 +204,9 @@ pub enum Side {
     Periodic,
     /// As `periodic`, with u opposite: a motor slice over one pole.
     Antiperiodic,
+    /// Unbounded space beyond the side: an asymptotic (Robin) condition, k ∂u/∂n + k c u = k h,
+    /// that a field decaying as a dipole's meets exactly (see [`Problem::open`]).
+    Open,
 }
 
 impl Side {
@@ -211,7 +215,7 @@ impl Side {
         match self {
             Side::Periodic => Some(1.0),
             Side::Antiperiodic => Some(-1.0),
-            Side::Dirichlet | Side::Neumann => None,
+            Side::Dirichlet | Side::Neumann | Side::Open => None,
         }
     }
 }
@@ -233,6 +237,11 @@ impl Boundary {
     /// Whether any side is Dirichlet: otherwise u is fixed only up to a constant.
     pub fn has_dirichlet(&self) -> bool {
         [self.left, self.right, self.bottom, self.top].contains(&Side::Dirichlet)
+    }
+
+    /// Whether any side is open: its condition fixes u too.
+    pub fn has_open(&self) -> bool {
+        [self.left, self.right, self.bottom, self.top].contains(&Side::Open)
     }
 
     /// The sign of the left–right pair (u right = sign · u left), when the pair is periodic.
@@ -272,6 +281,7 @@ pub struct Problem<'a> {
     regions: Vec<Region>,
     circuits: Vec<Circuit>,
     boundary: Boundary,
+    geometry: Geometry,
 }
 
 impl<'a> Problem<'a> {
@@ -285,6 +295,7 @@ impl<'a> Problem<'a> {
             regions: Vec::new(),
             circuits: Vec::new(),
             boundary: Boundary::default(),
+            geometry: Geometry::Planar,
         }
     }
 
@@ -329,6 +340,24 @@ impl<'a> Problem<'a> {
         self
     }
 
+    /// Reads the plane as (r, z) about the axis x = 0 (x ≥ 0 everywhere): the equation is
+    /// then the axisymmetric one for A_φ, and A_φ = 0 on the axis, whatever the left side
+    /// says. Planar by default.
+    pub fn with_geometry(mut self, geometry: Geometry) -> Self {
+        self.geometry = geometry;
+        self
+    }
+
+    /// How the plane is read.
+    pub fn geometry(&self) -> Geometry {
+        self.geometry
+    }
+
+    /// Whether `p` lies on the axis of an axisymmetric problem.
+    fn on_axis(&self, p: Point) -> bool {
+        self.geometry == Geometry::Axisymmetric && p.x == 0.0
+    }
+
     /// Each side's condition.
     pub fn boundary(&self) -> Boundary {
         self.boundary
@@ -338,7 +367,8 @@ impl<'a> Problem<'a> {
     /// corner between a Dirichlet and a Neumann side is Dirichlet.
     pub(crate) fn is_dirichlet(&self, p: Point) -> bool {
         let (d, b) = (self.domain, self.boundary);
-        (p.x == d.x0() && b.left == Side::Dirichlet)
+        self.on_axis(p)
+            || (p.x == d.x0() && b.left == Side::Dirichlet)
             || (p.x == d.x1() && b.right == Side::Dirichlet)
             || (p.y == d.y0() && b.bottom == Side::Dirichlet)
             || (p.y == d.y1() && b.top == Side::Dirichlet)
@@ -352,6 +382,50 @@ impl<'a> Problem<'a> {
             || (a.y == b.y
                 && ((a.y == d.y0() && s.bottom == Side::Neumann)
                     || (a.y == d.y1() && s.top == Side::Neumann)))
+    }
+
+    /// The outward normal of the open side the segment `a`–`b` lies on, if it lies on one.
+    pub(crate) fn open_normal(&self, a: Point, b: Point) -> Option<[f64; 2]> {
+        let (d, s) = (self.domain, self.boundary);
+        if a.x == b.x && a.x == d.x0() && s.left == Side::Open {
+            Some([-1.0, 0.0])
+        } else if a.x == b.x && a.x == d.x1() && s.right == Side::Open {
+            Some([1.0, 0.0])
+        } else if a.y == b.y && a.y == d.y0() && s.bottom == Side::Open {
+            Some([0.0, -1.0])
+        } else if a.y == b.y && a.y == d.y1() && s.top == Side::Open {
+            Some([0.0, 1.0])
+        } else {
+            None
+        }
+    }
+
+    /// The open boundary's condition at `p` of a side with outward normal `n`: ∂u/∂n + c u = h,
+    /// as (c, h) for a net source `net` (∫ f) in a medium of coefficient `k`.
+    ///
+    /// Far from the sources u is a multipole expansion about the domain's centre o (planar;
+    /// axisymmetric, the axis's point at the height of the domain's middle). Planar, u =
+    /// −net/(2πk) ln(ρ/ρ₀) + a dipole ∝ cos θ/ρ + …; the condition ∂u/∂ρ = −u/ρ is the
+    /// dipole's, and h carries the logarithm's remainder, so a device with a net current and
+    /// one without both meet it to the quadrupole's order. Axisymmetric, A_φ of a dipole falls
+    /// as sin θ/R², so ∂A/∂R = −2A/R, and there is no net term. On a side, ∂/∂n = (ρ̂·n) ∂/∂ρ.
+    /// ρ₀ is half the domain's diagonal, where the logarithm's u is 0.
+    pub(crate) fn open(&self, p: Point, n: [f64; 2], net: f64, k: f64) -> (f64, f64) {
+        let d = self.domain;
+        let centre = match self.geometry {
+            Geometry::Planar => Point::new((d.x0() + d.x1()) / 2.0, (d.y0() + d.y1()) / 2.0),
+            Geometry::Axisymmetric => Point::new(0.0, (d.y0() + d.y1()) / 2.0),
+        };
+        let (rx, ry) = (p.x - centre.x, p.y - centre.y);
+        let rho_sq = rx * rx + ry * ry;
+        let along = (rx * n[0] + ry * n[1]) / rho_sq;
+        match self.geometry {
+            Geometry::Planar => {
+                let log = 0.5 * (rho_sq / (0.25 * d.diagonal() * d.diagonal())).ln();
+                (along, -along * net / (2.0 * std::f64::consts::PI * k) * (1.0 + log))
+            }
+            Geometry::Axisymmetric => (2.0 * along, 0.0),
+        }
     }
 
     /// Every region side, for a mesh that follows them.
@@ -412,9 +486,9 @@ impl<'a> Problem<'a> {
         region.unwrap_or_else(|| (self.k)(p.x, p.y))
     }
 
-    /// g at `p`.
+    /// g at `p`; 0 on the axis.
     pub(crate) fn g_at(&self, p: Point) -> f64 {
-        (self.g)(p.x, p.y)
+        if self.on_axis(p) { 0.0 } else { (self.g)(p.x, p.y) }
     }
 }
 
@@ -425,6 +499,7 @@ impl std::fmt::Debug for Problem<'_> {
             .field("regions", &self.regions)
             .field("circuits", &self.circuits)
             .field("boundary", &self.boundary)
+            .field("geometry", &self.geometry)
             .finish_non_exhaustive()
     }
 }

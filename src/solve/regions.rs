@@ -9,11 +9,15 @@
 //! follows the region's sides, so that ring never cuts into it. The torque about the region's
 //! point p is −∫ ((x − p_x) (T∇w)_y − (y − p_y) (T∇w)_x), T∇w being constant on each
 //! triangle.
+//!
+//! Axisymmetric, the same integrals run over r dA (per radian; the answer turns them about
+//! the axis): the force is axial, [0, F_z], the radial parts cancelling round the turn, and
+//! there is no torque. The mean of A is then weighted by r.
 
 use super::coefficients::TriangleCoefficients;
 use super::element::Element;
 use super::problem::Problem;
-use crate::result::RegionStats;
+use crate::result::{Geometry, RegionStats};
 
 /// The figures of every region of `problem` on a solved mesh: `points` and `u` by vertex,
 /// `gradients` and `coefficients` by triangle.
@@ -27,6 +31,7 @@ pub(crate) fn measure(
 ) -> Vec<RegionStats> {
     // A split of a slanted side leaves its midpoint within rounding of the side.
     let tolerance = 1e-9 * problem.domain().diagonal();
+    let geometry = problem.geometry();
     let mut weight = vec![0.0; points.len()];
     problem
         .regions()
@@ -44,11 +49,11 @@ pub(crate) fn measure(
                 if sum == 0.0 {
                     continue;
                 }
-                let Ok(e) = Element::new(points, tri, t) else { continue };
+                let Ok(e) = Element::in_geometry(geometry, points, tri, t) else { continue };
                 let centre = e.point(&[1.0 / 3.0; 3]);
                 if sum == 3.0 && region.contains(centre) {
-                    inside += e.area();
-                    integral += e.area() * tri.map(|v| u[v as usize]).iter().sum::<f64>() / 3.0;
+                    inside += e.weight();
+                    integral += e.weight() * tri.map(|v| u[v as usize]).iter().sum::<f64>() / 3.0;
                 } else if sum > 0.0 && sum < 3.0 {
                     let gw = e.gradient(weights);
                     let g = gradients[t];
@@ -59,11 +64,15 @@ pub(crate) fn measure(
                         nu * ((b[0] * b[0] - half) * gw[0] + b[0] * b[1] * gw[1]),
                         nu * (b[1] * b[0] * gw[0] + (b[1] * b[1] - half) * gw[1]),
                     ];
-                    force[0] -= e.area() * tg[0];
-                    force[1] -= e.area() * tg[1];
+                    force[0] -= e.weight() * tg[0];
+                    force[1] -= e.weight() * tg[1];
                     let (x, y) = (centre.x - region.torque_about.x, centre.y - region.torque_about.y);
-                    torque -= e.area() * (x * tg[1] - y * tg[0]);
+                    torque -= e.weight() * (x * tg[1] - y * tg[0]);
                 }
+            }
+            if geometry == Geometry::Axisymmetric {
+                // Turned about the axis, the radial pulls cancel and nothing turns.
+                (force[0], torque) = (0.0, 0.0);
             }
             let area = region.shape.area();
             RegionStats {

@@ -6,6 +6,8 @@
 //! jump is constant along an edge (u_h is linear on each side), so its term is |E|² · jump².
 //! Dirichlet edges carry no jump: u is given there. A Neumann edge's term is its whole normal
 //! flux, which should vanish, without the ½ that two triangles sharing an edge split.
+//! Axisymmetric, the flux is the field's (see [`Element`]) and every term is weighed by r̄,
+//! as the norm is over r dA.
 //!
 //! Between solves the engine refines with this as its [`Estimator`]: a new vertex takes the
 //! mean of its edge's ends (u_h interpolated), and a rewritten triangle's indicator is measured
@@ -29,12 +31,14 @@ pub(crate) struct Residual<'p, 'a> {
     /// k ∇u_h, by triangle slot: set from each solve's gradients, and measured again on the
     /// interpolated values where the engine rewrites a triangle.
     flux: Vec<[f64; 2]>,
+    /// r̄ by triangle slot (1 planar): an axisymmetric jump counts in the norm over r dA.
+    radius: Vec<f64>,
 }
 
 impl<'p, 'a> Residual<'p, 'a> {
     /// An estimator for `problem` that has measured no triangle yet.
     pub(crate) fn new(problem: &'p Problem<'a>) -> Self {
-        Self { problem, coefficients: Vec::new(), volume: Vec::new(), flux: Vec::new() }
+        Self { problem, coefficients: Vec::new(), volume: Vec::new(), flux: Vec::new(), radius: Vec::new() }
     }
 
     /// Each triangle's coefficients, by triangle index, once [`Residual::measure_all`] and
@@ -60,14 +64,16 @@ impl<'p, 'a> Residual<'p, 'a> {
             self.coefficients.resize(t + 1, empty);
             self.volume.resize(t + 1, 0.0);
             self.flux.resize(t + 1, [0.0; 2]);
+            self.radius.resize(t + 1, 1.0);
         }
         let tri = mesh.triangle(t);
-        let e = Element::new(mesh.vertices(), tri, t)?;
+        let e = Element::in_geometry(self.problem.geometry(), mesh.vertices(), tri, t)?;
         let c = TriangleCoefficients::of(self.problem, &e, t)?;
         let h_sq = (3 * t as u32..3 * t as u32 + 3).map(|h| mesh.len_sq(h)).fold(0.0, f64::max);
-        let g = e.gradient(tri.map(|v| mesh.vertex(v).z));
+        let g = e.field(tri.map(|v| mesh.vertex(v).z));
         self.coefficients[t] = c;
-        self.volume[t] = h_sq * e.area() * c.f_sq;
+        self.volume[t] = h_sq * e.weight() * c.f_sq;
+        self.radius[t] = e.radius;
         self.flux[t] = c.flux(self.problem, g);
         Ok(())
     }
@@ -99,7 +105,7 @@ impl<'p, 'a> Residual<'p, 'a> {
             let jump = (own[0] - other[0]) * (b.y - a.y) - (own[1] - other[1]) * (b.x - a.x);
             jumps += jump * jump;
         }
-        self.volume[t as usize] + 0.5 * jumps + neumann
+        self.volume[t as usize] + self.radius[t as usize] * (0.5 * jumps + neumann)
     }
 }
 

@@ -84,7 +84,7 @@ pub(crate) fn solve_with<P: Position>(
     let Numbering { unknown, sign, mut u, masters } = Numbering::new(problem, vertices)?;
     let n = masters.len();
     let elements = (triangles.iter().enumerate())
-        .map(|(t, &tri)| Element::new(vertices, tri, t))
+        .map(|(t, &tri)| Element::in_geometry(problem.geometry(), vertices, tri, t))
         .collect::<Result<Vec<_>, _>>()?;
     let measured;
     let coefficients = match known {
@@ -104,6 +104,7 @@ pub(crate) fn solve_with<P: Position>(
         unknown: &unknown,
         sign: &sign,
         unknowns: masters.len(),
+        open: nonlinear::open_edges(problem, triangles, &elements, coefficients),
     };
     let newton = if problem.is_nonlinear() {
         if let Some(start) = start {
@@ -120,14 +121,14 @@ pub(crate) fn solve_with<P: Position>(
     let (mut energy, mut work) = (0.0, 0.0);
     let mut gradients = Vec::with_capacity(triangles.len());
     for ((e, c), &tri) in elements.iter().zip(coefficients).zip(triangles) {
-        let g = e.gradient(tri.map(|v| u[v as usize]));
+        let g = e.field(tri.map(|v| u[v as usize]));
         if c.curve.is_none() && c.source == [0.0; 2] {
-            energy += 0.5 * c.k * e.area() * (g[0] * g[0] + g[1] * g[1]);
-            work += c.k * e.area() * (g[0] * g[0] + g[1] * g[1]);
+            energy += 0.5 * c.k * e.weight() * (g[0] * g[0] + g[1] * g[1]);
+            work += c.k * e.weight() * (g[0] * g[0] + g[1] * g[1]);
         } else {
             let (w, b_dot_h) = c.densities(problem, g);
-            energy += e.area() * w;
-            work += e.area() * b_dot_h;
+            energy += e.weight() * w;
+            work += e.weight() * b_dot_h;
         }
         gradients.push(g);
     }
