@@ -1,7 +1,7 @@
 //! Wire types of the HTTP API (serde only). Field docs here are the ones in openapi.yaml.
 
 use crate::refine::{Criterion, Method};
-use crate::result::{Summary, Unit};
+use crate::result::{Geometry, Summary, Unit};
 use crate::solve::{Indicator, Physics, Side};
 use crate::source::{Encoding, RawType};
 use serde::de::{self, Deserializer, Visitor};
@@ -410,8 +410,12 @@ pub struct SolveRequest {
     /// Circuits by name, each a current through coil regions in series (magnetostatic).
     #[serde(default)]
     pub circuits: BTreeMap<String, CircuitInput>,
-    /// Each side's condition: `dirichlet` (u = g, the default) or `neumann` (zero normal flux).
-    pub boundary: Option<BoundaryInput>,
+    /// Each side's condition: `dirichlet` (u = g, the default), `neumann` (zero normal flux),
+    /// `periodic`, `antiperiodic` or `open` (magnetostatic); one name for every side, or an
+    /// object by side.
+    pub boundary: Option<BoundaryField>,
+    /// `planar` (default) or `axisymmetric`: x is r ≥ 0 and y is z, u is A_φ (magnetostatic).
+    pub geometry: Option<Geometry>,
     /// Rectangles and polygons inside the domain, later entries winning, that override k and
     /// f (or the material and current).
     #[serde(default)]
@@ -543,8 +547,9 @@ pub struct CircuitInput {
     pub current: f64,
 }
 
-/// The condition on each side of the domain; a side left out is `dirichlet`.
-#[derive(Debug, Clone, Copy, Default, Deserialize)]
+/// The condition on each side of the domain; a side left out is `dirichlet`. On the wire an
+/// object by side, or one name for every side (`"boundary": "open"`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BoundaryInput {
     /// x = a.
@@ -555,6 +560,38 @@ pub struct BoundaryInput {
     pub bottom: Option<Side>,
     /// y = d.
     pub top: Option<Side>,
+    /// Whether the request named one condition for every side.
+    #[serde(skip)]
+    pub every_side: bool,
+}
+
+/// The request's `boundary`: one side's name for all four, or an object by side.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct BoundaryField(pub BoundaryInput);
+
+impl<'de> Deserialize<'de> for BoundaryField {
+    /// By hand rather than `untagged`, so that a bad side inside the object is still named
+    /// by its path (`boundary.left`).
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = BoundaryField;
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str(
+                    "a side's condition for every side, or an object by side (left, right, bottom, top)",
+                )
+            }
+            fn visit_str<E: de::Error>(self, v: &str) -> Result<BoundaryField, E> {
+                let side = Side::deserialize(de::value::StrDeserializer::<E>::new(v))?;
+                let s = Some(side);
+                Ok(BoundaryField(BoundaryInput { left: s, right: s, bottom: s, top: s, every_side: true }))
+            }
+            fn visit_map<M: de::MapAccess<'de>>(self, map: M) -> Result<BoundaryField, M::Error> {
+                BoundaryInput::deserialize(de::value::MapAccessDeserializer::new(map)).map(BoundaryField)
+            }
+        }
+        d.deserialize_any(V)
+    }
 }
 
 /// Why a JSON body is not the request it should be, and where.

@@ -21,8 +21,9 @@
 //! - [`result`]: a finished run as data: arrays, named fields per vertex or triangle (with
 //!   units), stats, trace; its checksummed binary form, and point location for F_n anywhere.
 //! - [`solve`]: P1 finite elements on a mesh's vertices and triangles: −∇·(k ∇u) = f with
-//!   Dirichlet, Neumann and periodic sides, regions that are rectangles or polygons, B–H
-//!   curves solved by Newton, magnets, region forces, a sparse Cholesky solve, error norms
+//!   Dirichlet, Neumann, periodic and open sides, planar or axisymmetric, regions that are
+//!   rectangles or polygons, B–H curves solved by Newton, magnets, coils on circuits and their
+//!   inductance, region forces, the material library, a sparse Cholesky solve, error norms
 //!   against an exact solution, the adaptive loop, and each physics' derived fields.
 //! - [`tiles`]: terrain tiles for web maps: the geographic z/x/y scheme with each level's
 //!   error, a tile's crack-free mesh of a DEM (its sides fixed from their own values, then

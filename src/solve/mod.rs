@@ -1,6 +1,9 @@
 //! P1 finite elements on a triangle mesh: −∇·(k ∇u) = f in a rectangle; u = g on its Dirichlet
-//! sides, zero flux on its Neumann sides, u equal or opposite across a periodic pair; k a
-//! constant, an expression, or a B–H curve of |∇u| (nonlinear, by Newton).
+//! sides, zero flux on its Neumann sides, u equal or opposite across a periodic pair, an
+//! asymptotic condition on its open sides; k a constant, an expression, or a B–H curve of |∇u|
+//! (nonlinear, by Newton). Planar, or axisymmetric in (r, z) for A_φ (see `element`); coils on
+//! circuits give their flux linkage and inductances (`circuits`), and `materials` is the
+//! built-in library of laws.
 //!
 //! # Usage
 //! Describe the problem with [`Problem`], then call [`solve`] with the mesh's vertices (either
@@ -33,7 +36,8 @@
 //! - Linear g with f = 0 and constant k is reproduced to rounding (the patch test).
 //!
 //! # Limitations
-//! - No Robin data; every problem needs one Dirichlet side.
+//! - Robin data only as open sides' asymptotic condition; every problem needs one Dirichlet or
+//!   open side.
 //! - On a mesh that does not follow a region (a library caller's own), a side that cuts a
 //!   triangle is integrated exactly, but u_h stays linear across it; a curve's or a magnet's
 //!   triangle takes the material at its centroid. [`adapt`]'s meshes follow every side.

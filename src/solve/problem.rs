@@ -205,7 +205,7 @@ pub enum Side {
     /// As `periodic`, with u opposite: a motor slice over one pole.
     Antiperiodic,
     /// Unbounded space beyond the side: an asymptotic (Robin) condition, k ∂u/∂n + k c u = k h,
-    /// that a field decaying as a dipole's meets exactly (see [`Problem::open`]).
+    /// that a field decaying as a dipole's meets exactly, with a net current's logarithm as data.
     Open,
 }
 
@@ -387,7 +387,9 @@ impl<'a> Problem<'a> {
     /// The outward normal of the open side the segment `a`–`b` lies on, if it lies on one.
     pub(crate) fn open_normal(&self, a: Point, b: Point) -> Option<[f64; 2]> {
         let (d, s) = (self.domain, self.boundary);
-        if a.x == b.x && a.x == d.x0() && s.left == Side::Open {
+        if self.on_axis(a) && self.on_axis(b) {
+            None
+        } else if a.x == b.x && a.x == d.x0() && s.left == Side::Open {
             Some([-1.0, 0.0])
         } else if a.x == b.x && a.x == d.x1() && s.right == Side::Open {
             Some([1.0, 0.0])

@@ -15,6 +15,7 @@ use super::checks::{Limits, SpecError, domain_error, expression, grid_error};
 use super::job::{JobSpec, Knobs, MeshSpec, Work};
 use super::solution::{BhTable, Function, MAX_CORNERS, MAX_REGIONS, SolveSpec, Steering};
 use crate::geom::{Point, Rect};
+use crate::result::Geometry;
 use crate::solve::{BhCurve, Boundary, Circuit, Coil, Region, Shape};
 use crate::source::{Grid, GridError, GridFileError, Source};
 use serde::Serialize;
@@ -193,6 +194,9 @@ fn write_solution<S: Sink>(w: &mut Writer<'_, S>, spec: &SolveSpec) {
     }
     if let Some(unit) = spec.unit {
         w.name("unit", &unit);
+    }
+    if spec.geometry == Geometry::Axisymmetric {
+        w.name("geometry", &spec.geometry);
     }
     if let Some(depth) = spec.depth {
         w.floats("depth", &[depth]);
@@ -442,6 +446,10 @@ fn read_solution(r: &mut Reader<'_>, limits: &Limits) -> Result<JobSpec, DecodeE
         return Err(r.malformed(format!("region {i} names a circuit past the {} given", circuits.len())));
     }
     let unit = if r.next_is("unit") { Some(r.name("unit")?) } else { None };
+    let geometry = if r.next_is("geometry") { r.name("geometry")? } else { Geometry::Planar };
+    if geometry == Geometry::Axisymmetric && domain.x0() < 0.0 {
+        return Err(r.malformed("an axisymmetric domain crosses the axis"));
+    }
     let depth = if r.next_is("depth") {
         let [depth] = r.exactly("depth")?;
         if !(depth.is_finite() && depth > 0.0) {
@@ -461,6 +469,7 @@ fn read_solution(r: &mut Reader<'_>, limits: &Limits) -> Result<JobSpec, DecodeE
     let settings = steering.settings(limits)?;
     let spec = SolveSpec {
         physics,
+        geometry,
         domain,
         k,
         f,

@@ -1,13 +1,13 @@
 //! SolveSpec: a boundary value problem request, validated and in canonical form.
 
 use super::checks::{Limits, SpecError, budget, build, domain_of, expression};
-use crate::api::{BoundaryInput, CircuitInput, Coefficient, MaterialInput, RegionInput, SolveRequest};
+use crate::api::{BoundaryField, CircuitInput, Coefficient, MaterialInput, RegionInput, SolveRequest};
 use crate::geom::{Point, Rect};
 use crate::refine::Method;
-use crate::result::{RunResult, Summary, Unit};
+use crate::result::{Geometry, RunResult, Summary, Unit};
 use crate::solve::{
     Adapted, BhCurve, Boundary, Circuit, Coil, Exact, Indicator, MU_0, Physics, Problem, Region, Settings,
-    Shape, SolveError, SolveObserver, adapt, materials,
+    Shape, Side, SolveError, SolveObserver, adapt, materials,
 };
 use crate::source::Expression;
 use std::collections::BTreeMap;
@@ -38,6 +38,8 @@ impl Function {
 pub struct SolveSpec {
     /// What u means.
     pub physics: Physics,
+    /// How the plane is read: planar, or (r, z) about the axis.
+    pub geometry: Geometry,
     /// The rectangle.
     pub domain: Rect,
     /// k outside the regions.
@@ -444,15 +446,36 @@ fn circuits(input: BTreeMap<String, CircuitInput>) -> Result<Vec<Circuit>, SpecE
         .collect()
 }
 
-/// Each side's condition; at least one must be Dirichlet, or u is fixed only up to a constant.
-fn boundary(input: Option<BoundaryInput>) -> Result<Boundary, SpecError> {
-    let input = input.unwrap_or_default();
-    let boundary = Boundary {
+/// Each side's condition, checked against the physics, the geometry and the regions.
+///
+/// At least one side must fix u: a Dirichlet or an open side (or the axis), or u is fixed only
+/// up to a constant. An open side is magnetostatics' and must lie in air: no region may touch
+/// it. Axisymmetric, the axis (x = 0) holds A_φ = 0 whatever a side's name for all four says,
+/// and no other condition may be named for it.
+fn boundary(
+    field: Option<BoundaryField>,
+    physics: Physics,
+    geometry: Geometry,
+    domain: Rect,
+    regions: &[Region],
+) -> Result<Boundary, SpecError> {
+    let input = field.map(|b| b.0).unwrap_or_default();
+    let mut boundary = Boundary {
         left: input.left.unwrap_or_default(),
         right: input.right.unwrap_or_default(),
         bottom: input.bottom.unwrap_or_default(),
         top: input.top.unwrap_or_default(),
     };
+    let axis = geometry == Geometry::Axisymmetric && domain.x0() == 0.0;
+    if axis {
+        if !input.every_side && boundary.left != Side::Dirichlet {
+            return Err(invalid(
+                "boundary.left",
+                "the left side is the axis r = 0, where A_φ = 0: leave it out",
+            ));
+        }
+        boundary.left = Side::Dirichlet;
+    }
     for (a, b, pair) in
         [(boundary.left, boundary.right, "left and right"), (boundary.bottom, boundary.top, "bottom and top")]
     {
@@ -463,10 +486,41 @@ fn boundary(input: Option<BoundaryInput>) -> Result<Boundary, SpecError> {
             ));
         }
     }
-    if !boundary.has_dirichlet() {
+    if geometry == Geometry::Axisymmetric && boundary.across_x().is_some() {
+        return Err(invalid("boundary", "left and right cannot be periodic about an axis"));
+    }
+    let sides = [
+        ("left", boundary.left),
+        ("right", boundary.right),
+        ("bottom", boundary.bottom),
+        ("top", boundary.top),
+    ];
+    for (name, side) in sides {
+        if side != Side::Open {
+            continue;
+        }
+        if physics != Physics::Magnetostatic {
+            return Err(invalid(format!("boundary.{name}"), "open sides are for physics magnetostatic"));
+        }
+        let on = |p: Point| match name {
+            "left" => p.x == domain.x0(),
+            "right" => p.x == domain.x1(),
+            "bottom" => p.y == domain.y0(),
+            _ => p.y == domain.y1(),
+        };
+        if let Some(i) = regions.iter().position(|r| r.shape.sides().any(|[a, _]| on(a))) {
+            return Err(invalid(
+                format!("boundary.{name}"),
+                format!(
+                    "regions[{i}] touches this open side: an open side must lie in air, with room around the device"
+                ),
+            ));
+        }
+    }
+    if !boundary.has_dirichlet() && !boundary.has_open() {
         return Err(invalid(
             "boundary",
-            "at least one side must be dirichlet: with every side neumann, u is fixed only up to a constant",
+            "at least one side must be dirichlet or open: with every side neumann, u is fixed only up to a constant",
         ));
     }
     Ok(boundary)
@@ -522,8 +576,10 @@ impl SolveSpec {
         limits: &Limits,
     ) -> Result<(Self, Option<Duration>), SpecError> {
         let physics = request.physics.unwrap_or_default();
+        let geometry = request.geometry.unwrap_or_default();
         if physics == Physics::Poisson {
             let device = [
+                ("geometry", request.geometry.is_some()),
                 ("unit", request.unit.is_some()),
                 ("depth", request.depth.is_some()),
                 ("materials", !request.materials.is_empty()),
@@ -534,6 +590,23 @@ impl SolveSpec {
                     *field,
                     "is for physics magnetostatic: a poisson problem has no units or devices",
                 ));
+            }
+        }
+        if geometry == Geometry::Axisymmetric {
+            let planar = [
+                ("depth", request.depth.is_some(), "an axisymmetric device is the whole turn about its axis"),
+                (
+                    "exact",
+                    request.exact.is_some(),
+                    "errors against an exact solution are measured planar only",
+                ),
+            ];
+            if let Some((field, _, why)) = planar.iter().find(|(_, given, _)| *given) {
+                return Err(invalid(*field, format!("not allowed with geometry axisymmetric: {why}")));
+            }
+            if let Some(i) = request.regions.iter().position(|r| r.torque_about.is_some()) {
+                let detail = "nothing turns about the axis: an axisymmetric force is axial";
+                return Err(invalid(format!("regions[{i}].torque_about"), detail));
             }
         }
         let per_metre = request.unit.unwrap_or_default().per_metre();
@@ -549,6 +622,19 @@ impl SolveSpec {
                 Rect::new(m(r.x0()), m(r.x1()), m(r.y0()), m(r.y1())).map_err(super::checks::domain_error)?
             }
         };
+        if geometry == Geometry::Axisymmetric && domain.x0() < 0.0 {
+            // Name the region that crosses the axis, if one does, as what to move.
+            let below = |r: &crate::api::RegionInput| {
+                let xs = r.x.iter().flatten().copied().chain(r.polygon.iter().flatten().map(|p| p[0]));
+                xs.fold(f64::INFINITY, f64::min) < 0.0
+            };
+            let field = request
+                .regions
+                .iter()
+                .position(below)
+                .map_or("domain.x".to_owned(), |i| format!("regions[{i}]"));
+            return Err(invalid(field, "crosses the axis: an axisymmetric problem lives in r = x >= 0"));
+        }
         // Without a source or boundary values the answer is u = 0 (A = 0), whatever the mesh:
         // a request that forgot them is told so rather than answered. A coil counts at any
         // current: its inductance at zero current is an answer.
@@ -592,7 +678,6 @@ impl SolveSpec {
             None => None,
             Some(e) => Some(coefficient("exact", Some(e), 0.0, limits)?),
         };
-        let boundary = boundary(request.boundary)?;
         for (name, m) in &request.materials {
             key("materials", name)?;
             law(&format!("materials.{name}"), m)?;
@@ -626,6 +711,7 @@ impl SolveSpec {
         let (regions, tables) = (request.regions.into_iter().enumerate())
             .map(|(i, r)| device.region(i, r))
             .collect::<Result<(Vec<_>, Vec<_>), _>>()?;
+        let boundary = boundary(request.boundary, physics, geometry, domain, &regions)?;
         if let Some(unused) = circuits
             .iter()
             .enumerate()
@@ -662,6 +748,7 @@ impl SolveSpec {
         let unit = request.unit;
         let spec = Self {
             physics,
+            geometry,
             domain,
             k,
             f,
@@ -686,7 +773,8 @@ impl SolveSpec {
             .with_k(move |x, y| self.k.eval(x * per, y * per))
             .with_f(move |x, y| self.f.eval(x * per, y * per))
             .with_g(move |x, y| self.g.eval(x * per, y * per))
-            .with_boundary(self.boundary);
+            .with_boundary(self.boundary)
+            .with_geometry(self.geometry);
         for circuit in &self.circuits {
             problem = problem.with_circuit(circuit.clone());
         }
@@ -719,7 +807,13 @@ impl SolveSpec {
             for region in &mut run.regions {
                 region.area *= per * per;
             }
-            if let Some(depth) = self.depth {
+            // Per metre of depth planar, per radian axisymmetric: the device's totals are the
+            // depth's, or the whole turn's.
+            let whole = match self.geometry {
+                Geometry::Planar => self.depth,
+                Geometry::Axisymmetric => Some(2.0 * std::f64::consts::PI),
+            };
+            if let Some(depth) = whole {
                 run.energy *= depth;
                 run.coenergy *= depth;
                 for step in &mut run.history {

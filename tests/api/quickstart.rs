@@ -72,10 +72,18 @@ async fn the_readme_quick_start_runs_as_written_and_says_what_the_readme_says() 
     let names: Vec<&str> =
         (stdout.lines()).filter_map(|l| l.strip_prefix(r#""name":""#)?.strip_suffix(r#"","area"#)).collect();
     assert_eq!(names, ["core", "armature", "coil+", "coil-"], "{stdout}");
-    let circuit = stdout.lines().find_map(|l| l.strip_prefix(r#""circuits":"#)).expect("the circuit's line");
-    let circuit: serde_json::Value = serde_json::from_str(circuit).unwrap();
-    let inductance = circuit["coil"]["inductance"].as_f64().unwrap();
-    assert!((5.0e-3..5.6e-3).contains(&inductance), "{circuit}");
+    let circuits: Vec<serde_json::Value> = (stdout.lines())
+        .filter_map(|l| serde_json::from_str(l.strip_prefix(r#""circuits":"#)?).ok())
+        .collect();
+    assert_eq!(circuits.len(), 2, "the electromagnet's and the actuator's: {stdout}");
+    let inductance = |i: usize| circuits[i]["coil"]["inductance"].as_f64().unwrap();
+    assert!((5.0e-3..5.6e-3).contains(&inductance(0)), "{}", circuits[0]);
+    assert!((0.019..0.022).contains(&inductance(1)), "{}", circuits[1]);
+    // The actuator's plunger, pulled axially into its pot.
+    let plunger = stdout.lines().find(|l| l.starts_with(r#""name":"plunger""#)).expect("the plunger's line");
+    let force = plunger.rsplit(r#""force":["#).next().unwrap().trim_end_matches(']');
+    let [fr, fz] = [0, 1].map(|i| force.split(',').nth(i).unwrap().parse::<f64>().unwrap());
+    assert!(fr == 0.0 && (-1.2..-0.95).contains(&fz), "{plunger}");
     let file = |name: &str| std::fs::read(dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
     for (name, starts) in [
         ("mesh.ply", &b"ply\n"[..]),

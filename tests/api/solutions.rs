@@ -435,3 +435,78 @@ async fn a_device_with_unknown_names_or_loose_coils_is_422_naming_the_field() {
     assert_eq!(p["field"], "/unit", "{p}");
     app.shutdown().await;
 }
+
+/// The round actuator of examples/requests: a plunger in a pot core, turned about its axis,
+/// in a small open box.
+fn actuator() -> Value {
+    let text =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/examples/requests/actuator.json"));
+    let mut body: Value = serde_json::from_str(&text.unwrap()).unwrap();
+    body["max_vertices"] = json!(4000);
+    body
+}
+
+#[tokio::test]
+async fn a_round_actuator_in_an_open_box_answers_its_axial_force_and_inductance_for_the_whole_turn() {
+    let app = spawn_app().await;
+    let response = app.post("/v1/solutions", &actuator()).await;
+    assert_eq!(response.status(), 200);
+    let doc: Value = response.json().await.unwrap();
+    let stats = &doc["stats"];
+    assert_eq!(
+        (stats["geometry"].as_str(), stats["unit"].as_str()),
+        (Some("axisymmetric"), Some("mm")),
+        "{stats}"
+    );
+    // A_φ = 0 on the axis, and nowhere is r negative.
+    let vertices = doc["vertices"].as_array().unwrap();
+    let xyz = |v: &Value| [0, 1, 2].map(|i| v[i].as_f64().unwrap());
+    assert!(vertices.iter().map(xyz).all(|[r, _, a]| r >= 0.0 && (r > 0.0 || a == 0.0)));
+    // The plunger is pulled down into the pot, axially; the forces on everything balance.
+    let regions = stats["regions"].as_array().unwrap();
+    let force = |i: usize| [0, 1].map(|k| regions[i]["force"][k].as_f64().unwrap());
+    assert_eq!(regions[1]["name"], "plunger");
+    let [fr, fz] = force(1);
+    assert!(fr == 0.0 && fz < -0.5, "{:?}", force(1));
+    let sum: f64 = (0..3).map(|i| force(i)[1]).sum();
+    assert!(sum.abs() < 0.05 * fz.abs(), "forces sum to {sum}");
+    // The whole turn's energy and inductance: L = 2W/I² (nearly linear iron at 1 A), in mH.
+    let coil = &stats["circuits"]["coil"];
+    let inductance = coil["inductance"].as_f64().unwrap();
+    let energy = stats["energy"].as_f64().unwrap();
+    assert!((inductance - 2.0 * energy).abs() < 1e-2 * inductance, "{coil} against W = {energy}");
+    assert!((0.015..0.03).contains(&inductance), "{coil}");
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn axisymmetric_and_open_mistakes_are_422_naming_the_field() {
+    let app = spawn_app().await;
+    type Change = fn(&mut Value);
+    let cases: [(Change, &str, &str); 7] = [
+        (|b| b["domain"]["x"] = json!([-60, 60]), "/domain/x", "axis"),
+        (
+            |b| {
+                b["domain"]["x"] = json!([-60, 60]);
+                b["regions"][2]["x"] = json!([-8, 20]);
+            },
+            "/regions/2",
+            "axis",
+        ),
+        (|b| b["depth"] = json!(10), "/depth", "whole turn"),
+        (|b| b["regions"][1]["torque_about"] = json!([0, 0]), "/regions/1/torque_about", "axial"),
+        (|b| b["boundary"] = json!({"left": "open", "right": "open"}), "/boundary/left", "axis"),
+        (|b| b["regions"][0]["polygon"][1] = json!([60, -20]), "/boundary/right", "regions[0]"),
+        (|b| b["boundary"] = json!("robin"), "/boundary", "unknown variant"),
+    ];
+    for (change, field, says) in cases {
+        let mut body = actuator();
+        change(&mut body);
+        let p = refused(&app, body).await;
+        assert_eq!(p["field"], field, "{p}");
+        assert!(p["detail"].as_str().unwrap().contains(says), "{p}");
+    }
+    let p = refused(&app, json!({"f": 1, "boundary": "open"})).await;
+    assert_eq!(p["field"], "/boundary/left", "{p}");
+    app.shutdown().await;
+}

@@ -43,7 +43,7 @@ fn round_trips(spec: &JobSpec) {
     }
 }
 
-const PROBLEMS: [&str; 5] = [
+const PROBLEMS: [&str; 6] = [
     r#"{"f": "sin(x)*y", "exact": "x*x", "boundary": {"left": "neumann"}, "tolerance": 0.01}"#,
     r#"{"k": 2.5, "g": 1, "regions": [{"x": [0, 0.5], "y": [0, 0.5], "k": 3},
         {"polygon": [[0.6, 0.6], [0.9, 0.6], [0.7, 0.9]], "f": -1}],
@@ -61,6 +61,10 @@ const PROBLEMS: [&str; 5] = [
         {"name": "a", "circuit": "aux", "x": [40, 50], "y": [-5, 5]},
         {"name": "coil+", "material": "copper", "turns": 200, "circuit": "main", "x": [22, 30], "y": [-10, 10]},
         {"name": "coil-", "material": "my-steel", "turns": 200, "circuit": "main", "direction": -1, "x": [-30, -22], "y": [-10, 10]}]}"#,
+    r#"{"physics": "magnetostatic", "geometry": "axisymmetric", "unit": "cm", "boundary": "open",
+        "domain": {"x": [0, 6], "y": [-6, 6]}, "circuits": {"coil": {"current": 1}},
+        "regions": [{"name": "plunger", "material": "M-19", "x": [0, 0.5], "y": [-1, 3]},
+        {"circuit": "coil", "turns": 500, "x": [0.8, 2], "y": [-1.4, 1.4]}]}"#,
 ];
 
 #[test]
@@ -87,6 +91,10 @@ fn a_device_in_another_unit_or_with_other_names_is_another_job_and_a_named_magne
     assert_ne!(id(device), id(&device.replace(r#""unit": "mm", "#, r#""unit": "cm", "#)));
     assert_ne!(id(device), id(&device.replace(r#""depth": 40, "#, "")));
     assert_ne!(id(device), id(&device.replace(r#""torque_about": [1, 2]"#, r#""torque_about": [0, 0]"#)));
+    let round = PROBLEMS[5];
+    let closed = round.replace(r#""boundary": "open","#, "");
+    assert_ne!(id(round), id(&closed));
+    assert_ne!(id(&closed), id(&closed.replace(r#""geometry": "axisymmetric", "#, "")));
     // A built-in magnet along +y holds its Br / (μ0 μr) exactly, with no rounding from a sine.
     let magnet = |angle: f64| {
         let body = format!(
