@@ -1,11 +1,15 @@
-//! `POST /v1/jobs/{id}/evaluate`: F_n, the mesh's piecewise linear surrogate, at given points.
+//! `POST /v1/jobs/{id}/evaluate`: F_n, the mesh's piecewise linear surrogate, at given points;
+//! on a magnetostatic solution also B and H there, or the flux through a polyline and H's
+//! line integral along it.
 
 use super::extract::{Body, Media, Takes, media, parse_json};
 use super::jobs::finished_result;
 use super::problem::ApiError;
 use super::state::AppState;
+use crate::api::JsonError;
 use crate::geom::Point;
 use crate::result::locate::Locator;
+use crate::result::probe::{self, LineError};
 use axum::extract::{Path, State};
 use axum::http::{HeaderMap, HeaderValue, header};
 use axum::response::{IntoResponse, Response};
@@ -14,15 +18,28 @@ use std::sync::Arc;
 /// The binary form of points and values: little-endian f64s.
 const OCTET_STREAM: &str = "application/octet-stream";
 
+/// What to evaluate: values at points, or a polyline's flux and line integral.
 #[derive(serde::Deserialize)]
 #[serde(deny_unknown_fields)]
-struct Points {
-    points: Vec<[f64; 2]>,
+struct Query {
+    points: Option<Vec<[f64; 2]>>,
+    polyline: Option<Vec<[f64; 2]>>,
 }
 
 #[derive(serde::Serialize)]
 struct Values {
     values: Vec<Option<f64>>,
+    /// B at each point, on a magnetostatic solution.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    flux_density: Option<Vec<Option<[f64; 2]>>>,
+    /// H at each point, on a magnetostatic solution.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    field_strength: Option<Vec<Option<[f64; 2]>>>,
+}
+
+/// A 422 naming the request's field at `path`.
+fn invalid(path: &str, message: impl Into<String>) -> ApiError {
+    ApiError::Json(JsonError::Shape { path: path.into(), message: message.into() })
 }
 
 /// `POST /v1/jobs/{id}/evaluate`: `{"points": [[x, y], ...]}` answers `{"values": [...]}`
@@ -64,10 +81,31 @@ pub async fn jobs_evaluate(
             let out: Vec<u8> = locator.values(&points).iter().flat_map(|v| v.to_le_bytes()).collect();
             Ok(([(header::CONTENT_TYPE, HeaderValue::from_static(OCTET_STREAM))], out).into_response())
         } else {
-            let Points { points } = parse_json(&body.bytes)?;
-            let points: Vec<Point> = points.iter().map(|&[x, y]| Point::new(x, y)).collect();
-            let values = locator.values(&points).into_iter().map(|v| (!v.is_nan()).then_some(v)).collect();
-            Ok(axum::Json(Values { values }).into_response())
+            let query: Query = parse_json(&body.bytes)?;
+            let to_points =
+                |xy: Vec<[f64; 2]>| -> Vec<Point> { xy.iter().map(|&[x, y]| Point::new(x, y)).collect() };
+            match (query.points, query.polyline) {
+                (Some(points), None) => {
+                    let points = to_points(points);
+                    let values =
+                        locator.values(&points).into_iter().map(|v| (!v.is_nan()).then_some(v)).collect();
+                    let flux_density = probe::cell_vectors(&result, &locator, "B", &points);
+                    let field_strength = probe::cell_vectors(&result, &locator, "H", &points);
+                    Ok(axum::Json(Values { values, flux_density, field_strength }).into_response())
+                }
+                (None, Some(polyline)) => {
+                    if polyline.len() < 2 {
+                        let detail = format!("a polyline has at least 2 points, got {}", polyline.len());
+                        return Err(invalid("polyline", detail));
+                    }
+                    let line = probe::line(&result, &locator, &to_points(polyline)).map_err(|e| match e {
+                        LineError::Outside(i) => invalid(&format!("polyline[{i}]"), e.to_string()),
+                        LineError::NotMagnetic => invalid("polyline", e.to_string()),
+                    })?;
+                    Ok(axum::Json(line).into_response())
+                }
+                _ => Err(invalid("points", "give points or a polyline, one of them")),
+            }
         }
     })
     .await

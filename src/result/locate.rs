@@ -206,6 +206,96 @@ impl Locator {
 
     /// The triangle containing `p` and the orientation determinant of `p` against each of its
     /// edges (all at least zero, exact in sign), by walking from `p`'s bucket.
+    /// Walks the segment `a`–`b` through the mesh, calling `f` with each triangle it crosses
+    /// (the mesh's index) and the fraction of the segment inside it, in order; the fractions
+    /// sum to 1 (to rounding). False when the segment leaves the mesh.
+    ///
+    /// In the triangle holding the walk's point, the exit is where the segment first leaves
+    /// the half-plane of an edge that b lies beyond (exact orientations pick the edges; the
+    /// crossing parameter is the ratio of the two ends' signed areas). The next triangle is
+    /// the one the walk of [`Locator::locate`] finds a hair past the exit (10⁻¹² of the
+    /// segment, also the least step), so a piece that short near a vertex may be credited to a
+    /// neighbour. Where needles a hair wide hold the walk to such steps, it clips the segment
+    /// against every triangle instead.
+    pub fn crossings(&self, a: Point, b: Point, mut f: impl FnMut(u32, f64)) -> bool {
+        const HAIR: f64 = 1e-12;
+        let at = |s: f64| Point::new(a.x + s * (b.x - a.x), a.y + s * (b.y - a.y));
+        let Some((mut t, _)) = self.find(a) else { return false };
+        let (mut from, mut pieces, mut hairs) = (0.0, Vec::new(), 0);
+        loop {
+            let c = self.triangles[t as usize].points();
+            if contains(c, b) {
+                pieces.push((self.ids[t as usize], 1.0 - from));
+                break;
+            }
+            let exit = self.exit(t, a, b).max(from + HAIR).min(1.0);
+            hairs = if exit - from <= 2.0 * HAIR { hairs + 1 } else { 0 };
+            if hairs > 64 {
+                return self.clip(a, b, f);
+            }
+            pieces.push((self.ids[t as usize], exit - from));
+            from = exit;
+            if from >= 1.0 {
+                break;
+            }
+            // Along the boundary the hair's rounding may step outside: the exit itself is in.
+            let past = self.find(at((from + HAIR).min(1.0))).or_else(|| self.find(at(from)));
+            let Some((next, _)) = past else { return false };
+            t = next;
+        }
+        for (t, fraction) in pieces {
+            f(t, fraction);
+        }
+        true
+    }
+
+    /// Where the segment `a`–`b` leaves stored triangle `t`: the least crossing parameter of
+    /// the edges b lies beyond (1 when none).
+    fn exit(&self, t: u32, a: Point, b: Point) -> f64 {
+        let c = self.triangles[t as usize].points();
+        let mut exit = 1.0f64;
+        for k in 0..3 {
+            let beyond = signed_area_x2(c[k], c[(k + 1) % 3], b);
+            if beyond < 0.0 {
+                let here = signed_area_x2(c[k], c[(k + 1) % 3], a);
+                exit = exit.min(here / (here - beyond));
+            }
+        }
+        exit
+    }
+
+    /// [`Locator::crossings`] by clipping the segment against every triangle (Cyrus–Beck on
+    /// the three half-planes), in the order the pieces start.
+    fn clip(&self, a: Point, b: Point, mut f: impl FnMut(u32, f64)) -> bool {
+        let mut pieces = Vec::new();
+        for (t, triangle) in self.triangles.iter().enumerate() {
+            let c = triangle.points();
+            let (mut lo, mut hi) = (0.0f64, 1.0f64);
+            for k in 0..3 {
+                let here = signed_area_x2(c[k], c[(k + 1) % 3], a);
+                let beyond = signed_area_x2(c[k], c[(k + 1) % 3], b);
+                match (here >= 0.0, beyond >= 0.0) {
+                    (true, true) => {}
+                    (false, false) => hi = -1.0,
+                    (true, false) => hi = hi.min(here / (here - beyond)),
+                    (false, true) => lo = lo.max(here / (here - beyond)),
+                }
+            }
+            if lo < hi {
+                pieces.push((lo, self.ids[t], hi - lo));
+            }
+        }
+        pieces.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.1.cmp(&q.1)));
+        let covered: f64 = pieces.iter().map(|p| p.2).sum();
+        if (covered - 1.0).abs() > 1e-9 {
+            return false;
+        }
+        for (_, t, fraction) in pieces {
+            f(t, fraction);
+        }
+        true
+    }
+
     fn find(&self, p: Point) -> Option<(u32, [f64; 3])> {
         let [x0, x1, y0, y1] = self.bounds;
         if !(x0 <= p.x && p.x <= x1 && y0 <= p.y && p.y <= y1) {
@@ -309,6 +399,56 @@ mod tests {
                 }
             }
         }
+    }
+
+    proptest! {
+        /// A segment's pieces cover it, in order, each in the triangle named, also through
+        /// vertices (segments between vertices) and on recursive meshes.
+        #[test]
+        fn a_segments_crossings_cover_it_with_pieces_inside_their_triangles(
+            from in 0usize..700, to in 0usize..700, u in 0.0f64..=1.0, v in 0.0f64..=1.0, at_vertices: bool,
+        ) {
+            for mesh in [sample(700, Criterion::Error), recursive_sample(700)] {
+                let locator = Locator::new(&mesh);
+                let n = mesh.vertices.len();
+                let (a, b) = if at_vertices {
+                    (point(&mesh, (from % n) as u32), point(&mesh, (to % n) as u32))
+                } else {
+                    let [x0, x1, y0, y1] = mesh.bounds();
+                    (Point::new(x0 + u * (x1 - x0), y0 + v * (y1 - y0)), point(&mesh, (to % n) as u32))
+                };
+                let mut pieces = Vec::new();
+                prop_assert!(locator.crossings(a, b, |t, fraction| pieces.push((t, fraction))));
+                let total: f64 = pieces.iter().map(|&(_, f)| f).sum();
+                prop_assert!((total - 1.0).abs() < 1e-12, "{total}");
+                let mut start = 0.0;
+                for &(t, fraction) in &pieces {
+                    prop_assert!(fraction >= 0.0);
+                    if fraction < 1e-9 {
+                        // A hair at a vertex or across a needle may be a neighbour's.
+                        start += fraction;
+                        continue;
+                    }
+                    let mid = start + fraction / 2.0;
+                    let p = Point::new(a.x + mid * (b.x - a.x), a.y + mid * (b.y - a.y));
+                    let [c0, c1, c2] = mesh.triangles[t as usize].map(|v| point(&mesh, v));
+                    // Within rounding of the triangle: every edge's signed area ≥ −ε.
+                    let scale = 1e-9 * (1.0 + (c1.x - c0.x).abs() + (c2.y - c0.y).abs());
+                    for (u, v) in [(c0, c1), (c1, c2), (c2, c0)] {
+                        prop_assert!(signed_area_x2(u, v, p) >= -scale, "piece of {t} at {p:?}");
+                    }
+                    start += fraction;
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_segment_leaving_the_mesh_is_refused() {
+        let mesh = sample(700, Criterion::Error);
+        let locator = Locator::new(&mesh);
+        assert!(!locator.crossings(Point::new(0.5, 0.5), Point::new(3.0, 0.5), |_, _| {}));
+        assert!(!locator.crossings(Point::new(3.0, 0.5), Point::new(0.5, 0.5), |_, _| {}));
     }
 
     #[test]

@@ -17,6 +17,7 @@ pub mod compact;
 mod field;
 mod finished;
 pub mod locate;
+pub mod probe;
 mod stats;
 
 pub use field::{Field, Lines, Location, Role};

@@ -510,3 +510,59 @@ async fn axisymmetric_and_open_mistakes_are_422_naming_the_field() {
     assert_eq!(p["field"], "/boundary/left", "{p}");
     app.shutdown().await;
 }
+
+#[tokio::test]
+async fn a_solution_answers_b_and_h_at_points_and_a_polylines_flux_and_ampere_turns() {
+    let app = spawn_app().await;
+    let response = app.post("/v1/jobs", &engineered(6000)).await;
+    let id = response.json::<Value>().await.unwrap()["id"].as_str().unwrap().to_owned();
+    assert_eq!(app.wait_finished(&id).await["status"], "succeeded");
+    let evaluate = |body: Value| {
+        let app = &app;
+        let id = id.clone();
+        async move { app.post(&format!("/v1/jobs/{id}/evaluate"), &body).await }
+    };
+    // B and H at points (mm), null outside; in air H = B/μ0.
+    let doc: Value = evaluate(json!({"points": [[40, 0], [26, 0], [100, 0]]})).await.json().await.unwrap();
+    let b = &doc["flux_density"];
+    let h = &doc["field_strength"];
+    assert!(b[2].is_null() && h[2].is_null() && doc["values"][2].is_null(), "{doc}");
+    let mu0 = 1.25663706212e-6;
+    for k in 0..2 {
+        let (bx, hx) = (b[0][k].as_f64().unwrap(), h[0][k].as_f64().unwrap());
+        assert!((bx - mu0 * hx).abs() <= 1e-9 * bx.abs().max(1e-12), "B {bx} against μ0 H {}", mu0 * hx);
+    }
+    // Flux through a polyline: the change of A along it, times the depth (40 mm).
+    let doc: Value = evaluate(json!({"points": [[-45, 0], [45, 0]]})).await.json().await.unwrap();
+    let a = [0, 1].map(|i| doc["values"][i].as_f64().unwrap());
+    let line: Value = evaluate(json!({"polyline": [[-45, 0], [0, 30], [45, 0]]})).await.json().await.unwrap();
+    let flux = line["flux"].as_f64().unwrap();
+    assert!((flux - 0.04 * (a[1] - a[0])).abs() <= 1e-12 * flux.abs().max(1e-15), "{line}");
+    assert_eq!(line["closed"], false);
+    // Ampère: around coil+ the line integral of H is its 200 turns × 2.5 A; around both
+    // sides, or around nothing, it is 0.
+    let around =
+        |x0: f64, x1: f64| json!({"polyline": [[x0, -14], [x1, -14], [x1, 14], [x0, 14], [x0, -14]]});
+    let mmf = |line: Value| line["mmf"].as_f64().unwrap();
+    let coil: Value = evaluate(around(20.0, 33.0)).await.json().await.unwrap();
+    assert_eq!(coil["closed"], true);
+    assert!((mmf(coil.clone()) - 500.0).abs() < 0.03 * 500.0, "{coil}");
+    let both: Value = evaluate(json!({"polyline": [[-35, -45], [35, -45], [35, 45], [-35, 45], [-35, -45]]}))
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert!(mmf(both.clone()).abs() < 0.03 * 500.0, "{both}");
+    // Mistakes name the field.
+    for (body, field) in [
+        (json!({"polyline": [[0, 0]]}), "/polyline"),
+        (json!({"polyline": [[0, 0], [100, 0]]}), "/polyline/1"),
+        (json!({"points": [[0, 0]], "polyline": [[0, 0], [1, 1]]}), "/points"),
+    ] {
+        let response = evaluate(body.clone()).await;
+        assert_eq!(response.status(), 422, "{body}");
+        let p: Value = response.json().await.unwrap();
+        assert_eq!(p["field"], field, "{p}");
+    }
+    app.shutdown().await;
+}
