@@ -240,7 +240,7 @@ impl Locator {
             }
             // Along the boundary the hair's rounding may step outside: the exit itself is in.
             let past = self.find(at((from + HAIR).min(1.0))).or_else(|| self.find(at(from)));
-            let Some((next, _)) = past else { return false };
+            let Some((next, _)) = past else { return self.clip(a, b, f) };
             t = next;
         }
         for (t, fraction) in pieces {
@@ -265,15 +265,19 @@ impl Locator {
     }
 
     /// [`Locator::crossings`] by clipping the segment against every triangle (Cyrus–Beck on
-    /// the three half-planes), in the order the pieces start.
+    /// the three half-planes), in the order the pieces start. A segment along an interior
+    /// edge lies in both its triangles: each takes half. False unless the pieces cover it.
     fn clip(&self, a: Point, b: Point, mut f: impl FnMut(u32, f64)) -> bool {
         let mut pieces = Vec::new();
         for (t, triangle) in self.triangles.iter().enumerate() {
             let c = triangle.points();
-            let (mut lo, mut hi) = (0.0f64, 1.0f64);
+            let (mut lo, mut hi, mut share) = (0.0f64, 1.0f64, 1.0);
             for k in 0..3 {
                 let here = signed_area_x2(c[k], c[(k + 1) % 3], a);
                 let beyond = signed_area_x2(c[k], c[(k + 1) % 3], b);
+                if here == 0.0 && beyond == 0.0 && triangle.twins[k] != NONE {
+                    share = 0.5;
+                }
                 match (here >= 0.0, beyond >= 0.0) {
                     (true, true) => {}
                     (false, false) => hi = -1.0,
@@ -282,7 +286,7 @@ impl Locator {
                 }
             }
             if lo < hi {
-                pieces.push((lo, self.ids[t], hi - lo));
+                pieces.push((lo, self.ids[t], share * (hi - lo)));
             }
         }
         pieces.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.1.cmp(&q.1)));
