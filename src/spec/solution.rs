@@ -163,6 +163,7 @@ struct Device<'r> {
 struct Named {
     mu_r: f64,
     bh: Option<BhTable>,
+    /// M in A/m, and the direction in degrees when the material names one.
     magnet: Option<(f64, Option<f64>)>,
 }
 
