@@ -89,8 +89,7 @@ pub async fn jobs_evaluate(
                     let points = to_points(points);
                     let values =
                         locator.values(&points).into_iter().map(|v| (!v.is_nan()).then_some(v)).collect();
-                    let flux_density = probe::cell_vectors(&result, &locator, "B", &points);
-                    let field_strength = probe::cell_vectors(&result, &locator, "H", &points);
+                    let (flux_density, field_strength) = probe::fields_at(&result, &locator, &points).unzip();
                     Ok(axum::Json(Values { values, flux_density, field_strength }).into_response())
                 }
                 (None, Some(polyline)) => {

@@ -80,14 +80,14 @@ impl<'a, O: Observer> Run<'a, O> {
         self.history.check(mesh, worst);
     }
 
-    /// The stop rule that fires before the next insertion, if any: the budget, cancellation,
-    /// and every [`CLOCK_EVERY`] steps the time limit; progress is reported on the same beat.
-    /// `worst` is the current worst criterion value, asked only for a report.
     /// The run's time at `now`, its pauses left out.
     pub(super) fn elapsed_at(&self, now: Instant) -> Duration {
         (now - self.start).saturating_sub(self.observer.paused().saturating_sub(self.paused_before))
     }
 
+    /// The stop rule that fires before the next insertion, if any: the budget, cancellation,
+    /// and every [`CLOCK_EVERY`] steps the time limit; progress is reported on the same beat.
+    /// `worst` is the current worst criterion value, asked only for a report.
     pub(super) fn stop_before_step(
         &mut self,
         mesh: &Mesh,

@@ -46,24 +46,23 @@ fn frame(result: &RunResult) -> (f64, Option<f64>, Geometry) {
     }
 }
 
-/// The cell vector field `name` (its per-triangle [x, y]) at each of `points`, `None` outside;
-/// `None` altogether when the result has no such field.
-pub fn cell_vectors(
-    result: &RunResult,
-    locator: &Locator,
-    name: &str,
-    points: &[Point],
-) -> Option<Vec<Option<[f64; 2]>>> {
-    let field = result.field(name).filter(|f| f.components == 2 && f.len() == result.triangles.len())?;
+/// A vector per point, `None` where the point lies outside the mesh.
+pub type AtPoints = Vec<Option<[f64; 2]>>;
+
+/// B and H of the triangle holding each of `points`, each point located once; `None` when the
+/// result carries no B and H (it is not a magnetostatic solution).
+pub fn fields_at(result: &RunResult, locator: &Locator, points: &[Point]) -> Option<(AtPoints, AtPoints)> {
+    let per_triangle =
+        |name| result.field(name).filter(|f| f.components == 2 && f.len() == result.triangles.len());
+    let (b, h) = (per_triangle("B")?, per_triangle("H")?);
+    let at = |f: &super::Field, t: u32| <[f64; 2]>::try_from(f.value(t as usize)).expect("two components");
     Some(
-        points
-            .iter()
-            .map(|&p| {
-                locator
-                    .locate(p)
-                    .map(|t| <[f64; 2]>::try_from(field.value(t as usize)).expect("two components"))
+        (points.iter())
+            .map(|&p| match locator.locate(p) {
+                Some(t) => (Some(at(b, t)), Some(at(h, t))),
+                None => (None, None),
             })
-            .collect(),
+            .unzip(),
     )
 }
 

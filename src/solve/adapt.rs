@@ -288,13 +288,15 @@ fn measure_fields(
     let points: Vec<_> = mesh.vertices().iter().map(|v| v.point()).collect();
     let u: Vec<f64> = mesh.vertices().iter().map(|v| v.z).collect();
     let triangles: Vec<[u32; 3]> = mesh.triangles().collect();
-    let mut gradients = Vec::with_capacity(triangles.len());
+    let elements = (triangles.iter().enumerate())
+        .map(|(t, &tri)| Element::in_geometry(problem.geometry(), &points, tri, t))
+        .collect::<Result<Vec<_>, _>>()?;
+    let gradients: Vec<[f64; 2]> =
+        (elements.iter().zip(&triangles)).map(|(e, tri)| e.field(tri.map(|v| u[v as usize]))).collect();
     let mut measured = Vec::new();
-    for (t, &tri) in triangles.iter().enumerate() {
-        let e = Element::in_geometry(problem.geometry(), &points, tri, t)?;
-        gradients.push(e.field(tri.map(|v| u[v as usize])));
-        if indicator == Indicator::Variation {
-            measured.push(TriangleCoefficients::of(problem, &e, t)?);
+    if indicator == Indicator::Variation {
+        for (t, e) in elements.iter().enumerate() {
+            measured.push(TriangleCoefficients::of(problem, e, t)?);
         }
     }
     let coefficients = match indicator {
@@ -307,8 +309,9 @@ fn measure_fields(
             [q[0], q[1], c.nu(problem, g[0].hypot(g[1])).0]
         })
         .collect();
-    adapted.stats.regions = regions::measure(problem, &points, &u, &triangles, &gradients, coefficients);
-    adapted.stats.circuits = circuits::measure(problem, &points, &u, &triangles, coefficients)?;
+    adapted.stats.regions =
+        regions::measure(problem, &points, &u, &triangles, &elements, &gradients, coefficients);
+    adapted.stats.circuits = circuits::measure(problem, &points, &u, &triangles, &elements, coefficients)?;
     Ok(())
 }
 

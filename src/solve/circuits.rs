@@ -22,7 +22,7 @@ use crate::result::{CircuitStats, Geometry};
 use std::collections::BTreeMap;
 
 /// The figures of every circuit of `problem` on a solved mesh: `points` and `u` by vertex,
-/// `coefficients` by triangle.
+/// `elements` and `coefficients` by triangle.
 ///
 /// A triangle belongs to the coil side that holds its centroid and sets its f (the topmost,
 /// as regions apply): the loop's meshes follow every side, so each triangle is wholly in or
@@ -35,22 +35,19 @@ pub(crate) fn measure(
     points: &[Point],
     u: &[f64],
     triangles: &[[u32; 3]],
+    elements: &[Element],
     coefficients: &[TriangleCoefficients],
 ) -> Result<BTreeMap<String, CircuitStats>, SolveError> {
     let circuits = problem.circuits();
     if circuits.is_empty() {
         return Ok(BTreeMap::new());
     }
-    let elements = (triangles.iter().enumerate())
-        .map(|(t, &tri)| Element::in_geometry(problem.geometry(), points, tri, t))
-        .collect::<Result<Vec<_>, _>>()?;
     // b of each circuit, by vertex.
     let mut b = vec![vec![0.0; points.len()]; circuits.len()];
     for (e, &tri) in elements.iter().zip(triangles) {
         let centre = e.point(&[1.0 / 3.0; 3]);
         let side = problem.regions().iter().rev().find(|r| r.f.is_some() && r.contains(centre));
-        let Some(coil) = side.and_then(|r| r.coil.map(|c| (c, r.shape.area()))) else { continue };
-        let (coil, area) = coil;
+        let Some((coil, area)) = side.and_then(|r| r.coil.map(|c| (c, r.shape.area()))) else { continue };
         for (i, v) in tri.into_iter().enumerate() {
             // ∫ φᵢ dA = |T| / 3; axisymmetric ∫ φᵢ r dA = |T| (3 r̄ + rᵢ) / 12.
             let integral = match problem.geometry() {
@@ -60,24 +57,15 @@ pub(crate) fn measure(
             b[coil.circuit][v as usize] += coil.turns / area * integral;
         }
     }
-    let Numbering { unknown, sign, masters, .. } = Numbering::new(problem, points)?;
-    let n = masters.len();
-    let system = System {
-        problem,
-        triangles,
-        elements: &elements,
-        coefficients,
-        unknown: &unknown,
-        sign: &sign,
-        unknowns: n,
-        open: super::nonlinear::open_edges(problem, triangles, &elements, coefficients),
-    };
+    let numbering = Numbering::new(problem, points)?;
+    let system = System::new(problem, triangles, elements, coefficients, &numbering);
+    let (unknown, sign, n) = (system.unknown, system.sign, system.unknowns);
     let mut entries = Vec::with_capacity(6 * triangles.len());
     system.residual(u, Some(&mut entries));
     let rhs: Vec<Vec<f64>> = (b.iter())
         .map(|b| {
             let mut rhs = vec![0.0; n];
-            for ((&bv, index), s) in b.iter().zip(&unknown).zip(&sign) {
+            for ((&bv, index), s) in b.iter().zip(unknown).zip(sign) {
                 if let Some(i) = index {
                     rhs[*i] += s * bv;
                 }
@@ -89,7 +77,7 @@ pub(crate) fn measure(
     Ok((circuits.iter().zip(&b).zip(&solved))
         .map(|((circuit, b), x)| {
             let flux_linkage: f64 = b.iter().zip(u).map(|(b, u)| b * u).sum();
-            let incremental: f64 = (b.iter().zip(&unknown).zip(&sign))
+            let incremental: f64 = (b.iter().zip(unknown).zip(sign))
                 .filter_map(|((b, index), s)| index.map(|i| b * s * x[i]))
                 .sum();
             let stats = CircuitStats {

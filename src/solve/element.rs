@@ -7,7 +7,7 @@
 //! over r̄, the centroid's r, and weighs the triangle by |T| r̄: exact for A = c·r, which is A
 //! near the axis, and second order elsewhere. Its B is then constant on each triangle, as ∇u
 //! is planar, so the linear and Newton solves, the energy, the fluxes and the forces are the
-//! planar ones with `d` for the hat functions' gradients and `weight` for the area.
+//! planar ones with `d` for the hat functions' gradients and `weight()` for the area.
 
 use super::error::SolveError;
 use crate::geom::predicates::signed_area_x2;
@@ -39,10 +39,7 @@ pub struct Element {
     pub(super) grad: [[f64; 2]; 3],
     /// What each hat function adds to the field g: its gradient, planar.
     pub(super) d: [[f64; 2]; 3],
-    /// What the triangle weighs in the weak form's integrals: its area, planar; |T| r̄
-    /// axisymmetric.
-    pub(super) weight: f64,
-    /// r̄ axisymmetric, 1 planar: what weighs the triangle's share of an integral over r dA.
+    /// r̄ axisymmetric, 1 planar: the triangle weighs |T| r̄ in the weak form's integrals.
     pub(super) radius: f64,
 }
 
@@ -62,7 +59,7 @@ impl Element {
             let (j, k) = ((i + 1) % 3, (i + 2) % 3);
             [(p[j].y - p[k].y) / det, (p[k].x - p[j].x) / det]
         });
-        Ok(Self { p, area: det / 2.0, grad, d: grad, weight: det / 2.0, radius: 1.0 })
+        Ok(Self { p, area: det / 2.0, grad, d: grad, radius: 1.0 })
     }
 
     /// Triangle `t` with corners `tri` in `geometry`; see the module's documentation.
@@ -79,7 +76,6 @@ impl Element {
         if geometry == Geometry::Axisymmetric {
             let r = (e.p[0].x + e.p[1].x + e.p[2].x) / 3.0;
             e.d = e.grad.map(|[gr, gz]| [-(gr + 1.0 / (3.0 * r)), -gz]);
-            e.weight = e.area * r;
             e.radius = r;
         }
         Ok(e)
@@ -95,22 +91,12 @@ impl Element {
     /// The field g of the linear function with `values` at the corners: ∇u planar (B is
     /// (g_y, −g_x) in magnetostatics, either geometry).
     pub fn field(&self, values: [f64; 3]) -> [f64; 2] {
-        let mut g = [0.0; 2];
-        for (v, d) in values.iter().zip(&self.d) {
-            g[0] += v * d[0];
-            g[1] += v * d[1];
-        }
-        g
+        combine(values, &self.d)
     }
 
     /// ∇ of the linear function with `values` at the corners.
     pub fn gradient(&self, values: [f64; 3]) -> [f64; 2] {
-        let mut g = [0.0; 2];
-        for (v, grad) in values.iter().zip(&self.grad) {
-            g[0] += v * grad[0];
-            g[1] += v * grad[1];
-        }
-        g
+        combine(values, &self.grad)
     }
 
     /// The three hat functions at `q`: its barycentric coordinates.
@@ -128,6 +114,16 @@ impl Element {
 
     /// What the triangle weighs in the weak form: its area, or |T| r̄ axisymmetric.
     pub(crate) fn weight(&self) -> f64 {
-        self.weight
+        self.area * self.radius
     }
+}
+
+/// Σᵢ valuesᵢ · vectorsᵢ, summed in corner order.
+fn combine(values: [f64; 3], vectors: &[[f64; 2]; 3]) -> [f64; 2] {
+    let mut g = [0.0; 2];
+    for (v, d) in values.iter().zip(vectors) {
+        g[0] += v * d[0];
+        g[1] += v * d[1];
+    }
+    g
 }

@@ -9,6 +9,7 @@
 
 use super::cholesky::Analysis;
 use super::coefficients::TriangleCoefficients;
+use super::dofs::Numbering;
 use super::element::Element;
 use super::error::SolveError;
 use super::problem::Problem;
@@ -54,6 +55,29 @@ pub(super) struct System<'s, 'p> {
     pub open: Vec<OpenEdge>,
 }
 
+impl<'s, 'p> System<'s, 'p> {
+    /// The system of `problem` on `triangles`, their elements and coefficients, with the
+    /// unknowns `numbering` gives, and the Robin terms of its open sides' edges.
+    pub fn new(
+        problem: &'s Problem<'p>,
+        triangles: &'s [[u32; 3]],
+        elements: &'s [Element],
+        coefficients: &'s [TriangleCoefficients],
+        numbering: &'s Numbering,
+    ) -> Self {
+        Self {
+            problem,
+            triangles,
+            elements,
+            coefficients,
+            unknown: &numbering.unknown,
+            sign: &numbering.sign,
+            unknowns: numbering.masters.len(),
+            open: open_edges(problem, triangles, elements, coefficients),
+        }
+    }
+}
+
 /// An edge on an open side: its ends, k ∫ c φₐ φ_b and k ∫ h φₐ over it (times r
 /// axisymmetric), which the weak form adds for k ∂u/∂n = k (h − c u).
 pub(super) struct OpenEdge {
@@ -64,7 +88,7 @@ pub(super) struct OpenEdge {
 
 /// The edges of `triangles` that lie on an open side of `problem`, each with its Robin terms
 /// by the 2-point Gauss rule, for the net source ∫ f the loads give.
-pub(super) fn open_edges(
+fn open_edges(
     problem: &Problem<'_>,
     triangles: &[[u32; 3]],
     elements: &[Element],
@@ -75,7 +99,7 @@ pub(super) fn open_edges(
     }
     // Σ_T weight · Σᵢ ∫ f φᵢ / weight = ∫ f, the hat functions summing to 1.
     let net: f64 =
-        (elements.iter().zip(coefficients)).map(|(e, c)| e.weight * c.load.iter().sum::<f64>()).sum();
+        (elements.iter().zip(coefficients)).map(|(e, c)| e.weight() * c.load.iter().sum::<f64>()).sum();
     let axisymmetric = problem.geometry() == crate::result::Geometry::Axisymmetric;
     let gauss = [0.5 - 0.5 / 3f64.sqrt(), 0.5 + 0.5 / 3f64.sqrt()];
     let mut edges = Vec::new();
@@ -110,15 +134,16 @@ impl System<'_, '_> {
         let mut entries: Vec<(usize, usize, f64)> = Vec::with_capacity(6 * self.triangles.len());
         let mut rhs = vec![0.0; self.unknowns];
         for ((e, c), &tri) in self.elements.iter().zip(self.coefficients).zip(self.triangles) {
+            let weight = e.weight();
             for i in 0..3 {
                 let Some(row) = self.unknown[tri[i] as usize] else { continue };
                 let si = self.sign[tri[i] as usize];
-                rhs[row] += si * e.weight * c.load[i];
+                rhs[row] += si * weight * c.load[i];
                 if c.source != [0.0; 2] {
-                    rhs[row] += si * e.weight * (c.source[0] * e.d[i][1] - c.source[1] * e.d[i][0]);
+                    rhs[row] += si * weight * (c.source[0] * e.d[i][1] - c.source[1] * e.d[i][0]);
                 }
                 for j in 0..3 {
-                    let a = c.k * e.weight * (e.d[i][0] * e.d[j][0] + e.d[i][1] * e.d[j][1]);
+                    let a = c.k * weight * (e.d[i][0] * e.d[j][0] + e.d[i][1] * e.d[j][1]);
                     match self.unknown[tri[j] as usize] {
                         // Lower triangle only, stored as (column, row).
                         Some(col) if row >= col => {
@@ -226,7 +251,7 @@ impl System<'_, '_> {
             j.clear();
         }
         for ((e, c), &tri) in self.elements.iter().zip(self.coefficients).zip(self.triangles) {
-            let g = e.field(tri.map(|v| u[v as usize]));
+            let (g, weight) = (e.field(tri.map(|v| u[v as usize])), e.weight());
             let b = g[0].hypot(g[1]);
             let (nu, dh) = c.nu(self.problem, b);
             let q = [nu * g[0] + c.source[1], nu * g[1] - c.source[0]];
@@ -235,7 +260,7 @@ impl System<'_, '_> {
             for i in 0..3 {
                 let Some(row) = self.unknown[tri[i] as usize] else { continue };
                 let (gi, si) = (e.d[i], self.sign[tri[i] as usize]);
-                r[row] += si * e.weight * (q[0] * gi[0] + q[1] * gi[1] - c.load[i]);
+                r[row] += si * weight * (q[0] * gi[0] + q[1] * gi[1] - c.load[i]);
                 let Some(jac) = jacobian.as_deref_mut() else { continue };
                 for (&vj, gj) in tri.iter().zip(e.d) {
                     let Some(col) = self.unknown[vj as usize] else { continue };
@@ -246,7 +271,7 @@ impl System<'_, '_> {
                     if along != 0.0 {
                         a += along * (g[0] * gi[0] + g[1] * gi[1]) * (g[0] * gj[0] + g[1] * gj[1]);
                     }
-                    jac.push((col, row, si * self.sign[vj as usize] * e.weight * a));
+                    jac.push((col, row, si * self.sign[vj as usize] * weight * a));
                 }
             }
         }

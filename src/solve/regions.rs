@@ -20,12 +20,13 @@ use super::problem::Problem;
 use crate::result::{Geometry, RegionStats};
 
 /// The figures of every region of `problem` on a solved mesh: `points` and `u` by vertex,
-/// `gradients` and `coefficients` by triangle.
+/// `elements`, `gradients` and `coefficients` by triangle.
 pub(crate) fn measure(
     problem: &Problem<'_>,
     points: &[crate::geom::Point],
     u: &[f64],
     triangles: &[[u32; 3]],
+    elements: &[Element],
     gradients: &[[f64; 2]],
     coefficients: &[TriangleCoefficients],
 ) -> Vec<RegionStats> {
@@ -42,14 +43,13 @@ pub(crate) fn measure(
             }
             let (mut inside, mut integral) = (0.0, 0.0);
             let (mut force, mut torque) = ([0.0; 2], 0.0);
-            for (t, &tri) in triangles.iter().enumerate() {
+            for (t, (&tri, e)) in triangles.iter().zip(elements).enumerate() {
                 let weights = tri.map(|v| weight[v as usize]);
                 let sum = weights[0] + weights[1] + weights[2];
                 // Neither inside (every corner in) nor on the ring (some corner in).
                 if sum == 0.0 {
                     continue;
                 }
-                let Ok(e) = Element::in_geometry(geometry, points, tri, t) else { continue };
                 let centre = e.point(&[1.0 / 3.0; 3]);
                 if sum == 3.0 && region.contains(centre) {
                     inside += e.weight();

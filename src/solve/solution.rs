@@ -81,8 +81,9 @@ pub(crate) fn solve_with<P: Position>(
     known: Option<&[TriangleCoefficients]>,
     start: Option<&[f64]>,
 ) -> Result<Solution, SolveError> {
-    let Numbering { unknown, sign, mut u, masters } = Numbering::new(problem, vertices)?;
-    let n = masters.len();
+    let mut numbering = Numbering::new(problem, vertices)?;
+    let mut u = std::mem::take(&mut numbering.u);
+    let n = numbering.masters.len();
     let elements = (triangles.iter().enumerate())
         .map(|(t, &tri)| Element::in_geometry(problem.geometry(), vertices, tri, t))
         .collect::<Result<Vec<_>, _>>()?;
@@ -96,20 +97,11 @@ pub(crate) fn solve_with<P: Position>(
             &measured[..]
         }
     };
-    let system = nonlinear::System {
-        problem,
-        triangles,
-        elements: &elements,
-        coefficients,
-        unknown: &unknown,
-        sign: &sign,
-        unknowns: masters.len(),
-        open: nonlinear::open_edges(problem, triangles, &elements, coefficients),
-    };
+    let system = nonlinear::System::new(problem, triangles, &elements, coefficients, &numbering);
     let newton = if problem.is_nonlinear() {
         if let Some(start) = start {
             // Each unknown from its own vertex, so periodic partners start consistent.
-            let x: Vec<f64> = masters.iter().map(|&v| start[v]).collect();
+            let x: Vec<f64> = numbering.masters.iter().map(|&v| start[v]).collect();
             system.scatter(&x, &mut u, |_, x| x);
         }
         Some(system.newton(&mut u)?)

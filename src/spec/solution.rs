@@ -154,15 +154,17 @@ struct Device<'r> {
     physics: Physics,
     domain: Rect,
     per_metre: f64,
-    materials: &'r BTreeMap<String, MaterialInput>,
+    /// The request's own materials, each law checked once.
+    materials: &'r BTreeMap<String, Named>,
     circuits: &'r [Circuit],
 }
 
-/// A material's law, checked: μr (a magnet's recoil permeability), or a B–H table, and a
-/// magnet's magnetization M = Br/μ0 with its direction.
+/// A material's law, checked: μr (a magnet's recoil permeability), or a B–H table and its
+/// curve, and a magnet's magnetization M = Br/μ0 with its direction.
+#[derive(Clone)]
 struct Named {
     mu_r: f64,
-    bh: Option<BhTable>,
+    bh: Option<(BhTable, Arc<BhCurve>)>,
     /// M in A/m, and the direction in degrees when the material names one.
     magnet: Option<(f64, Option<f64>)>,
 }
@@ -187,11 +189,7 @@ fn law(at: &str, m: &MaterialInput) -> Result<Named, SpecError> {
                 "a B–H table is the whole law: give bh, or mu_r, or a magnet's br, hc and mu_r",
             ));
         }
-        BhCurve::new(bh).map_err(|e| match e.index() {
-            Some(k) => invalid(format!("{at}.bh[{k}]"), e.to_string()),
-            None => invalid(field("bh"), e.to_string()),
-        })?;
-        return Ok(Named { mu_r: 1.0, bh: Some(bh.clone()), magnet: None });
+        return Ok(Named { mu_r: 1.0, bh: Some((bh.clone(), curve(at, bh)?)), magnet: None });
     }
     let magnet = match (br, hc, mu_r) {
         (None, None, _) => None,
@@ -206,6 +204,14 @@ fn law(at: &str, m: &MaterialInput) -> Result<Named, SpecError> {
     Ok(match magnet {
         Some((br, mu_r)) => Named { mu_r, bh: None, magnet: Some((br / MU_0, angle)) },
         None => Named { mu_r: mu_r.unwrap_or(1.0), bh: None, magnet: None },
+    })
+}
+
+/// The B–H curve of `table`, a bad point named as `at`'s entry (`at.bh[k]`).
+fn curve(at: &str, table: &BhTable) -> Result<Arc<BhCurve>, SpecError> {
+    BhCurve::new(table).map(Arc::new).map_err(|e| match e.index() {
+        Some(k) => invalid(format!("{at}.bh[{k}]"), e.to_string()),
+        None => invalid(format!("{at}.bh"), e.to_string()),
     })
 }
 
@@ -274,10 +280,8 @@ impl Device<'_> {
                 // Where regions overlap the later one's whole material wins: air (μr = 1) and no
                 // current are set explicitly, never inherited.
                 match law.bh {
-                    Some(points) => {
-                        region.curve = Some(Arc::new(
-                            BhCurve::new(&points).map_err(|e| invalid(at("bh"), e.to_string()))?,
-                        ));
+                    Some((points, curve)) => {
+                        region.curve = Some(curve);
                         table = Some(points);
                     }
                     None => region.k = Some(1.0 / (MU_0 * law.mu_r)),
@@ -337,19 +341,17 @@ impl Device<'_> {
                 ));
             }
             let mu_r = r.mu_r.map(|m| positive(&at("mu_r"), m)).transpose()?.unwrap_or(1.0);
-            if let Some(points) = &r.bh {
-                BhCurve::new(points).map_err(|e| match e.index() {
-                    Some(k) => invalid(format!("regions[{i}].bh[{k}]"), e.to_string()),
-                    None => invalid(at("bh"), e.to_string()),
-                })?;
-            }
-            return Ok(Material { mu_r, bh: r.bh.clone(), magnet: r.magnetization });
+            let bh = match &r.bh {
+                Some(points) => Some((points.clone(), curve(&format!("regions[{i}]"), points)?)),
+                None => None,
+            };
+            return Ok(Material { mu_r, bh, magnet: r.magnetization });
         };
         if direct {
             return Err(invalid(at("material"), "give material, or mu_r, bh and magnetization, not both"));
         }
         let law = match (self.materials.get(name), materials::find(name)) {
-            (Some(own), _) => law(&format!("materials.{name}"), own)?,
+            (Some(own), _) => own.clone(),
             (None, Some(built_in)) => {
                 let input = MaterialInput {
                     mu_r: built_in.mu_r,
@@ -416,10 +418,11 @@ impl Device<'_> {
     }
 }
 
-/// A region's material, resolved: μr, or a B–H table, and a magnet's magnetization [Mx, My].
+/// A region's material, resolved: μr, or a B–H table and its curve, and a magnet's
+/// magnetization [Mx, My].
 struct Material {
     mu_r: f64,
-    bh: Option<BhTable>,
+    bh: Option<(BhTable, Arc<BhCurve>)>,
     magnet: Option<[f64; 2]>,
 }
 
@@ -679,9 +682,10 @@ impl SolveSpec {
             None => None,
             Some(e) => Some(coefficient("exact", Some(e), 0.0, limits)?),
         };
+        let mut own = BTreeMap::new();
         for (name, m) in &request.materials {
             key("materials", name)?;
-            law(&format!("materials.{name}"), m)?;
+            own.insert(name.clone(), law(&format!("materials.{name}"), m)?);
         }
         for name in request.circuits.keys() {
             key("circuits", name)?;
@@ -707,8 +711,7 @@ impl SolveSpec {
         if corners > MAX_CORNERS {
             return Err(invalid("regions", format!("{corners} corners in all, more than {MAX_CORNERS}")));
         }
-        let device =
-            Device { physics, domain, per_metre, materials: &request.materials, circuits: &circuits };
+        let device = Device { physics, domain, per_metre, materials: &own, circuits: &circuits };
         let (regions, tables) = (request.regions.into_iter().enumerate())
             .map(|(i, r)| device.region(i, r))
             .collect::<Result<(Vec<_>, Vec<_>), _>>()?;

@@ -132,6 +132,20 @@ async fn refused(app: &crate::helpers::TestApp, body: Value) -> Value {
     response.json().await.unwrap()
 }
 
+/// A change to a good request, the field its 422 must name and what its detail must say.
+type Mistake = (fn(&mut Value), &'static str, &'static str);
+
+/// Each mistake made to `base()` is refused naming its field and saying what it should.
+async fn each_refused(app: &crate::helpers::TestApp, base: fn() -> Value, mistakes: &[Mistake]) {
+    for (change, field, says) in mistakes {
+        let mut body = base();
+        change(&mut body);
+        let p = refused(app, body).await;
+        assert_eq!(p["field"], *field, "{p}");
+        assert!(p["detail"].as_str().unwrap().contains(says), "{p}");
+    }
+}
+
 #[tokio::test]
 async fn bad_problems_are_422_naming_the_field_and_the_column_or_point() {
     let app = spawn_app().await;
@@ -405,8 +419,7 @@ async fn a_device_in_mm_with_a_depth_answers_in_its_units_with_named_regions_and
 #[tokio::test]
 async fn a_device_with_unknown_names_or_loose_coils_is_422_naming_the_field() {
     let app = spawn_app().await;
-    type Change = fn(&mut Value);
-    let cases: [(Change, &str, &str); 9] = [
+    let mistakes: [Mistake; 9] = [
         (|b| b["regions"][0]["material"] = json!("unobtainium"), "/regions/0/material", "unobtainium"),
         (|b| b["regions"][2]["circuit"] = json!("spare"), "/regions/2/circuit", "main"),
         (
@@ -423,13 +436,7 @@ async fn a_device_with_unknown_names_or_loose_coils_is_422_naming_the_field() {
         (|b| b["regions"][1]["angle"] = json!(90), "/regions/1/angle", "not a magnet"),
         (|b| b["materials"]["a.b"] = json!({"mu_r": 2}), "/materials", "without"),
     ];
-    for (change, field, says) in cases {
-        let mut body = engineered(100);
-        change(&mut body);
-        let p = refused(&app, body).await;
-        assert_eq!(p["field"], field, "{p}");
-        assert!(p["detail"].as_str().unwrap().contains(says), "{p}");
-    }
+    each_refused(&app, || engineered(100), &mistakes).await;
     // Units and devices are magnetostatics'.
     let p = refused(&app, json!({"f": 1, "unit": "mm"})).await;
     assert_eq!(p["field"], "/unit", "{p}");
@@ -482,8 +489,7 @@ async fn a_round_actuator_in_an_open_box_answers_its_axial_force_and_inductance_
 #[tokio::test]
 async fn axisymmetric_and_open_mistakes_are_422_naming_the_field() {
     let app = spawn_app().await;
-    type Change = fn(&mut Value);
-    let cases: [(Change, &str, &str); 7] = [
+    let mistakes: [Mistake; 7] = [
         (|b| b["domain"]["x"] = json!([-60, 60]), "/domain/x", "axis"),
         (
             |b| {
@@ -499,13 +505,7 @@ async fn axisymmetric_and_open_mistakes_are_422_naming_the_field() {
         (|b| b["regions"][0]["polygon"][1] = json!([60, -20]), "/boundary/right", "regions[0]"),
         (|b| b["boundary"] = json!("robin"), "/boundary", "unknown variant"),
     ];
-    for (change, field, says) in cases {
-        let mut body = actuator();
-        change(&mut body);
-        let p = refused(&app, body).await;
-        assert_eq!(p["field"], field, "{p}");
-        assert!(p["detail"].as_str().unwrap().contains(says), "{p}");
-    }
+    each_refused(&app, actuator, &mistakes).await;
     let p = refused(&app, json!({"f": 1, "boundary": "open"})).await;
     assert_eq!(p["field"], "/boundary/left", "{p}");
     app.shutdown().await;

@@ -30,21 +30,53 @@ fn disc(x: f64, y: f64, r: f64, n: usize, domain: Rect) -> Shape {
     Shape::polygon(corners.collect(), domain).unwrap()
 }
 
+/// Air in `domain`, and circuit `name` carrying `current` through `coils`, each with its
+/// signed turns.
+fn in_air(
+    domain: Rect,
+    name: &str,
+    current: f64,
+    coils: impl IntoIterator<Item = (Shape, f64)>,
+) -> Problem<'static> {
+    let problem =
+        Problem::new(domain).with_k(|_, _| 1.0 / MU_0).with_circuit(Circuit { name: name.into(), current });
+    coils.into_iter().fold(problem, |p, (shape, turns)| p.with_region(coil(shape, turns, current)))
+}
+
+/// Round wires of radius `a` (64-gons), centres `d` apart on the x axis, carrying ±`current`
+/// as circuit "line".
+fn two_wire(domain: Rect, a: f64, d: f64, current: f64) -> Problem<'static> {
+    let wires = [(-d / 2.0, 1.0), (d / 2.0, -1.0)].map(|(x, turns)| (disc(x, 0.0, a, 64, domain), turns));
+    in_air(domain, "line", current, wires)
+}
+
+/// The two-wire line's inductance per metre at direct current: μ0/π · ln(d / a) outside the
+/// wires (each a line current at its centre, seen from outside) plus μ0/8π inside each.
+/// (acosh(d / 2a) is for currents pushed to the surfaces.)
+fn two_wire_inductance(a: f64, d: f64) -> f64 {
+    MU_0 / PI * (d / a).ln() + 2.0 * MU_0 / (8.0 * PI)
+}
+
+/// A ring of round wire of radius `a` (a 48-gon) on a circle of `big_r` about the axis,
+/// carrying `current` as circuit "ring".
+fn ring(domain: Rect, a: f64, big_r: f64, current: f64) -> Problem<'static> {
+    in_air(domain, "ring", current, [(disc(big_r, 0.0, a, 48, domain), 1.0)])
+        .with_geometry(crate::result::Geometry::Axisymmetric)
+}
+
+/// A thin ring's inductance, μ0 R (ln(8R/a) − 7/4), to O((a/R)²).
+fn ring_inductance(a: f64, big_r: f64) -> f64 {
+    MU_0 * big_r * ((8.0 * big_r / a).ln() - 1.75)
+}
+
 #[test]
 fn a_two_wire_line_has_the_inductance_of_its_formula_and_both_agree_with_the_energy() {
-    // Round wires of radius a, centres d apart, carrying ±I spread evenly (direct current):
-    // outside, each acts as a line current at its centre, so per metre L = μ0/π · ln(d / a)
-    // plus μ0/8π inside each. (acosh(d / 2a) is for currents pushed to the surfaces.)
+    // Round wires of radius a, centres d apart, carrying ±I spread evenly (direct current).
     let (a, d, current) = (0.002, 0.02, 10.0);
     let domain = Rect::new(-0.4, 0.4, -0.4, 0.4).unwrap();
-    let problem = Problem::new(domain)
-        .with_k(|_, _| 1.0 / MU_0)
-        .with_circuit(Circuit { name: "line".into(), current })
-        .with_region(coil(disc(-d / 2.0, 0.0, a, 64, domain), 1.0, current))
-        .with_region(coil(disc(d / 2.0, 0.0, a, 64, domain), -1.0, current));
-    let run = adapt(&problem, None, &Settings::new(20_000), &mut ()).unwrap();
+    let run = adapt(&two_wire(domain, a, d, current), None, &Settings::new(20_000), &mut ()).unwrap();
     let line = run.stats.circuits["line"];
-    let exact = MU_0 / PI * (d / a).ln() + 2.0 * MU_0 / (8.0 * PI);
+    let exact = two_wire_inductance(a, d);
     let apparent = line.inductance.unwrap();
     assert!((apparent - exact).abs() < 2e-3 * exact, "{apparent} against {exact}");
     // Linear and without magnets: λ/I = dλ/dI = 2W/I².
@@ -88,12 +120,14 @@ fn the_incremental_inductance_of_saturated_iron_is_the_derivative_of_the_flux_li
     let at = |current: f64| {
         let problem = problem(current);
         let solution = solve(&problem, &points, &triangles).unwrap();
-        let coefficients: Vec<_> = (triangles.iter().enumerate())
-            .map(|(t, &tri)| {
-                TriangleCoefficients::of(&problem, &Element::new(&points, tri, t).unwrap(), t).unwrap()
-            })
+        let elements: Vec<Element> =
+            (triangles.iter().enumerate()).map(|(t, &tri)| Element::new(&points, tri, t).unwrap()).collect();
+        let coefficients: Vec<_> = (elements.iter().enumerate())
+            .map(|(t, e)| TriangleCoefficients::of(&problem, e, t).unwrap())
             .collect();
-        super::circuits::measure(&problem, &points, &solution.u, &triangles, &coefficients).unwrap()["coil"]
+        let circuits =
+            super::circuits::measure(&problem, &points, &solution.u, &triangles, &elements, &coefficients);
+        circuits.unwrap()["coil"]
     };
     let here = at(current);
     let delta = 1e-3 * current;
@@ -136,12 +170,7 @@ fn a_current_loop_turned_about_the_axis_has_the_field_of_biot_savart_and_a_rings
     // the ring's inductance is μ0 R (ln(8R/a) − 7/4) to O((a/R)²).
     let (a, big_r, current) = (0.001, 0.05, 1.0);
     let domain = Rect::new(0.0, 0.5, -0.5, 0.5).unwrap();
-    let problem = Problem::new(domain)
-        .with_k(|_, _| 1.0 / MU_0)
-        .with_geometry(crate::result::Geometry::Axisymmetric)
-        .with_circuit(Circuit { name: "ring".into(), current })
-        .with_region(coil(disc(big_r, 0.0, a, 48, domain), 1.0, current));
-    let run = adapt(&problem, None, &Settings::new(20_000), &mut ()).unwrap();
+    let run = adapt(&ring(domain, a, big_r, current), None, &Settings::new(20_000), &mut ()).unwrap();
     // A_φ = 0 on the axis; elsewhere within the box's reach, Biot–Savart's.
     assert!(run.mesh.vertices().iter().filter(|v| v.x == 0.0).all(|v| v.z == 0.0));
     let peak = loop_potential(big_r, current, big_r - 5.0 * a, 0.0);
@@ -165,7 +194,7 @@ fn a_current_loop_turned_about_the_axis_has_the_field_of_biot_savart_and_a_rings
     let ring = run.stats.circuits["ring"];
     // Per radian: the whole turn is 2π times.
     let inductance = 2.0 * PI * ring.inductance.unwrap();
-    let exact = MU_0 * big_r * ((8.0 * big_r / a).ln() - 1.75);
+    let exact = ring_inductance(a, big_r);
     assert!((inductance - exact).abs() < 1e-2 * exact, "{inductance} against {exact}");
     let by_energy = 2.0 * run.stats.energy / (current * current);
     assert!((ring.inductance.unwrap() - by_energy).abs() < 1e-9 * by_energy);
@@ -186,11 +215,8 @@ fn a_wire_in_open_space_needs_a_box_of_only_a_few_radii() {
     // sides' gauge: ρ₀ is half the box's diagonal) and B = μ0 I / 2πρ, in a box 3a wide.
     let (a, current) = (0.001, 10.0);
     let domain = Rect::new(-0.003, 0.003, -0.003, 0.003).unwrap();
-    let problem = Problem::new(domain)
-        .with_k(|_, _| 1.0 / MU_0)
-        .with_boundary(open())
-        .with_circuit(Circuit { name: "wire".into(), current })
-        .with_region(coil(disc(0.0, 0.0, a, 64, domain), 1.0, current));
+    let problem =
+        in_air(domain, "wire", current, [(disc(0.0, 0.0, a, 64, domain), 1.0)]).with_boundary(open());
     let run = adapt(&problem, None, &Settings::new(10_000), &mut ()).unwrap();
     let rho_0 = domain.diagonal() / 2.0;
     let exact = |rho: f64| -MU_0 * current / (2.0 * PI) * (rho / rho_0).ln();
@@ -210,14 +236,9 @@ fn a_two_wire_line_and_a_loop_in_small_open_boxes_keep_their_far_fields() {
     // The line of the first test in a box only 3d wide: its inductance within 1%.
     let (a, d, current) = (0.002, 0.02, 10.0);
     let domain = Rect::new(-0.06, 0.06, -0.06, 0.06).unwrap();
-    let line = Problem::new(domain)
-        .with_k(|_, _| 1.0 / MU_0)
-        .with_boundary(open())
-        .with_circuit(Circuit { name: "line".into(), current })
-        .with_region(coil(disc(-d / 2.0, 0.0, a, 64, domain), 1.0, current))
-        .with_region(coil(disc(d / 2.0, 0.0, a, 64, domain), -1.0, current));
+    let line = two_wire(domain, a, d, current).with_boundary(open());
     let run = adapt(&line, None, &Settings::new(20_000), &mut ()).unwrap();
-    let exact = MU_0 / PI * (d / a).ln() + 2.0 * MU_0 / (8.0 * PI);
+    let exact = two_wire_inductance(a, d);
     let l = run.stats.circuits["line"].inductance.unwrap();
     assert!((l - exact).abs() < 1e-2 * exact, "{l} against {exact}");
     // The loop of R = 50 mm in a box reaching only 2R: inside 1.5R, where the device is,
@@ -226,12 +247,7 @@ fn a_two_wire_line_and_a_loop_in_small_open_boxes_keep_their_far_fields() {
     let (a, big_r, current) = (0.001, 0.05, 1.0);
     let domain = Rect::new(0.0, 0.1, -0.1, 0.1).unwrap();
     let worst = |boundary: crate::solve::Boundary| {
-        let ring = Problem::new(domain)
-            .with_k(|_, _| 1.0 / MU_0)
-            .with_geometry(crate::result::Geometry::Axisymmetric)
-            .with_boundary(boundary)
-            .with_circuit(Circuit { name: "ring".into(), current })
-            .with_region(coil(disc(big_r, 0.0, a, 48, domain), 1.0, current));
+        let ring = ring(domain, a, big_r, current).with_boundary(boundary);
         let run = adapt(&ring, None, &Settings::new(20_000), &mut ()).unwrap();
         let peak = loop_potential(big_r, current, big_r - 5.0 * a, 0.0);
         let near =
@@ -245,7 +261,7 @@ fn a_two_wire_line_and_a_loop_in_small_open_boxes_keep_their_far_fields() {
         worst(crate::solve::Boundary { left: crate::solve::Side::Dirichlet, ..open() });
     let (closed_error, _) = worst(crate::solve::Boundary::default());
     assert!(open_error < 0.04 && closed_error > 0.1, "open {open_error}, A = 0 walls {closed_error}");
-    let exact = MU_0 * big_r * ((8.0 * big_r / a).ln() - 1.75);
+    let exact = ring_inductance(a, big_r);
     assert!((inductance - exact).abs() < 2e-2 * exact, "{inductance} against {exact}");
 }
 
