@@ -482,9 +482,9 @@ pub struct RegionInput {
     pub x: Option<Vec<f64>>,
     /// [y0, y1], with `x`.
     pub y: Option<Vec<f64>>,
-    /// A simple polygon's corners [[x, y], …], at least 3, either orientation, instead of `x`
-    /// and `y`.
-    pub polygon: Option<Vec<[f64; 2]>>,
+    /// A simple polygon's corners [[x, y], …], either orientation, instead of `x` and `y`;
+    /// an arc (`{"arc": degrees}`) between two corners makes that side a circular arc.
+    pub polygon: Option<Vec<PolygonEntry>>,
     /// k inside (poisson).
     pub k: Option<f64>,
     /// f inside (poisson).
@@ -517,6 +517,57 @@ pub struct RegionInput {
     pub direction: Option<i8>,
     /// The point its torque is taken about, [x, y] (default the origin).
     pub torque_about: Option<[f64; 2]>,
+}
+
+/// One entry of a region's `polygon`: a corner [x, y], or an arc that bends the side from
+/// the corner before it to the corner after it (the first after the last).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PolygonEntry {
+    /// A corner.
+    Corner([f64; 2]),
+    /// A circular arc between its neighbours.
+    Arc(ArcInput),
+}
+
+impl PolygonEntry {
+    /// The corner, when the entry is one.
+    pub fn corner(&self) -> Option<[f64; 2]> {
+        match *self {
+            Self::Corner(p) => Some(p),
+            Self::Arc(_) => None,
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for PolygonEntry {
+    /// By hand rather than `untagged`, so that a fault inside an arc is named by its path.
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = PolygonEntry;
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str("a corner [x, y] or an arc {\"arc\": degrees}")
+            }
+            fn visit_seq<S: de::SeqAccess<'de>>(self, seq: S) -> Result<PolygonEntry, S::Error> {
+                <[f64; 2]>::deserialize(de::value::SeqAccessDeserializer::new(seq)).map(PolygonEntry::Corner)
+            }
+            fn visit_map<M: de::MapAccess<'de>>(self, map: M) -> Result<PolygonEntry, M::Error> {
+                ArcInput::deserialize(de::value::MapAccessDeserializer::new(map)).map(PolygonEntry::Arc)
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+/// A polygon side bent into a circular arc, drawn as straight segments.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ArcInput {
+    /// The angle it sweeps about its centre in degrees, 0 < |arc| < 360: counter-clockwise
+    /// from the corner before to the corner after when positive, clockwise when negative.
+    pub arc: f64,
+    /// The most degrees one of its straight segments may sweep (default 5, at most 90).
+    pub max_segment_angle: Option<f64>,
 }
 
 /// A material's law, as a request's `materials` names it: linear (`mu_r`), a B–H table

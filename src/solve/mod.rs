@@ -78,7 +78,7 @@ pub use error::SolveError;
 pub(crate) use fields::flux_density;
 pub use nonlinear::{MAX_NEWTON_ITERATIONS, NEWTON_TOLERANCE, Newton};
 pub use physics::MU_0;
-pub use polygon::{MAX_POLYGON_POINTS, Polygon, PolygonError};
+pub use polygon::{MAX_POLYGON_POINTS, Polygon, PolygonError, arc_points};
 pub use problem::{Boundary, Circuit, Coil, OutsideDomain, Problem, Region, Shape, Side};
 pub use solution::{ErrorNorms, Solution, solve};
 // A solution's report is data of its result, which knows nothing of the solver.

@@ -129,6 +129,26 @@ impl Polygon {
     }
 }
 
+/// The `segments − 1` points that divide the circular arc from `from` to `to` into
+/// `segments` equal parts, in order: the arc sweeps `degrees` about its centre,
+/// counter-clockwise when positive. libm's trigonometry gives the same bits on every machine.
+pub fn arc_points(from: Point, to: Point, degrees: f64, segments: usize) -> impl Iterator<Item = Point> {
+    let sweep = degrees.to_radians();
+    let (dx, dy) = (to.x - from.x, to.y - from.y);
+    let chord = libm::hypot(dx, dy);
+    let half = 0.5 * sweep.abs();
+    let radius = 0.5 * chord / libm::sin(half);
+    // The centre lies off the chord's midpoint, to its left for a counter-clockwise sweep
+    // under half a turn, past it for one over.
+    let off = radius * libm::cos(half) * sweep.signum() / chord;
+    let centre = Point::new(0.5 * (from.x + to.x) - off * dy, 0.5 * (from.y + to.y) + off * dx);
+    let start = libm::atan2(from.y - centre.y, from.x - centre.x);
+    (1..segments).map(move |i| {
+        let phi = start + sweep * i as f64 / segments as f64;
+        Point::new(centre.x + radius * libm::cos(phi), centre.y + radius * libm::sin(phi))
+    })
+}
+
 /// The first corner at which `corners` stop making a simple polygon, and why: a repeated
 /// corner, a zero-length or backtracking side, or two sides that cross or touch. Decided by
 /// exact orientation tests.
@@ -197,6 +217,34 @@ mod tests {
         assert_eq!(repeated, Err(PolygonError::Repeated { corner: 1 }));
         let triangle = try_new(&[[0.1, 0.1], [0.9, 0.1], [0.1, 0.9]]).unwrap();
         assert!((triangle.area() - 0.32).abs() < 1e-15, "{}", triangle.area());
+    }
+
+    #[test]
+    fn arc_points_lie_on_the_circle_in_order_on_the_side_the_sweep_names() {
+        let (from, to) = (Point::new(1.0, 0.0), Point::new(0.0, 1.0));
+        let on_circle = |c: Point, r: f64| move |p: Point| (p.distance_sq(c).sqrt() - r).abs() < 1e-15;
+        // A quarter turn counter-clockwise about the origin.
+        let quarter: Vec<_> = arc_points(from, to, 90.0, 3).collect();
+        assert_eq!(quarter.len(), 2);
+        assert!(quarter.iter().copied().all(on_circle(Point::new(0.0, 0.0), 1.0)), "{quarter:?}");
+        let third = Point::new(libm::cos(30f64.to_radians()), 0.5);
+        assert!(quarter[0].distance_sq(third) < 1e-30, "{quarter:?}");
+        // Three quarters counter-clockwise: the same ends, the centre at (1, 1).
+        let long: Vec<_> = arc_points(from, to, 270.0, 3).collect();
+        assert!(long.iter().copied().all(on_circle(Point::new(1.0, 1.0), 1.0)), "{long:?}");
+        assert!(long[0].distance_sq(Point::new(2.0, 1.0)) < 1e-30, "{long:?}");
+        assert!(long[1].distance_sq(Point::new(1.0, 2.0)) < 1e-30, "{long:?}");
+        // Three quarters clockwise: about the origin again, the long way round.
+        let back: Vec<_> = arc_points(from, to, -270.0, 3).collect();
+        assert!(back[0].distance_sq(Point::new(0.0, -1.0)) < 1e-30, "{back:?}");
+        assert!(back[1].distance_sq(Point::new(-1.0, 0.0)) < 1e-30, "{back:?}");
+        // Half a turn: the centre is the chord's midpoint.
+        let half: Vec<_> = arc_points(Point::new(-1.0, 0.0), Point::new(1.0, 0.0), 180.0, 2).collect();
+        assert!(
+            half[0].distance_sq(Point::new(0.0, -1.0)) < 1e-30,
+            "counter-clockwise from (−1, 0) passes below: {half:?}"
+        );
+        assert_eq!(arc_points(from, to, 45.0, 1).count(), 0, "one segment is the chord");
     }
 
     #[test]

@@ -4,6 +4,7 @@
 mod access;
 mod cache;
 mod connections;
+mod devices;
 mod errors;
 mod events;
 mod helpers;

@@ -126,17 +126,17 @@ async fn a_job_that_names_physics_is_a_solution_with_its_flux_density_in_every_f
 }
 
 /// The problem document of a request that must fail with 422.
-async fn refused(app: &crate::helpers::TestApp, body: Value) -> Value {
+pub(crate) async fn refused(app: &crate::helpers::TestApp, body: Value) -> Value {
     let response = app.post("/v1/solutions", &body).await;
     assert_eq!(response.status(), 422, "{body}");
     response.json().await.unwrap()
 }
 
 /// A change to a good request, the field its 422 must name and what its detail must say.
-type Mistake = (fn(&mut Value), &'static str, &'static str);
+pub(crate) type Mistake = (fn(&mut Value), &'static str, &'static str);
 
 /// Each mistake made to `base()` is refused naming its field and saying what it should.
-async fn each_refused(app: &crate::helpers::TestApp, base: fn() -> Value, mistakes: &[Mistake]) {
+pub(crate) async fn each_refused(app: &crate::helpers::TestApp, base: fn() -> Value, mistakes: &[Mistake]) {
     for (change, field, says) in mistakes {
         let mut body = base();
         change(&mut body);

@@ -277,3 +277,71 @@ fn flux_density_at(run: &Adapted, p: Point) -> [f64; 2] {
     }
     panic!("no triangle holds {p:?}")
 }
+
+/// `problem` turned about the axis, open on the three sides off it.
+fn round_in_open_space(problem: Problem<'static>) -> Problem<'static> {
+    problem
+        .with_geometry(crate::result::Geometry::Axisymmetric)
+        .with_boundary(crate::solve::Boundary { left: crate::solve::Side::Dirichlet, ..open() })
+}
+
+/// B_z on the axis of a thick solenoid, r from `a1` to `a2` and z from −`b` to `b`, carrying
+/// the current density `j` around it: Biot–Savart integrated over the winding.
+fn solenoid_axial_field(a1: f64, a2: f64, b: f64, j: f64, z: f64) -> f64 {
+    let end = |x: f64| x * ((a2 + a2.hypot(x)) / (a1 + a1.hypot(x))).ln();
+    MU_0 * j / 2.0 * (end(z + b) - end(z - b))
+}
+
+#[test]
+fn a_finite_solenoid_in_an_open_box_has_biot_savarts_field_on_its_axis() {
+    // 100 turns at 1 A on r ∈ [10, 12] mm, z ∈ [−20, 20] mm, in an open box of 80 × 200 mm:
+    // B_z on the axis (the triangle at r = 0.1 mm, as /evaluate reads it) inside, at the end and
+    // past it, within 1% of the centre's field. The triangles along the axis are the coarse
+    // ones (the field there is nearly uniform): 2·10⁴ vertices miss z = 10 mm by 1.3%.
+    let (a1, a2, b, turns, current) = (0.010, 0.012, 0.020, 100.0, 1.0);
+    let domain = Rect::new(0.0, 0.08, -0.1, 0.1).unwrap();
+    let winding = Shape::Rect(Rect::new(a1, a2, -b, b).unwrap());
+    let problem = round_in_open_space(in_air(domain, "coil", current, [(winding, turns)]));
+    let run = adapt(&problem, None, &Settings::new(40_000), &mut ()).unwrap();
+    let j = turns * current / ((a2 - a1) * 2.0 * b);
+    let centre = solenoid_axial_field(a1, a2, b, j, 0.0);
+    for z in [0.0, 0.01, 0.02, 0.03] {
+        let [br, bz] = flux_density_at(&run, Point::new(1e-4, z));
+        let exact = solenoid_axial_field(a1, a2, b, j, z);
+        assert!((bz - exact).abs() < 1e-2 * centre, "B_z at z = {z}: {bz} against {exact}");
+        assert!(br.abs() < 1e-2 * centre, "B_r at z = {z}: {br}");
+    }
+}
+
+/// The attraction between two coaxial filament loops of radii `r1`, `r2`, `z` apart, each
+/// carrying 1 A: ∂M/∂z of Maxwell's mutual inductance, by elliptic integrals.
+fn loop_attraction(r1: f64, r2: f64, z: f64) -> f64 {
+    let m = 4.0 * r1 * r2 / ((r1 + r2).powi(2) + z * z);
+    let (k, e) = elliptic(m);
+    let e_factor = (r1 * r1 + r2 * r2 + z * z) / ((r1 - r2).powi(2) + z * z);
+    MU_0 * z / ((r1 + r2).powi(2) + z * z).sqrt() * (e_factor * e - k)
+}
+
+#[test]
+fn two_coaxial_loops_attract_with_the_derivative_of_their_mutual_inductance() {
+    // Rings of round wire, a = 1 mm, on R = 20 mm and 30 mm, 10 mm apart, 100 A each in the
+    // same sense: each pulls the other along the axis with I² ∂M/∂z, equal and opposite.
+    let (a, r1, r2, gap, current) = (0.001, 0.02, 0.03, 0.01, 100.0);
+    let domain = Rect::new(0.0, 0.08, -0.05, 0.06).unwrap();
+    let rings = [(r1, 0.0), (r2, gap)].map(|(r, z)| (disc(r, z, a, 48, domain), 1.0));
+    let run = adapt(
+        &round_in_open_space(in_air(domain, "pair", current, rings)),
+        None,
+        &Settings::new(20_000),
+        &mut (),
+    )
+    .unwrap();
+    let exact = current * current * loop_attraction(r1, r2, gap);
+    // Per radian: the whole turn is 2π times.
+    let [lower, upper] = [0, 1].map(|i| 2.0 * PI * run.stats.regions[i].force[1]);
+    assert!((lower - exact).abs() < 5e-3 * exact, "the lower ring is pulled up by {lower} N, not {exact} N");
+    assert!(
+        (upper + exact).abs() < 5e-3 * exact,
+        "the upper ring is pulled down by {upper} N, not {exact} N"
+    );
+}
