@@ -1,7 +1,7 @@
 //! The page for people at `/`: a form, the mesh as it grows, its convergence and downloads.
 //!
 //! Plain HTML, CSS and JavaScript modules (one per concern: the form, the job, the viewer,
-//! the plots, solutions, downloads, terrain datasets; `main.js` wires them) compiled into the binary, so
+//! the plots, solutions, magnetic devices, downloads, terrain datasets; `main.js` wires them) compiled into the binary, so
 //! `cargo run` serves it offline with no build step. It speaks only the public API (`POST /v1/jobs`, the job's events with
 //! `?vertices=true`, `GET /v1/jobs/{id}/mesh?format=`), like any other client.
 
@@ -21,6 +21,7 @@ const ASSETS: &[(&str, &str, &str)] = &[
     ("downloads.js", JS, include_str!("page/downloads.js")),
     ("viewer.js", JS, include_str!("page/viewer.js")),
     ("solutions.js", JS, include_str!("page/solutions.js")),
+    ("device.js", JS, include_str!("page/device.js")),
     ("plots.js", JS, include_str!("page/plots.js")),
     ("terrain.js", JS, include_str!("page/terrain.js")),
     ("app.css", "text/css; charset=utf-8", include_str!("page/app.css")),

@@ -150,6 +150,7 @@ async fn the_page_runs_a_shared_address_draws_the_mesh_and_shows_the_apis_stats(
         bad_expression(&app, &client).await;
         grid_file(&app, &client).await;
         boundary_value_problem(&app, &client).await;
+        device(&app, &client).await;
         terrain(&app, &client).await;
         api_key(&keyed, &client).await;
     })
@@ -421,12 +422,92 @@ async fn boundary_value_problem(app: &TestApp, client: &Client) {
             "region {i}'s force on the page"
         );
     }
-    // |B| colouring is a different picture from u.
-    let before = canvas_ink(client, "flat").await;
-    client.execute("const s = document.getElementById('solve-colour'); s.value = 'b'; s.dispatchEvent(new Event('change'));", vec![]).await.unwrap();
+    // A magnetostatic problem opens as a device, on |B|; u is a different picture.
+    wait_until(client, "#tab-device[aria-selected=true]").await;
     wait_until(client, "#legend[data-label='|B| (T)']").await;
-    assert_ne!(canvas_ink(client, "flat").await, before, "|B| repaints the picture");
+    let before = canvas_ink(client, "flat").await;
+    client.execute("const s = document.getElementById('solve-colour'); s.value = 'u'; s.dispatchEvent(new Event('change'));", vec![]).await.unwrap();
+    wait_until(client, "#legend[data-label='u']").await;
+    assert_ne!(canvas_ink(client, "flat").await, before, "u repaints the picture");
     screenshot(client, "page-solution").await;
+}
+
+/// The problem in the page's editor, parsed.
+async fn page_problem(client: &Client) -> Value {
+    let text = client.execute("return document.getElementById('problem').value", vec![]).await.unwrap();
+    serde_json::from_str(text.as_str().unwrap()).unwrap()
+}
+
+async fn device(app: &TestApp, client: &Client) {
+    client.goto(&app.url("/")).await.unwrap();
+    wait_until(client, "body[data-state=done]").await;
+    client.find(Locator::Id("tab-device")).await.unwrap().click().await.unwrap();
+    wait_until(client, "#legend[data-label='|B| (T)']").await;
+    wait_until(client, "body[data-state=done]").await;
+    // The example device, its circuit's inductance as the API gives it.
+    let id = page_job(client).await;
+    let status: Value = app.get(&format!("/v1/jobs/{id}")).await.json().await.unwrap();
+    let coil = &status["stats"]["circuits"]["coil"];
+    let shown = page_stats(client).await;
+    assert_eq!(shown.get("circuit_coil"), Some(&json!([coil["inductance"], coil["incremental_inductance"]])));
+    // One row a region, by name, its material chosen from the library.
+    let library: Value = app.get("/v1/materials").await.json().await.unwrap();
+    let names: Vec<&str> =
+        library["materials"].as_array().unwrap().iter().map(|m| m["name"].as_str().unwrap()).collect();
+    wait_until(client, "#device-regions option[value='N52']").await;
+    let script = r#"
+        return [...document.querySelectorAll('#device-regions tr')].map((tr) => {
+            const [name, material, circuit] = tr.querySelectorAll('input, select');
+            return [name.value, material.value, circuit.value, material.querySelectorAll('option').length];
+        });
+    "#;
+    let rows = client.execute(script, vec![]).await.unwrap();
+    let rows = rows.as_array().unwrap();
+    let row = |i: usize, k: usize| rows[i][k].as_str().unwrap().to_owned();
+    assert_eq!((0..4).map(|i| row(i, 0)).collect::<Vec<_>>(), ["core", "armature", "coil+", "coil-"]);
+    assert_eq!((row(0, 1), row(0, 2), row(2, 2)), ("M400-50A".into(), "—".into(), "coil".into()));
+    assert_eq!(rows[0][3].as_u64(), Some(names.len() as u64), "every library material is offered");
+    // The steel's B–H table, plotted point by point.
+    let steel = library["materials"].as_array().unwrap().iter().find(|m| m["name"] == "M400-50A").unwrap();
+    let points = steel["bh"].as_array().unwrap().len().to_string();
+    wait_until(client, &format!("#bh-plot[data-points='{points}']")).await;
+    assert!(canvas_ink(client, "bh-plot").await.0 > 500, "the B–H plot is drawn");
+    // Choosing a material, a circuit's current and a new circuit writes the request.
+    let set = r#"
+        const [selector, value] = arguments;
+        const el = document.querySelector(selector);
+        el.value = value;
+        el.dispatchEvent(new Event('change'));
+    "#;
+    client
+        .execute(
+            set,
+            vec![json!("#device-regions tr[data-region='1'] td:nth-child(2) select"), json!("M-19")],
+        )
+        .await
+        .unwrap();
+    client.execute(set, vec![json!("#device-circuits input"), json!("2.5")]).await.unwrap();
+    client.find(Locator::Id("add-circuit")).await.unwrap().click().await.unwrap();
+    client
+        .execute(set, vec![json!("#device-regions tr[data-region='0'] td:nth-child(3) select"), json!("c1")])
+        .await
+        .unwrap();
+    let problem = page_problem(client).await;
+    assert_eq!(problem["regions"][1]["material"], "M-19", "{problem}");
+    assert_eq!(problem["circuits"], json!({"coil": {"current": 2.5}, "c1": {"current": 1}}), "{problem}");
+    assert_eq!(
+        (
+            &problem["regions"][0]["circuit"],
+            &problem["regions"][0]["turns"],
+            &problem["regions"][0]["direction"]
+        ),
+        (&json!("c1"), &json!(1), &json!(1)),
+        "{problem}"
+    );
+    // The edited device solves.
+    client.find(Locator::Id("solve-run")).await.unwrap().click().await.unwrap();
+    wait_until(client, "body[data-state=done] #stats td[data-stat=circuit_c1]").await;
+    screenshot(client, "page-device").await;
 }
 
 const KEY: &str = "page-key-0123456789abcdef";

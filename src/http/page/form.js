@@ -3,13 +3,14 @@
 
 import { $, view } from "./state.js";
 
-// Shows tab `which` ("mesh" or "solve") and its form.
+// Shows tab `which` ("mesh", "solve", "device" or "terrain") and its form: a device is a
+// problem, edited in the problem's form with the device's tables shown.
 export function showTab(which) {
-  view.kind = which === "solve" ? "solution" : "mesh";
-  for (const tab of ["mesh", "solve", "terrain"]) {
-    $(`tab-${tab}`).setAttribute("aria-selected", String(which === tab));
-    $(`${tab}-form`).hidden = which !== tab;
-  }
+  view.kind = which === "solve" || which === "device" ? "solution" : "mesh";
+  const form = which === "device" ? "solve" : which;
+  for (const tab of ["mesh", "solve", "device", "terrain"]) $(`tab-${tab}`).setAttribute("aria-selected", String(which === tab));
+  for (const name of ["mesh", "solve", "terrain"]) $(`${name}-form`).hidden = form !== name;
+  $("device-editor").hidden = which !== "device";
 }
 
 // The mesh request the form describes; `bad` collects field errors found before sending.
@@ -54,7 +55,7 @@ function shareAddress(req) {
     }
   }
   if (view.mode !== "flat") q.set("view", view.mode);
-  if (view.kind === "solution" && $("solve-colour").value === "b") q.set("colour", "b");
+  if (view.kind === "solution") q.set("colour", $("solve-colour").value);
   // Spaces as %20, not `+`: the page reads a `+` in an address as the plus a person typing
   // ?function=x+y means (readAddress), so a `+` written here must stand for itself alone.
   return `${location.pathname}?${q.toString().replace(/\+/g, "%20")}`;

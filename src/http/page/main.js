@@ -13,13 +13,22 @@ import { openJob, run, setStatus } from "./jobs.js";
 import { loadErrors } from "./downloads.js";
 import { frame, scheduleDraw, turn } from "./viewer.js";
 import { MAGNET, problemJson } from "./solutions.js";
+import { addCircuit, DEVICE, loadLibrary, renderDevice } from "./device.js";
 import { drawConvergence } from "./plots.js";
 import { uploadDem } from "./terrain.js";
 
-// Switches to tab `which` with an empty picture.
+// Switches to tab `which` with an empty picture. The device tab opens on |B|, on the
+// example device unless the problem in the editor is one.
 function selectTab(which) {
   showTab(which);
-  if (which === "solve") {
+  if (which === "device") {
+    const p = problemJson();
+    if (!p || p.physics !== "magnetostatic") $("problem").value = JSON.stringify(DEVICE, null, 2);
+    $("solve-colour").value = "b";
+    renderDevice(scheduleDraw);
+    loadLibrary(() => renderDevice(scheduleDraw));
+  }
+  if (which === "solve" || which === "device") {
     if (!$("problem").value) $("problem").value = JSON.stringify(MAGNET, null, 2);
     const p = problemJson();
     view.domain = p && p.domain ? [...p.domain.x, ...p.domain.y] : [0, 1, 0, 1];
@@ -88,14 +97,16 @@ function readAddress() {
   if (["flat", "surface", "error"].includes(q.get("view"))) selectView(q.get("view"));
   if (/^[0-9a-f]{64}$/.test(q.get("job") || "")) return "job";
   if (q.has("problem")) {
-    selectTab("solve");
     const text = q.get("problem");
     try {
       $("problem").value = JSON.stringify(JSON.parse(text), null, 2);
     } catch (e) {
       $("problem").value = text; // shown as is: the form says it is not JSON
     }
-    if (q.get("colour") === "b") $("solve-colour").value = "b";
+    // A magnetostatic problem is a device: its tab, on |B| unless the address says u.
+    const p = problemJson();
+    selectTab(p && p.physics === "magnetostatic" ? "device" : "solve");
+    if (["u", "b"].includes(q.get("colour"))) $("solve-colour").value = q.get("colour");
     return "solve";
   }
   let any = false;
@@ -148,6 +159,7 @@ function regionDrag() {
     else region.k = 10;
     p.regions = [...(p.regions || []), region];
     $("problem").value = JSON.stringify(p, null, 2);
+    if (!$("device-editor").hidden) renderDevice(scheduleDraw);
     view.doc = null;
     view.domain = d;
     scheduleDraw();
@@ -157,6 +169,11 @@ function regionDrag() {
 function wire() {
   $("tab-mesh").addEventListener("click", () => selectTab("mesh"));
   $("tab-solve").addEventListener("click", () => selectTab("solve"));
+  $("tab-device").addEventListener("click", () => {
+    selectTab("device");
+    $("solve-form").requestSubmit();
+  });
+  $("add-circuit").addEventListener("click", () => addCircuit(scheduleDraw));
   $("tab-terrain").addEventListener("click", () => selectTab("terrain"));
   $("terrain-form").addEventListener("submit", (e) => {
     e.preventDefault();
@@ -203,6 +220,7 @@ function wire() {
     if (e.dataTransfer.files.length) setFile(e.dataTransfer.files[0]);
   });
   $("problem").addEventListener("input", () => {
+    if (!$("device-editor").hidden) renderDevice(scheduleDraw);
     const p = problemJson();
     if (p && p.domain && !view.doc) {
       view.domain = [...p.domain.x, ...p.domain.y];

@@ -21,26 +21,51 @@ export function problemJson() {
   }
 }
 
-export function drawRegions(g, f) {
-  const p = problemJson();
+// A region's outline: a rectangle's corners, or a polygon's with each arc drawn as the
+// server draws it (equal segments of at most max_segment_angle degrees).
+export function outline(r) {
+  if (Array.isArray(r.x) && Array.isArray(r.y)) return [[r.x[0], r.y[0]], [r.x[1], r.y[0]], [r.x[1], r.y[1]], [r.x[0], r.y[1]]];
+  if (!Array.isArray(r.polygon)) return null;
+  const entries = r.polygon;
+  const n = entries.length;
+  const corners = [];
+  entries.forEach((entry, k) => {
+    if (Array.isArray(entry)) return corners.push(entry);
+    const [from, to] = [entries[(k + n - 1) % n], entries[(k + 1) % n]];
+    if (!entry || !Array.isArray(from) || !Array.isArray(to) || !(Math.abs(entry.arc) < 360) || !entry.arc) return;
+    const sweep = (entry.arc * Math.PI) / 180;
+    const segments = Math.ceil(Math.abs(entry.arc) / (entry.max_segment_angle || 5));
+    const [dx, dy] = [to[0] - from[0], to[1] - from[1]];
+    const chord = Math.hypot(dx, dy);
+    const radius = (0.5 * chord) / Math.sin(Math.abs(sweep) / 2);
+    const off = (radius * Math.cos(Math.abs(sweep) / 2) * Math.sign(sweep)) / chord;
+    const [cx, cy] = [(from[0] + to[0]) / 2 - off * dy, (from[1] + to[1]) / 2 + off * dx];
+    const start = Math.atan2(from[1] - cy, from[0] - cx);
+    for (let i = 1; i < segments && segments <= 1000; i++) {
+      const phi = start + (sweep * i) / segments;
+      corners.push([cx + radius * Math.cos(phi), cy + radius * Math.sin(phi)]);
+    }
+  });
+  return corners;
+}
+
+// The regions of `p`, outlined and named; filled by kind before a solution covers them.
+export function drawRegions(g, f, p, filled) {
   if (!p || !Array.isArray(p.regions)) return;
   for (const r of p.regions) {
-    // A rectangle's corners or a polygon's, in picture coordinates.
-    const corners = Array.isArray(r.polygon)
-      ? r.polygon
-      : Array.isArray(r.x) && Array.isArray(r.y)
-        ? [[r.x[0], r.y[0]], [r.x[1], r.y[0]], [r.x[1], r.y[1]], [r.x[0], r.y[1]]]
-        : null;
+    const corners = outline(r);
     if (!corners || corners.length < 3) continue;
-    const current = r.current_density || r.current || r.circuit;
-    g.fillStyle = current ? "rgba(214, 96, 77, 0.35)" : r.mu_r || r.bh || r.magnetization || r.material ? "rgba(90, 110, 140, 0.35)" : "rgba(47, 95, 208, 0.25)";
     g.beginPath();
     corners.forEach(([x, y], i) => (i ? g.lineTo(f.x(x), f.y(y)) : g.moveTo(f.x(x), f.y(y))));
     g.closePath();
-    g.fill();
-    g.strokeStyle = "#394150";
+    if (filled) {
+      const current = r.current_density || r.current || r.circuit;
+      g.fillStyle = current ? "rgba(214, 96, 77, 0.35)" : r.mu_r || r.bh || r.magnetization || r.material ? "rgba(90, 110, 140, 0.35)" : "rgba(47, 95, 208, 0.25)";
+      g.fill();
+    }
+    g.strokeStyle = filled ? "#394150" : "rgba(255, 255, 255, 0.85)";
+    g.lineWidth = 1.2;
     g.stroke();
-    g.fillStyle = "#1d2330";
     g.font = "13px system-ui, sans-serif";
     const law = r.circuit ? `${r.direction === -1 ? "−" : "+"}${fmt(r.turns || 1)} turns of ${r.circuit}`
       : r.current_density ? `J ${fmt(r.current_density)}` : r.current ? `I ${fmt(r.current)} A`
@@ -49,6 +74,13 @@ export function drawRegions(g, f) {
     const label = r.name ? `${r.name}: ${law}` : law;
     const left = Math.min(...corners.map(([x]) => f.x(x)));
     const top = Math.min(...corners.map(([, y]) => f.y(y)));
+    if (!filled) {
+      // White text on a dark halo reads over any colour of the field.
+      g.lineWidth = 3;
+      g.strokeStyle = "rgba(20, 24, 32, 0.8)";
+      g.strokeText(label, left + 4, top + 15);
+    }
+    g.fillStyle = filled ? "#1d2330" : "#ffffff";
     g.fillText(label, left + 4, top + 15);
   }
 }

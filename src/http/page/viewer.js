@@ -2,7 +2,7 @@
 
 import { $, view } from "./state.js";
 import { fmt, rgb, viridis } from "./colours.js";
-import { drawArrows, drawRegions } from "./solutions.js";
+import { drawArrows, drawRegions, problemJson } from "./solutions.js";
 
 let drawPending = false;
 export function scheduleDraw() {
@@ -152,7 +152,7 @@ function drawFlat() {
   if (!view.doc) {
     colourBar(0, 0, null);
     drawPoints(g, f);
-    if (view.kind === "solution") drawRegions(g, f);
+    if (view.kind === "solution") drawRegions(g, f, problemJson(), true);
     return;
   }
   const tv = triangleValues();
@@ -198,6 +198,8 @@ function drawFlat() {
     g.stroke(edges);
   }
   if (view.kind === "solution" && view.doc.flux_density && $("arrows").checked) drawArrows(g, f);
+  // The regions of the request that made the solution (not of a job opened by its address).
+  if (view.kind === "solution" && view.request && view.request.regions) drawRegions(g, f, view.request, false);
   // The error view colours log10 of the errors: its bar is labelled with the errors themselves.
   const logScale = view.mode === "error";
   colourBar(logScale ? 10 ** lo : lo, logScale ? 10 ** hi : hi, logScale ? "error per triangle (log scale)" : tv.label);
