@@ -134,9 +134,12 @@ impl Shading {
         if range.1 - range.0 <= FLAT * range.1 {
             range.0 = range.1;
         }
-        let (lo, hi) = result.z_range();
-        let levels = match field.lines {
-            Some(_) => contour::levels(lo, hi, FIELD_LINES),
+        let levels = match &field.lines {
+            Some(lines) => {
+                let (lo, hi) = (result.vertices.iter().map(|v| contoured(lines, v)))
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), z| (lo.min(z), hi.max(z)));
+                contour::levels(lo, hi, FIELD_LINES)
+            }
             None => Vec::new(),
         };
         let legend = format!("colour |{}| in {}", field.name, field.unit);
@@ -178,12 +181,18 @@ impl Shading {
         if self.levels.is_empty() {
             return;
         }
+        let Some(lines) = &self.lines else { return };
         let corners = result.triangles[t].map(|v| {
             let p = result.vertices[v as usize];
-            (v, [p.x, p.y, p.z])
+            (v, [p.x, p.y, contoured(lines, &p)])
         });
         contour::pieces(corners, &self.levels, piece);
     }
+}
+
+/// The value at `v` whose contours `lines` follow.
+fn contoured(lines: &Lines, v: &crate::geom::Vertex) -> f64 {
+    if lines.times_x { v.x * v.z } else { v.z }
 }
 
 /// Picture width on which one unit is a line width; wider pictures scale their lines and text.
@@ -440,6 +449,33 @@ mod tests {
     use crate::result::testing::{magnetic, sample, with_potential};
 
     const TEXT: TextMetrics = TextMetrics { char_width: 10.0, char_height: 20.0, line_height: 24.0 };
+
+    #[test]
+    fn an_axisymmetric_fields_lines_follow_r_times_a() {
+        // A_φ = 1/2 everywhere: flat, so planar lines would be none; r·A_φ = x/2 has straight
+        // contours at constant x, which are the lines of B = (0, A/r) turned about the axis.
+        let planar = with_potential(magnetic(300), |_, _| 0.5);
+        let mut round = planar.clone();
+        let at = round.fields.iter().position(|f| f.name == "B").unwrap();
+        round.fields[at] = crate::solve::flux_density(
+            crate::result::Geometry::Axisymmetric,
+            &round.vertices,
+            &round.triangles,
+        );
+        let pieces = |result: &RunResult| {
+            let shading = Layout::new(result, 1024.0, TEXT).shading;
+            let mut pieces = Vec::new();
+            (0..result.triangles.len())
+                .for_each(|t| shading.field_lines(result, t, |p, q| pieces.push([p, q])));
+            pieces
+        };
+        assert!(pieces(&planar).is_empty());
+        let lines = pieces(&round);
+        assert!(lines.len() > 20, "{} pieces", lines.len());
+        assert!(lines.iter().all(|[p, q]| (p[0] - q[0]).abs() < 1e-12), "every piece runs along z");
+        let text = Layout::new(&round, 1024.0, TEXT).lines.join(" ");
+        assert!(text.contains("Wb/rad of r·A"), "{text}");
+    }
 
     #[test]
     fn numbers_keep_three_significant_digits() {

@@ -42,6 +42,10 @@ pub struct Lines {
     pub z: Cow<'static, str>,
     /// z's unit ("Wb/m").
     pub z_unit: Cow<'static, str>,
+    /// Whether the lines follow x·z rather than z: an axisymmetric field's lines are the
+    /// contours of r·A_φ, the flux through the circle of radius r over 2π.
+    #[serde(default)]
+    pub times_x: bool,
 }
 
 /// A named array on the mesh.

@@ -73,6 +73,13 @@ pub(crate) fn flux_density(geometry: Geometry, vertices: &[Vertex], triangles: &
         let g = Element::in_geometry(geometry, vertices, tri, t).map_or([0.0; 2], |e| e.field(z));
         [g[1], -g[0]]
     });
-    let lines = Lines { name: "field lines".into(), z: "A".into(), z_unit: "Wb/m".into() };
+    let lines = match geometry {
+        Geometry::Planar => {
+            Lines { name: "field lines".into(), z: "A".into(), z_unit: "Wb/m".into(), times_x: false }
+        }
+        Geometry::Axisymmetric => {
+            Lines { name: "field lines".into(), z: "r·A".into(), z_unit: "Wb/rad".into(), times_x: true }
+        }
+    };
     Field { lines: Some(lines), ..Field::cell_vector("B", "flux_density", "T", Role::Main, b) }
 }
