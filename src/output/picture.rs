@@ -1,5 +1,6 @@
 //! What the two pictures (svg, png) share: where the plot, the colour bar and the text go,
-//! the text itself, each triangle's colour, the field lines and which triangle draws which edge.
+//! the text itself, each triangle's colour, the field lines, the regions' outlines and names,
+//! and which triangle draws which edge.
 //!
 //! A result is coloured by the magnitude of its main field per triangle, with the contours of z
 //! drawn over it when that field's lines follow them: a magnetostatic solution by |B|, with
@@ -22,6 +23,7 @@
 use super::{colour, contour};
 use crate::geom::predicates::signed_area_x2;
 use crate::result::{Lines, Location, RunResult, Summary};
+use std::collections::{BTreeMap, HashMap};
 
 /// A rectangle on the picture, y downward.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -85,6 +87,11 @@ pub(crate) struct Layout {
     pub bounds: [f64; 4],
     /// What colours the triangles and the bar, and the field lines' levels.
     pub shading: Shading,
+    /// The regions' sides, as pieces between picture points (none without regions).
+    pub outlines: Vec<[(f64, f64); 2]>,
+    /// Each region's name (`region i` when it has none) and the top left of where it is
+    /// written: inside the box of its triangles, at that box's top left.
+    pub region_names: Vec<(String, f64, f64)>,
     scale: f64,
 }
 
@@ -209,6 +216,9 @@ const EDGE_OPACITY: f64 = 0.45;
 /// Opacity of field lines: dark enough to follow across the brightest colours.
 pub(crate) const FIELD_LINE_OPACITY: f64 = 0.85;
 
+/// Opacity of the regions' white outlines.
+pub(crate) const OUTLINE_OPACITY: f64 = 0.9;
+
 /// Colours of the background and of text and frames.
 pub(crate) const BACKGROUND: [u8; 3] = [255, 255, 255];
 pub(crate) const INK: [u8; 3] = [34, 34, 34];
@@ -275,8 +285,28 @@ impl Layout {
             line_width: unit.max(1.0),
             bounds,
             shading,
+            outlines: Vec::new(),
+            region_names: Vec::new(),
             scale,
         };
+        let (sides, boxes) = region_sides(result);
+        let at = |v: u32| {
+            let v = result.vertices[v as usize];
+            layout.to_picture(v.x, v.y)
+        };
+        layout.outlines = sides.iter().map(|&[p, q]| [at(p), at(q)]).collect();
+        let names = match &result.stats {
+            Summary::Solution(s) => s.run.regions.iter().map(|r| r.name.clone()).collect(),
+            Summary::Mesh(_) => Vec::new(),
+        };
+        let inset = 4.0 * unit;
+        layout.region_names = (boxes.into_iter())
+            .map(|(i, [x0, _, _, y1])| {
+                let name = names.get(i).cloned().flatten().unwrap_or_else(|| format!("region {i}"));
+                let (left, top) = layout.to_picture(x0, y1);
+                (name, left + inset, top + inset)
+            })
+            .collect();
         // The ticks sit where their values are on the plot, outside its edges.
         for (x, label) in x_ticks {
             let at = layout.to_picture(x, bounds[3]).0;
@@ -314,6 +344,49 @@ impl Layout {
         let side = (area * 4.0 / 3f64.sqrt()).sqrt() / self.line_width;
         EDGE_OPACITY * ((side - FADE_FROM) / (FADE_TO - FADE_FROM)).clamp(0.0, 1.0)
     }
+}
+
+/// The sides of a result's regions, from its `region` field: the mesh edges between
+/// triangles of different regions, and those on the domain's edge inside one (the mesh
+/// follows every side, so these are the sides, less what a later region covers); and the box
+/// [x0, x1, y0, y1] of each region's triangles, by region. Nothing without the field.
+fn region_sides(result: &RunResult) -> (Vec<[u32; 2]>, BTreeMap<usize, [f64; 4]>) {
+    let Some(field) = result.field("region").filter(|f| f.len() == result.triangles.len()) else {
+        return Default::default();
+    };
+    let region = |t: usize| field.values[t];
+    let mut triangle_of = HashMap::with_capacity(3 * result.triangles.len());
+    for (t, &[a, b, c]) in result.triangles.iter().enumerate() {
+        for edge in [(a, b), (b, c), (c, a)] {
+            triangle_of.insert(edge, t);
+        }
+    }
+    let (mut sides, mut boxes) = (Vec::new(), BTreeMap::new());
+    for (t, &[a, b, c]) in result.triangles.iter().enumerate() {
+        for (p, q) in [(a, b), (b, c), (c, a)] {
+            // Each interior edge once, from its lower vertex id; a boundary edge has no twin.
+            let side = match triangle_of.get(&(q, p)) {
+                Some(&n) => p < q && region(n) != region(t),
+                None => region(t) >= 0.0,
+            };
+            if side {
+                sides.push([p, q]);
+            }
+        }
+        if region(t) >= 0.0 {
+            let bounds = boxes.entry(region(t) as usize).or_insert([
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+            ]);
+            for v in [a, b, c] {
+                let v = result.vertices[v as usize];
+                *bounds = [bounds[0].min(v.x), bounds[1].max(v.x), bounds[2].min(v.y), bounds[3].max(v.y)];
+            }
+        }
+    }
+    (sides, boxes)
 }
 
 /// The area of `triangle` (counter-clockwise, as a result's triangles are).
@@ -449,6 +522,40 @@ mod tests {
     use crate::result::testing::{magnetic, sample, with_potential};
 
     const TEXT: TextMetrics = TextMetrics { char_width: 10.0, char_height: 20.0, line_height: 24.0 };
+
+    #[test]
+    fn a_regions_outline_is_its_sides_and_its_name_is_written_inside_it() {
+        // The conductor [0.4, 0.6]² of `magnetic`, the mesh's only region.
+        let result = magnetic(600);
+        let region = result.field("region").expect("a solution with regions has the field");
+        let inside = |x: f64, y: f64| (0.4..=0.6).contains(&x) && (0.4..=0.6).contains(&y);
+        for (t, tri) in result.triangles.iter().enumerate() {
+            let corners = tri.map(|v| result.vertices[v as usize]);
+            let x = corners.iter().map(|v| v.x).sum::<f64>() / 3.0;
+            let y = corners.iter().map(|v| v.y).sum::<f64>() / 3.0;
+            assert_eq!(region.values[t], if inside(x, y) { 0.0 } else { -1.0 }, "triangle {t}");
+        }
+        let (sides, boxes) = region_sides(&result);
+        let on_side =
+            |p: crate::geom::Point| inside(p.x, p.y) && [p.x, p.y].iter().any(|&c| c == 0.4 || c == 0.6);
+        let mut length = 0.0;
+        for &[p, q] in &sides {
+            let [p, q] = [p, q].map(|v| result.vertices[v as usize].point());
+            assert!(on_side(p) && on_side(q) && (p.x == q.x || p.y == q.y), "{p:?} {q:?}");
+            length += p.distance_sq(q).sqrt();
+        }
+        assert!((length - 0.8).abs() < 1e-12, "the sides add up to the perimeter: {length}");
+        assert_eq!(boxes.into_iter().collect::<Vec<_>>(), [(0, [0.4, 0.6, 0.4, 0.6])]);
+        let layout = Layout::new(&result, 1024.0, TEXT);
+        assert_eq!(layout.outlines.len(), sides.len());
+        let [(name, left, top)] = &layout.region_names[..] else { panic!("{:?}", layout.region_names) };
+        let (x0, y1) = layout.to_picture(0.4, 0.6);
+        assert_eq!(name, "region 0");
+        assert!(*left > x0 && *top > y1 && *left < layout.to_picture(0.6, 0.4).0, "inside the square");
+        // A mesh of F has no regions to draw.
+        let mesh = Layout::new(&sample(300, Criterion::Error), 1024.0, TEXT);
+        assert!(mesh.outlines.is_empty() && mesh.region_names.is_empty());
+    }
 
     #[test]
     fn an_axisymmetric_fields_lines_follow_r_times_a() {

@@ -36,11 +36,20 @@ fn render(result: &RunResult, width: u32) -> Vec<u8> {
     fill_triangles(&mut pixmap, result, &layout);
     draw_edges(&mut pixmap, result, &layout);
     draw_field_lines(&mut pixmap, result, &layout);
+    draw_outlines(&mut pixmap, &layout);
     draw_bar(&mut pixmap, &layout, layout.shading.range);
     draw_ticks(&mut pixmap, &layout);
 
     let style = MonoTextStyle::new(font, Rgb888::new(INK[0], INK[1], INK[2]));
     let mut canvas = Canvas { pixmap: &mut pixmap, left: 0, top: 0, scale };
+    // Region names in white on a dark halo: the name in ink one pixel off each way, then on top.
+    let white = MonoTextStyle::new(font, Rgb888::new(255, 255, 255));
+    for (name, left, top) in &layout.region_names {
+        for (dx, dy) in [(-1.0, 0.0), (1.0, 0.0), (0.0, -1.0), (0.0, 1.0)] {
+            canvas.write(name, left + dx, top + dy, style);
+        }
+        canvas.write(name, *left, *top, white);
+    }
     for (label, left, top) in layout.labels.iter().chain(&layout.tick_labels) {
         canvas.write(label, *left, *top, style);
     }
@@ -167,6 +176,19 @@ fn draw_field_lines(pixmap: &mut Pixmap, result: &RunResult, layout: &Layout) {
         Transform::identity(),
         None,
     );
+}
+
+/// The regions' outlines, in white over the field.
+fn draw_outlines(pixmap: &mut Pixmap, layout: &Layout) {
+    let mut path = PathBuilder::new();
+    for &[p, q] in &layout.outlines {
+        path.move_to(p.0 as f32, p.1 as f32);
+        path.line_to(q.0 as f32, q.1 as f32);
+    }
+    let Some(path) = path.finish() else { return };
+    let stroke = Stroke { width: layout.field_line_width() as f32, ..Stroke::default() };
+    let paint = line_paint(BACKGROUND, picture::OUTLINE_OPACITY);
+    pixmap.stroke_path(&path, &paint, &stroke, Transform::identity(), None);
 }
 
 /// The colour bar, max at the top, one row of pixels at a time, in a thin frame.
@@ -425,8 +447,10 @@ mod tests {
 
     #[test]
     fn field_lines_are_dark_lines_where_a_takes_their_levels() {
-        // A = x on a solved mesh: the field lines are the verticals x = level.
-        let result = with_potential(magnetic(3000), |x, _| x);
+        // A = x on a solved mesh: the field lines are the verticals x = level. Without the
+        // region's outline and name, which the picture would draw over them.
+        let mut result = with_potential(magnetic(3000), |x, _| x);
+        result.fields.retain(|f| f.name != "region");
         let (image, layout) = picture(&result, 300);
         // The same picture without field lines, to compare with.
         let mut plain = Pixmap::new(image.width, image.height).unwrap();

@@ -112,8 +112,47 @@ pub fn encode(result: &Arc<RunResult>, _options: &Options) -> Encoded {
             Part::Bytes(b"\"/>\n".to_vec()),
         ]);
     }
+    parts.push(Part::Bytes(regions(&layout).into_bytes()));
     parts.push(Part::Bytes(trailer(&layout, range).into_bytes()));
     Encoded::new(parts)
+}
+
+/// The regions' outlines in white over the field, and their names, white on a dark halo
+/// that reads over any colour.
+fn regions(layout: &Layout) -> String {
+    let mut s = String::new();
+    if layout.outlines.is_empty() {
+        return s;
+    }
+    let _ = write!(
+        s,
+        "<path id=\"outlines\" fill=\"none\" stroke=\"#ffffff\" stroke-opacity=\"{}\" stroke-width=\"{}\" \
+         stroke-linecap=\"round\" d=\"",
+        picture::OUTLINE_OPACITY,
+        layout.field_line_width()
+    );
+    for &[p, q] in &layout.outlines {
+        let _ = write!(s, "M{} {}L{} {}", round(p.0), round(p.1), round(q.0), round(q.1));
+    }
+    s.push_str("\"/>\n");
+    let _ = writeln!(
+        s,
+        "<g id=\"region-names\" fill=\"#ffffff\" stroke=\"{}\" stroke-width=\"{}\" paint-order=\"stroke\" \
+         font-family=\"DejaVu Sans Mono, Menlo, Consolas, monospace\" font-size=\"{FONT_SIZE}\">",
+        hex(INK),
+        3.0 * layout.line_width
+    );
+    for (name, left, top) in &layout.region_names {
+        let _ = writeln!(
+            s,
+            "<text x=\"{}\" y=\"{}\">{}</text>",
+            round(*left),
+            round(top + ASCENT * FONT_SIZE),
+            escape(name)
+        );
+    }
+    s.push_str("</g>\n");
+    s
 }
 
 /// The axes' ticks, the colour bar, their labels and the stats line.
@@ -336,14 +375,33 @@ mod tests {
         (0..result.triangles.len()).for_each(|t| layout.shading.field_lines(&result, t, |_, _| pieces += 1));
         assert!(pieces > 100, "{pieces}");
         assert_eq!(lines.attribute("d").unwrap().matches('M').count(), pieces);
-        let texts: Vec<&str> =
-            doc.descendants().filter(|n| n.has_tag_name("text")).filter_map(|n| n.text()).collect();
+        let texts: Vec<&str> = (doc.descendants())
+            .filter(|n| n.has_tag_name("text"))
+            .filter(|n| n.parent().and_then(|g| g.attribute("id")) != Some("region-names"))
+            .filter_map(|n| n.text())
+            .collect();
         assert_eq!(texts[..2], [picture::short(hi), picture::short(lo)]);
         let all = texts.join(" ");
         assert!(all.contains("colour |B| in T") && all.contains("field lines every"), "{all}");
         // A mesh has neither.
         let mesh = svg(&Arc::new(sample(600, Criterion::Error)));
         assert!(!mesh.contains("field-lines") && !mesh.contains("|B|"));
+    }
+
+    #[test]
+    fn a_solutions_regions_are_outlined_and_named() {
+        let result = Arc::new(magnetic(600));
+        let text = svg(&result);
+        let doc = roxmltree::Document::parse(&text).unwrap();
+        let layout = Layout::new(&result, VIEW_WIDTH, TEXT);
+        let outlines = doc.descendants().find(|n| n.attribute("id") == Some("outlines")).unwrap();
+        assert_eq!(outlines.attribute("d").unwrap().matches('M').count(), layout.outlines.len());
+        let names = doc.descendants().find(|n| n.attribute("id") == Some("region-names")).unwrap();
+        let written: Vec<&str> =
+            names.children().filter_map(|n| n.text()).filter(|t| !t.trim().is_empty()).collect();
+        assert_eq!(written, ["region 0"]);
+        let mesh = svg(&Arc::new(sample(600, Criterion::Error)));
+        assert!(!mesh.contains("outlines") && !mesh.contains("region-names"));
     }
 
     #[test]

@@ -89,6 +89,9 @@ pub struct Adapted {
     pub times: Vec<Duration>,
     /// How the problem read the plane.
     pub geometry: Geometry,
+    /// Per triangle of the final mesh: the index of the topmost region holding its centroid,
+    /// −1 for none (empty when the problem has no regions).
+    pub region_of: Vec<i32>,
 }
 
 /// An exact solution to measure u_h against.
@@ -265,15 +268,22 @@ impl Finish<'_, '_> {
             history: self.history,
         };
         let geometry = self.problem.geometry();
-        let mut adapted =
-            Adapted { mesh, indicators, stats, fields: Vec::new(), times: self.times, geometry };
+        let mut adapted = Adapted {
+            mesh,
+            indicators,
+            stats,
+            fields: Vec::new(),
+            times: self.times,
+            geometry,
+            region_of: Vec::new(),
+        };
         measure_fields(self.problem, &mut adapted, residual, indicator)?;
         Ok(adapted)
     }
 }
 
-/// Each triangle's flux and coefficient, and each region's figures, on the final mesh from
-/// the values it carries.
+/// Each triangle's flux, coefficient and region, and each region's figures, on the final
+/// mesh from the values it carries.
 ///
 /// # Errors
 /// A triangle the last round added but no solve sampled (a cancelled or stopped round) whose
@@ -309,6 +319,14 @@ fn measure_fields(
             [q[0], q[1], c.nu(problem, g[0].hypot(g[1])).0]
         })
         .collect();
+    if !problem.regions().is_empty() {
+        adapted.region_of = (elements.iter())
+            .map(|e| {
+                let centre = e.point(&[1.0 / 3.0; 3]);
+                problem.regions().iter().rposition(|r| r.contains(centre)).map_or(-1, |i| i as i32)
+            })
+            .collect();
+    }
     adapted.stats.regions =
         regions::measure(problem, &points, &u, &triangles, &elements, &gradients, coefficients);
     adapted.stats.circuits = circuits::measure(problem, &points, &u, &triangles, &elements, coefficients)?;

@@ -1,6 +1,7 @@
 //! What each physics derives from a solution, as the named fields of its result: η_T for
-//! every problem, and in magnetostatics the flux density B, the field strength H and the
-//! relative permeability μr per triangle.
+//! every problem, the region each triangle lies in when there are regions, and in
+//! magnetostatics the flux density B, the field strength H and the relative permeability μr
+//! per triangle.
 
 use super::adapt::Adapted;
 use super::element::Element;
@@ -9,8 +10,8 @@ use crate::geom::Vertex;
 use crate::result::{Field, Geometry, Lines, Physics, Role, RunResult, SolutionStats, Summary};
 
 impl Adapted {
-    /// The result of this solve: z = u at every vertex, η_T per triangle and the fields of
-    /// `physics`.
+    /// The result of this solve: z = u at every vertex, η_T per triangle, the fields of
+    /// `physics`, and each triangle's region (its index, −1 for none).
     pub fn into_result(self, physics: Physics) -> RunResult {
         let vertices = self.mesh.vertices().to_vec();
         let triangles: Vec<[u32; 3]> = self.mesh.triangles().collect();
@@ -18,6 +19,10 @@ impl Adapted {
             self.indicators.map(crate::result::triangle_errors).into_iter().collect();
         if physics == Physics::Magnetostatic {
             fields.extend(magnetostatic(self.geometry, &vertices, &triangles, &self.fields));
+        }
+        if !self.region_of.is_empty() {
+            let region = self.region_of.iter().map(|&i| f64::from(i)).collect();
+            fields.push(Field::cell_scalar("region", "region", "", Role::Extra, region));
         }
         RunResult {
             vertices,
