@@ -47,6 +47,7 @@
 //! an engine version); it never changes between two runs of one version.
 
 mod angles;
+pub mod asked;
 mod bands;
 mod driver;
 mod error_criterion;
