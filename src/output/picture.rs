@@ -122,6 +122,9 @@ pub(crate) struct Shading {
     pub levels: Vec<f64>,
     /// The legend's words for the lines' spacing: their name, z's unit and z's name.
     lines: Option<Lines>,
+    /// Metres per unit of x, for lines that follow x·z: their spacing is then in SI units
+    /// whatever unit the request's lengths are in.
+    metres: f64,
 }
 
 impl Shading {
@@ -129,7 +132,14 @@ impl Shading {
     pub fn of(result: &RunResult) -> Self {
         let Some(field) = result.main_field().filter(|f| f.location == Location::Cell) else {
             let range = result.z_range();
-            return Self { coloured: None, range, max: range.1, levels: Vec::new(), lines: None };
+            return Self {
+                coloured: None,
+                range,
+                max: range.1,
+                levels: Vec::new(),
+                lines: None,
+                metres: 1.0,
+            };
         };
         let b: Vec<f64> = (0..field.len()).map(|t| field.magnitude(t)).collect();
         let areas: Vec<f64> = result.triangles.iter().map(|&t| area(result, t)).collect();
@@ -141,16 +151,20 @@ impl Shading {
         if range.1 - range.0 <= FLAT * range.1 {
             range.0 = range.1;
         }
+        let metres = match &result.stats {
+            Summary::Solution(s) => 1.0 / s.unit.map_or(1.0, |u| u.per_metre()),
+            Summary::Mesh(_) => 1.0,
+        };
         let levels = match &field.lines {
             Some(lines) => {
-                let (lo, hi) = (result.vertices.iter().map(|v| contoured(lines, v)))
+                let (lo, hi) = (result.vertices.iter().map(|v| contoured(lines, metres, v)))
                     .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), z| (lo.min(z), hi.max(z)));
                 contour::levels(lo, hi, FIELD_LINES)
             }
             None => Vec::new(),
         };
         let legend = format!("colour |{}| in {}", field.name, field.unit);
-        Self { coloured: Some((b, legend)), range, max, levels, lines: field.lines.clone() }
+        Self { coloured: Some((b, legend)), range, max, levels, lines: field.lines.clone(), metres }
     }
 
     /// The colour of triangle `t` of `result`.
@@ -191,15 +205,15 @@ impl Shading {
         let Some(lines) = &self.lines else { return };
         let corners = result.triangles[t].map(|v| {
             let p = result.vertices[v as usize];
-            (v, [p.x, p.y, contoured(lines, &p)])
+            (v, [p.x, p.y, contoured(lines, self.metres, &p)])
         });
         contour::pieces(corners, &self.levels, piece);
     }
 }
 
-/// The value at `v` whose contours `lines` follow.
-fn contoured(lines: &Lines, v: &crate::geom::Vertex) -> f64 {
-    if lines.times_x { v.x * v.z } else { v.z }
+/// The value at `v` whose contours `lines` follow, x in `metres` per unit.
+fn contoured(lines: &Lines, metres: f64, v: &crate::geom::Vertex) -> f64 {
+    if lines.times_x { v.x * metres * v.z } else { v.z }
 }
 
 /// Picture width on which one unit is a line width; wider pictures scale their lines and text.
@@ -582,6 +596,17 @@ mod tests {
         assert!(lines.iter().all(|[p, q]| (p[0] - q[0]).abs() < 1e-12), "every piece runs along z");
         let text = Layout::new(&round, 1024.0, TEXT).lines.join(" ");
         assert!(text.contains("Wb/rad of r·A"), "{text}");
+        // The same device in mm: r·A, and the lines' spacing, stay in SI units.
+        let mut in_mm = round.clone();
+        in_mm.vertices.iter_mut().for_each(|v| (v.x, v.y) = (v.x * 1000.0, v.y * 1000.0));
+        if let Summary::Solution(s) = &mut in_mm.stats {
+            s.unit = Some(crate::result::Unit::Mm);
+        }
+        let spacing = |r: &RunResult| {
+            let text = Layout::new(r, 1024.0, TEXT).lines.join(" ");
+            text.split("field lines every ").nth(1).unwrap().split(' ').next().unwrap().to_owned()
+        };
+        assert_eq!(spacing(&in_mm), spacing(&round));
     }
 
     #[test]
@@ -667,7 +692,7 @@ mod tests {
         let range = mesh.z_range();
         assert_eq!(
             Shading::of(&mesh),
-            Shading { coloured: None, range, max: range.1, levels: vec![], lines: None }
+            Shading { coloured: None, range, max: range.1, levels: vec![], lines: None, metres: 1.0 }
         );
         let result = magnetic(500);
         let shading = Shading::of(&result);

@@ -195,6 +195,16 @@ mod tests {
     }
 
     #[test]
+    fn a_solution_carries_mu_r_and_each_triangles_region_as_cell_data() {
+        let result = Arc::new(crate::result::testing::magnetic(300));
+        let piece = read(&encode(&result, &Options::default()).to_vec());
+        assert_eq!(values(&piece.data.cell, "region"), result.field("region").unwrap().values);
+        let regions = values(&piece.data.cell, "region");
+        assert!(regions.contains(&0.0) && regions.contains(&-1.0), "the conductor and the air around it");
+        assert_eq!(values(&piece.data.cell, "mu_r"), result.field("mu_r").unwrap().values);
+    }
+
+    #[test]
     fn without_triangle_errors_there_is_no_cell_data() {
         let result = Arc::new(sample(50, Criterion::Variation));
         let piece = read(&encode(&result, &Options::default()).to_vec());

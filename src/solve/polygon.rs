@@ -139,7 +139,8 @@ pub fn arc_points(from: Point, to: Point, degrees: f64, segments: usize) -> impl
     let half = 0.5 * sweep.abs();
     let radius = 0.5 * chord / libm::sin(half);
     // The centre lies off the chord's midpoint, to its left for a counter-clockwise sweep
-    // under half a turn, past it for one over.
+    // (right for clockwise); over half a turn cos(half) < 0 moves it to the other side, where
+    // the long way round bulges.
     let off = radius * libm::cos(half) * sweep.signum() / chord;
     let centre = Point::new(0.5 * (from.x + to.x) - off * dy, 0.5 * (from.y + to.y) + off * dx);
     let start = libm::atan2(from.y - centre.y, from.x - centre.x);
@@ -238,6 +239,10 @@ mod tests {
         let back: Vec<_> = arc_points(from, to, -270.0, 3).collect();
         assert!(back[0].distance_sq(Point::new(0.0, -1.0)) < 1e-30, "{back:?}");
         assert!(back[1].distance_sq(Point::new(-1.0, 0.0)) < 1e-30, "{back:?}");
+        // A quarter turn clockwise: the centre at (1, 1), through the point nearest it.
+        let short: Vec<_> = arc_points(from, to, -90.0, 2).collect();
+        let mid = Point::new(1.0 - libm::cos(45f64.to_radians()), 1.0 - libm::sin(45f64.to_radians()));
+        assert!(short[0].distance_sq(mid) < 1e-30, "{short:?}");
         // Half a turn: the centre is the chord's midpoint.
         let half: Vec<_> = arc_points(Point::new(-1.0, 0.0), Point::new(1.0, 0.0), 180.0, 2).collect();
         assert!(

@@ -25,7 +25,7 @@ use std::time::Duration;
 
 /// Bumped whenever the engine may produce a different mesh for the same request, so that a
 /// cache (in memory or on disk) never serves a mesh the current engine would not make.
-pub const ENGINE_VERSION: &str = "meshfit-engine-8";
+pub const ENGINE_VERSION: &str = "meshfit-engine-9";
 
 /// Where the fields of an encoding go.
 pub trait Sink {

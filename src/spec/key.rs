@@ -133,14 +133,14 @@ mod tests {
         );
         let pinned = [
             (
-                "meshfit-engine-8",
-                "9487d6a4aa7e1dc42bceb113b644110319fb030c98abd7f8502436a0817346ba",
-                "d5cf40ce1a49739b4f881aed41c15cef6033beb5ddfc0ddbeb52b8c161614537",
+                "meshfit-engine-9",
+                "4ba16a9cd9116a2d4273abb9de3599d5e6405eb35aa61c2fb7944d918235a395",
+                "d61f2fc7f01e0d6893fc1cef3a420fac75e36cce039190d12a9e47e7ce8127ac",
             ),
             (
-                "meshfit-engine-8",
-                "e9a23f9d9824db513a698da8ff8cf984ae6a51423b360551fcf5a46d8cc2197a",
-                "5fd7076637917d2f6d3a1a3e5ef862f236fe4394babd2699879a31205d165bcd",
+                "meshfit-engine-9",
+                "29e3bdf7cbdd21433c50a0dcf8fe9a72e77e16c4413a1d14e33d6ddd22a1772f",
+                "4858b85eb116756d67fce07c5861c8413617604012d98fe5de12159ea9bf3fea",
             ),
         ];
         for (body, pinned) in [expression, &grid].into_iter().zip(pinned) {

@@ -2,7 +2,8 @@
 
 use super::checks::{Limits, SpecError, budget, build, domain_of, expression};
 use crate::api::{
-    BoundaryField, CircuitInput, Coefficient, MaterialInput, PolygonEntry, RegionInput, SolveRequest,
+    ArcInput, BoundaryField, CircuitInput, Coefficient, MaterialInput, PolygonEntry, RegionInput,
+    SolveRequest,
 };
 use crate::geom::{Point, Rect};
 use crate::refine::Method;
@@ -154,6 +155,18 @@ fn shaped(i: usize, r: &RegionInput, domain: Rect, per_metre: f64) -> Result<Reg
 /// circle of 72 sides, whose area is 0.13% short of the disc's.
 pub const ARC_SEGMENT_ANGLE: f64 = 5.0;
 
+/// How many corners `entries` make once each arc is drawn (a bad arc counts one, and is
+/// named when it is drawn).
+fn drawn_corners(entries: &[PolygonEntry]) -> usize {
+    let segments = |arc: &ArcInput| {
+        let most = arc.max_segment_angle.unwrap_or(ARC_SEGMENT_ANGLE);
+        let n = (arc.arc.abs() / most).ceil();
+        // Beyond a polygon's corners the count need not be exact; NaN counts 1.
+        if n >= 1.0 { n.min(MAX_POLYGON_POINTS as f64 + 1.0) as usize } else { 1 }
+    };
+    entries.iter().map(|e| if let PolygonEntry::Arc(arc) = e { segments(arc) - 1 } else { 1 }).sum()
+}
+
 /// The corners of region `here`'s polygon `entries`, in metres (`m`), each arc drawn as
 /// straight segments, and for each corner the index of the entry it came from, so that a
 /// fault is named where the request put it.
@@ -176,7 +189,10 @@ fn outline(
             return Err(invalid(field, "an arc stands between two corners (the first follows the last)"));
         };
         if from == to {
-            return Err(invalid(field, "an arc joins two different corners"));
+            return Err(invalid(
+                field,
+                "an arc needs two different corners: the one before it and the one after",
+            ));
         }
         let degrees = arc.arc;
         if !(degrees.is_finite() && degrees != 0.0 && degrees.abs() < 360.0) {
@@ -199,6 +215,12 @@ fn outline(
                 format!(
                     "draws the arc as {segments} segments, more than a polygon's {MAX_POLYGON_POINTS} corners"
                 ),
+            ));
+        }
+        if corners.len() + segments as usize > MAX_POLYGON_POINTS + 1 {
+            return Err(invalid(
+                format!("{here}.polygon"),
+                format!("has more than {MAX_POLYGON_POINTS} corners once its arcs are drawn"),
             ));
         }
         for p in arc_points(from, to, degrees, segments as usize) {
@@ -772,8 +794,10 @@ impl SolveSpec {
                 format!("{} regions, more than {MAX_REGIONS}", request.regions.len()),
             ));
         }
-        // Counted before the polygons are checked, which takes time growing with the square.
-        let corners: usize = request.regions.iter().map(|r| r.polygon.as_ref().map_or(4, Vec::len)).sum();
+        // Counted as drawn before anything is drawn or checked: the simplicity check takes
+        // time growing with the square of a polygon's corners.
+        let corners: usize =
+            request.regions.iter().map(|r| r.polygon.as_deref().map_or(4, drawn_corners)).sum();
         if corners > MAX_CORNERS {
             return Err(invalid("regions", format!("{corners} corners in all, more than {MAX_CORNERS}")));
         }
@@ -781,11 +805,6 @@ impl SolveSpec {
         let (regions, tables) = (request.regions.into_iter().enumerate())
             .map(|(i, r)| device.region(i, r))
             .collect::<Result<(Vec<_>, Vec<_>), _>>()?;
-        // Arcs are drawn only now: count their segments too.
-        let corners: usize = regions.iter().map(|r| r.shape.sides().count()).sum();
-        if corners > MAX_CORNERS {
-            return Err(invalid("regions", format!("{corners} corners in all, more than {MAX_CORNERS}")));
-        }
         let boundary = boundary(request.boundary, physics, geometry, domain, &regions)?;
         if let Some(unused) = circuits
             .iter()

@@ -68,7 +68,7 @@ async fn a_coaxial_line_drawn_with_arcs_has_the_inductance_of_its_formula() {
 #[tokio::test]
 async fn arc_mistakes_are_422_naming_the_entry() {
     let app = spawn_app().await;
-    let mistakes: [Mistake; 8] = [
+    let mistakes: [Mistake; 9] = [
         (|b| b["regions"][0]["polygon"][1] = json!({"arc": 0}), "/regions/0/polygon/1/arc", "not 0"),
         (|b| b["regions"][0]["polygon"][1] = json!({"arc": -360}), "/regions/0/polygon/1/arc", "(-360, 360)"),
         (
@@ -99,12 +99,22 @@ async fn arc_mistakes_are_422_naming_the_entry() {
             "/regions/0/polygon/1/radius",
             "unknown field",
         ),
+        // Two arcs of 995 segments each: refused before the second is drawn.
+        (
+            |b| {
+                let fine = json!({"arc": 179, "max_segment_angle": 0.18});
+                b["regions"][0]["polygon"] = json!([[1, 0], fine, [-1, 0], fine]);
+            },
+            "/regions/0/polygon",
+            "more than 1000 corners once its arcs are drawn",
+        ),
     ];
     each_refused(&app, || coax(100), &mistakes).await;
     let mut body = coax(100);
     body["regions"][0]["polygon"][2] = json!([1, 0]);
     let p = refused(&app, body).await;
     assert_eq!(p["field"], "/regions/0/polygon/1", "an arc from a corner to itself: {p}");
+    assert!(p["detail"].as_str().unwrap().contains("two different corners"), "{p}");
     app.shutdown().await;
 }
 

@@ -48,7 +48,7 @@ function edit(change, redraw) {
   if (!p) return;
   change(p);
   $("problem").value = JSON.stringify(p, null, 2);
-  renderDevice();
+  renderDevice(redraw);
   redraw();
 }
 
@@ -132,12 +132,27 @@ export function renderDevice(redraw = () => {}) {
   const circuitRows = circuits.map((name) => element("tr", {}, [
     element("td", { textContent: name }),
     element("td", {}, [numberInput(p.circuits[name].current, (v) => edit((q) => (q.circuits[name].current = v), redraw), `current of ${name}`)]),
+    element("td", {}, [element("button", {
+      type: "button",
+      textContent: "remove",
+      title: `remove ${name} and make its coils plain regions`,
+      onclick: () => edit((q) => removeCircuit(q, name), redraw),
+    })]),
   ]));
   $("device-circuits").replaceChildren(...circuitRows);
   drawBh(p);
 }
 
-// Adds a circuit named c1, c2, … carrying 1 A.
+// Removes circuit `name` from `q`; its coil sides keep their material and lose their turns.
+function removeCircuit(q, name) {
+  delete q.circuits[name];
+  for (const r of q.regions) {
+    if (r.circuit === name) for (const key of ["circuit", "turns", "direction"]) delete r[key];
+  }
+}
+
+// Adds a circuit named c1, c2, … carrying 1 A: a region's circuit column then offers it (a
+// circuit no region is a coil of is refused by the server, naming it).
 export function addCircuit(redraw) {
   edit((q) => {
     q.circuits = q.circuits || {};

@@ -17,16 +17,27 @@ import { addCircuit, DEVICE, loadLibrary, renderDevice } from "./device.js";
 import { drawConvergence } from "./plots.js";
 import { uploadDem } from "./terrain.js";
 
+// The problem the device tab's example replaced, given back by the problem tab.
+let putAside = null;
+
 // Switches to tab `which` with an empty picture. The device tab opens on |B|, on the
-// example device unless the problem in the editor is one.
+// example device unless the problem in the editor is one (another is put aside, and the
+// problem tab gives it back).
 function selectTab(which) {
   showTab(which);
   if (which === "device") {
     const p = problemJson();
-    if (!p || p.physics !== "magnetostatic") $("problem").value = JSON.stringify(DEVICE, null, 2);
+    if (!p || p.physics !== "magnetostatic") {
+      if ($("problem").value.trim()) putAside = $("problem").value;
+      $("problem").value = JSON.stringify(DEVICE, null, 2);
+    }
     $("solve-colour").value = "b";
     renderDevice(scheduleDraw);
     loadLibrary(() => renderDevice(scheduleDraw));
+  }
+  if (which === "solve" && putAside !== null) {
+    $("problem").value = putAside;
+    putAside = null;
   }
   if (which === "solve" || which === "device") {
     if (!$("problem").value) $("problem").value = JSON.stringify(MAGNET, null, 2);

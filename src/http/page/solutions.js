@@ -21,8 +21,13 @@ export function problemJson() {
   }
 }
 
+// The server's ARC_SEGMENT_ANGLE and MAX_POLYGON_POINTS (src/spec/solution.rs, src/solve/polygon.rs).
+const ARC_SEGMENT_ANGLE = 5;
+const MAX_POLYGON_POINTS = 1000;
+
 // A region's outline: a rectangle's corners, or a polygon's with each arc drawn as the
-// server draws it (equal segments of at most max_segment_angle degrees).
+// server draws it (equal segments of at most max_segment_angle degrees). An arc the server
+// would refuse is drawn as its chord.
 export function outline(r) {
   if (Array.isArray(r.x) && Array.isArray(r.y)) return [[r.x[0], r.y[0]], [r.x[1], r.y[0]], [r.x[1], r.y[1]], [r.x[0], r.y[1]]];
   if (!Array.isArray(r.polygon)) return null;
@@ -33,15 +38,16 @@ export function outline(r) {
     if (Array.isArray(entry)) return corners.push(entry);
     const [from, to] = [entries[(k + n - 1) % n], entries[(k + 1) % n]];
     if (!entry || !Array.isArray(from) || !Array.isArray(to) || !(Math.abs(entry.arc) < 360) || !entry.arc) return;
+    if (from[0] === to[0] && from[1] === to[1]) return;
     const sweep = (entry.arc * Math.PI) / 180;
-    const segments = Math.ceil(Math.abs(entry.arc) / (entry.max_segment_angle || 5));
+    const segments = Math.ceil(Math.abs(entry.arc) / (entry.max_segment_angle || ARC_SEGMENT_ANGLE));
     const [dx, dy] = [to[0] - from[0], to[1] - from[1]];
     const chord = Math.hypot(dx, dy);
     const radius = (0.5 * chord) / Math.sin(Math.abs(sweep) / 2);
     const off = (radius * Math.cos(Math.abs(sweep) / 2) * Math.sign(sweep)) / chord;
     const [cx, cy] = [(from[0] + to[0]) / 2 - off * dy, (from[1] + to[1]) / 2 + off * dx];
     const start = Math.atan2(from[1] - cy, from[0] - cx);
-    for (let i = 1; i < segments && segments <= 1000; i++) {
+    for (let i = 1; i < segments && segments <= MAX_POLYGON_POINTS; i++) {
       const phi = start + (sweep * i) / segments;
       corners.push([cx + radius * Math.cos(phi), cy + radius * Math.sin(phi)]);
     }
