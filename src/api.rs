@@ -195,8 +195,128 @@ pub struct JobStatus {
     /// The problem document, once failed.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub problem: Option<serde_json::Value>,
+    /// A client job's evaluations.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub evaluations: Option<Evaluations>,
     /// Where to find the job's resources.
     pub links: Links,
+}
+
+/// A time as the API writes it: RFC 3339 in UTC, to the millisecond.
+pub fn timestamp(at: std::time::SystemTime) -> String {
+    humantime::format_rfc3339_millis(at).to_string()
+}
+
+/// `POST /v1/jobs` with `"source": "client"`: a refinement of an F the caller evaluates,
+/// a batch of points at a time (`GET /v1/jobs/{id}/ask`, `POST /v1/jobs/{id}/tell`).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClientJobRequest {
+    /// `client`.
+    pub source: ClientSource,
+    /// The rectangle (default the unit square).
+    pub domain: Option<DomainInput>,
+    /// The vertex budget (default 10000, at least 4).
+    #[serde(default, deserialize_with = "optional_count")]
+    pub max_vertices: Option<u64>,
+    /// Stop once the largest |zi − zj| over edges is at most this.
+    pub tolerance: Option<f64>,
+    /// `semi-recursive` (default) or `recursive`.
+    pub method: Option<Method>,
+    /// `variation`, the only one that needs F at the vertices alone (and the default).
+    pub criterion: Option<Criterion>,
+    /// The most points one batch asks for (default 16, at most 1024).
+    #[serde(default, deserialize_with = "optional_count")]
+    pub batch: Option<u64>,
+    /// How long a batch handed out waits for its values before it is offered again, in ms
+    /// (default 60000).
+    #[serde(default, deserialize_with = "optional_count")]
+    pub lease_ms: Option<u64>,
+}
+
+/// Where a job's F comes from: the caller.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ClientSource {
+    /// The caller evaluates F at the points it is asked for.
+    Client,
+}
+
+/// A point a client job asks for.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct AskedPoint {
+    /// Its id, to tell its value by.
+    pub id: u64,
+    /// x.
+    pub x: f64,
+    /// y.
+    pub y: f64,
+}
+
+/// The answer to `GET /v1/jobs/{id}/ask`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AskAnswer {
+    /// The job's status (`running` while it asks).
+    pub status: &'static str,
+    /// The batch's number, from 1, when there are points.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub batch: Option<u64>,
+    /// The points to evaluate: empty once the job has finished.
+    pub points: Vec<AskedPoint>,
+    /// How long the caller has to tell their values before they are offered again.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lease_ms: Option<u64>,
+}
+
+/// The body of `POST /v1/jobs/{id}/tell`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TellRequest {
+    /// F at points asked, by id.
+    pub values: Vec<TellValue>,
+}
+
+/// F at one point asked: a number, or null where F could not be had.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TellValue {
+    /// The point's id.
+    pub id: u64,
+    /// F there, or null for a failed evaluation: present either way.
+    #[serde(deserialize_with = "nullable")]
+    pub value: Option<f64>,
+    /// Why it failed (kept for the caller's logs, not for the mesh).
+    pub reason: Option<String>,
+}
+
+/// A number or null, the field required: serde reads a missing `Option` as `None` unless a
+/// field has its own `deserialize_with`.
+fn nullable<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
+    Option::<f64>::deserialize(d)
+}
+
+/// How many points a client job asked for, was told, waits for and saw fail.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct Evaluations {
+    /// Points asked for.
+    pub asked: u64,
+    /// Points told (a failure included).
+    pub told: u64,
+    /// Points of the current batch not yet told.
+    pub pending: u64,
+    /// Points told as failed.
+    pub failed: u64,
+}
+
+/// The answer to `POST /v1/jobs/{id}/tell`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TellAnswer {
+    /// The job's status after the values.
+    pub status: &'static str,
+    /// Values that were new (a repeat of a value told is not).
+    pub accepted: u64,
+    /// The job's counts.
+    pub evaluations: Evaluations,
 }
 
 /// The `result` event that ends a stream: the job's status document (its stats, times and
@@ -234,10 +354,17 @@ pub struct Links {
     /// `/v1/jobs/{id}`.
     #[serde(rename = "self")]
     pub this: String,
-    /// `/v1/jobs/{id}/events`.
-    pub events: String,
+    /// `/v1/jobs/{id}/events` (not for a client job, which streams nothing yet).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub events: Option<String>,
     /// `/v1/jobs/{id}/mesh`.
     pub mesh: String,
+    /// A client job's `/v1/jobs/{id}/ask`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ask: Option<String>,
+    /// A client job's `/v1/jobs/{id}/tell`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tell: Option<String>,
 }
 
 impl Links {
@@ -245,8 +372,21 @@ impl Links {
     pub fn of(id: &str) -> Self {
         Self {
             this: format!("/v1/jobs/{id}"),
-            events: format!("/v1/jobs/{id}/events"),
+            events: Some(format!("/v1/jobs/{id}/events")),
             mesh: format!("/v1/jobs/{id}/mesh"),
+            ask: None,
+            tell: None,
+        }
+    }
+
+    /// The links of client job `id`.
+    pub fn of_client(id: &str) -> Self {
+        Self {
+            this: format!("/v1/jobs/{id}"),
+            events: None,
+            mesh: format!("/v1/jobs/{id}/mesh"),
+            ask: Some(format!("/v1/jobs/{id}/ask")),
+            tell: Some(format!("/v1/jobs/{id}/tell")),
         }
     }
 }

@@ -5,7 +5,7 @@ use super::negotiate::{self, Wanted};
 use super::problem::ApiError;
 use super::sse;
 use super::state::AppState;
-use crate::api::{JobList, JobRequest, JobStatus, JsonError, Links, ResultEvent, SolveRequest};
+use crate::api::{JobList, JobRequest, JobStatus, JsonError, Links, ResultEvent, SolveRequest, timestamp};
 use crate::jobs::{Client, Found, JobError, Lifetime, Outcome, Record, Snapshot, Status, Ticket, Waiter};
 use crate::output::Format;
 use crate::refine::StopReason;
@@ -19,7 +19,7 @@ use axum::response::{IntoResponse, Response};
 use bytes::Bytes;
 use futures_util::stream;
 use std::sync::Arc;
-use std::time::{Duration, SystemTime};
+use std::time::Duration;
 
 /// The most vertices one progress event carries (about 4 MB of JSON): a client that joins a
 /// large job late, or stops reading, holds at most this much in its stream; the rest comes
@@ -131,11 +131,6 @@ fn status_body(id: &str, found: &Found) -> JobStatus {
     status_document(id, found.record())
 }
 
-/// A time as the API writes it: RFC 3339 in UTC, to the millisecond.
-fn timestamp(at: SystemTime) -> String {
-    humantime::format_rfc3339_millis(at).to_string()
-}
-
 /// The status document of job `id` whose state is `r`: the one mapping of [`Record`] to the
 /// wire.
 fn status_document(id: &str, r: Record) -> JobStatus {
@@ -154,6 +149,7 @@ fn status_document(id: &str, r: Record) -> JobStatus {
         started_at: r.times.and_then(|t| t.started).map(timestamp),
         finished_at: r.times.and_then(|t| t.finished).map(timestamp),
         problem,
+        evaluations: None,
         links: Links::of(id),
     }
 }
@@ -272,6 +268,9 @@ pub async fn jobs_create(
     headers: HeaderMap,
     body: Body,
 ) -> Result<Response, ApiError> {
+    if super::client::names_source(&body.bytes) {
+        return super::client::create(&state, &body);
+    }
     let (keys, spec) = prepare(&state, &headers, body, Kind::Any).await?;
     let id = keys.id.clone();
     let (code, status) = match state.jobs.submit(keys, spec, Lifetime::Detached, &client).await? {
@@ -361,6 +360,9 @@ pub async fn jobs_list(
 
 /// `GET /v1/jobs/{id}`.
 pub async fn jobs_show(State(state): State<AppState>, Path(id): Path<String>) -> Result<Response, ApiError> {
+    if let Some(job) = state.clients.get(&id) {
+        return Ok(axum::Json(super::client::status(&job)).into_response());
+    }
     let found = find(&state, &id).await?;
     Ok(axum::Json(status_body(&id, &found)).into_response())
 }
@@ -397,6 +399,10 @@ pub(super) async fn finished_result(
     state: &AppState,
     id: &str,
 ) -> Result<(Arc<RunResult>, Option<Duration>), ApiError> {
+    if let Some(job) = state.clients.get(id) {
+        let s = job.status(std::time::Instant::now());
+        return s.result.map(|r| (r, None)).ok_or(ApiError::NotFinished(s.status, 1));
+    }
     let found = find(state, id).await?;
     let status = status_of(&found).as_str();
     match finished_outcome(state, id, found).await {
@@ -453,6 +459,9 @@ pub async fn jobs_events(
         .and_then(|v| v.to_str().ok())
         .and_then(|v| v.trim().parse::<u64>().ok())
         .unwrap_or(0);
+    if state.clients.get(&id).is_some() {
+        return Err(ApiError::NoEvents);
+    }
     let found = find(&state, &id).await?;
     if let Found::Job(_) | Found::Remote(_) = &found
         && let Some(waiter) = state.jobs.watch(&id).await
@@ -526,6 +535,10 @@ pub async fn jobs_cancel(
     State(state): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
+    if let Some(job) = state.clients.get(&id) {
+        job.cancel(std::time::Instant::now());
+        return Ok(axum::Json(super::client::status(&job)).into_response());
+    }
     let found = find(&state, &id).await?;
     // Waiting on the job (here, or a mirror of it) until it has stopped.
     let waiter = match found {

@@ -9,6 +9,7 @@
 //! - [`conn`]: the connections themselves, their cap and timeouts.
 
 pub mod access;
+mod client;
 pub mod conn;
 mod evaluate;
 mod extract;

@@ -83,6 +83,20 @@ pub enum ApiError {
     /// 503 `redis-unavailable`, with `Retry-After`: the job runs on another replica, or may,
     /// and Redis, through which replicas reach each other, does not answer.
     Unreachable,
+    /// 409 `conflicting-value`: a value told for a client job's point differs from the one told
+    /// before.
+    Conflict {
+        /// The request field at fault, as it reads in a message (`values[2].value`).
+        field: String,
+        /// What differs.
+        detail: String,
+    },
+    /// 503 `queue-full`, with `Retry-After`: this replica keeps its most client jobs.
+    ClientJobsFull(usize),
+    /// 409 `client-job-failed`, in a client job's status: it expired, or cannot go on.
+    ClientJobFailed(String),
+    /// 409 `no-events`: a client job streams no events.
+    NoEvents,
     /// A dataset or a tile: 422 `invalid-grid` or `limit-exceeded` for a file that does not
     /// decode, 422 `invalid-dem` for a grid that is no DEM on the globe, 404 `not-found`,
     /// 409 `dataset-configured`, 507 `datasets-full`.
@@ -299,6 +313,26 @@ impl ApiError {
                 "Server has too many open connections",
                 "this server has as many open connections as it serves (MESHFIT_MAX_CONNECTIONS); retry shortly".into(),
             ),
+            ApiError::Conflict { field, detail } => {
+                ext.insert("field".into(), json!(pointer(field)));
+                (StatusCode::CONFLICT, "conflicting-value", "Value differs from the one told", detail.clone())
+            }
+            ApiError::ClientJobsFull(most) => {
+                ext.insert("limit".into(), json!({"name": "client jobs", "value": most}));
+                let detail = format!(
+                    "this replica keeps {most} client jobs, its most: finish one, or retry once one expires"
+                );
+                (StatusCode::SERVICE_UNAVAILABLE, "queue-full", "Server is busy", detail)
+            }
+            ApiError::NoEvents => (
+                StatusCode::CONFLICT,
+                "no-events",
+                "Client jobs stream no events",
+                "a client job streams no events yet: poll GET /v1/jobs/{id}, or long-poll its ask".into(),
+            ),
+            ApiError::ClientJobFailed(detail) => {
+                (StatusCode::CONFLICT, "client-job-failed", "Client job failed", detail.clone())
+            }
             ApiError::Unreachable => (
                 StatusCode::SERVICE_UNAVAILABLE,
                 "redis-unavailable",
@@ -379,6 +413,9 @@ impl IntoResponse for ApiError {
             }
             ApiError::ShuttingDown | ApiError::TooManyConnections | ApiError::Unreachable => {
                 headers.insert(header::RETRY_AFTER, HeaderValue::from_static("1"));
+            }
+            ApiError::ClientJobsFull(_) => {
+                headers.insert(header::RETRY_AFTER, HeaderValue::from_static("60"));
             }
             ApiError::Unauthorized { .. } => {
                 headers.insert(header::WWW_AUTHENTICATE, HeaderValue::from_static("Bearer"));

@@ -2,7 +2,7 @@
 
 use super::problem::ApiError;
 use super::state::AppState;
-use super::{access, evaluate, head, health, jobs, materials, page, tiles};
+use super::{access, client, evaluate, head, health, jobs, materials, page, tiles};
 use crate::config::Config;
 use crate::metrics::RequestLabels;
 use axum::Router;
@@ -33,6 +33,8 @@ pub const ROUTES: &[(&str, &str)] = &[
     ("get", "/v1/jobs/{id}/events"),
     ("get", "/v1/jobs/{id}/mesh"),
     ("post", "/v1/jobs/{id}/evaluate"),
+    ("get", "/v1/jobs/{id}/ask"),
+    ("post", "/v1/jobs/{id}/tell"),
     ("get", "/v1/materials"),
     ("post", "/v1/datasets"),
     ("get", "/v1/datasets"),
@@ -96,6 +98,8 @@ pub fn router(state: AppState, config: &Config) -> Router {
         .route("/v1/jobs/{id}/events", get(jobs::jobs_events))
         .route("/v1/jobs/{id}/mesh", get(jobs::jobs_mesh))
         .route("/v1/jobs/{id}/evaluate", post(evaluate::jobs_evaluate))
+        .route("/v1/jobs/{id}/ask", get(client::jobs_ask))
+        .route("/v1/jobs/{id}/tell", post(client::jobs_tell))
         .route("/v1/materials", get(materials::materials_list))
         .route("/v1/datasets", post(tiles::datasets_create).get(tiles::datasets_list))
         .route("/v1/datasets/{id}", get(tiles::datasets_show).delete(tiles::datasets_delete))

@@ -3,7 +3,7 @@
 
 use crate::config::BodyLimits;
 use crate::datasets::Datasets;
-use crate::jobs::Jobs;
+use crate::jobs::{ClientJobs, Jobs};
 use crate::result::RunResult;
 use crate::result::locate::Locator;
 use crate::spec::Limits;
@@ -29,6 +29,8 @@ fn locators(bytes: u64) -> Locators {
 pub struct AppState {
     /// The job registry.
     pub jobs: Jobs,
+    /// Jobs whose F the caller evaluates.
+    pub clients: ClientJobs,
     /// The DEMs terrain tiles are made of, and the tiles made.
     pub datasets: Datasets,
     /// Whether API keys guard the API: then no shared cache may keep its answers.
@@ -56,6 +58,7 @@ impl AppState {
     ) -> Self {
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
         let parsers = Arc::new(tokio::sync::Semaphore::new(cores.saturating_sub(1).max(1)));
-        Self { jobs, datasets, keyed, limits, locators: locators(locator_bytes), body, parsers }
+        let clients = ClientJobs::default();
+        Self { jobs, clients, datasets, keyed, limits, locators: locators(locator_bytes), body, parsers }
     }
 }

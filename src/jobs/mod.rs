@@ -36,11 +36,14 @@
 //! - `ticket`: what a submission found or started ([`Ticket`]); `submit`: a submission, a
 //!   small function per step (cache hit, prefix replay, join, claim, remote fetch);
 //! - `history`: who submitted which job and when, for the job list;
-//! - `registry`: [`Jobs`], the one public face: submit, find, list, watch, cancel, shut down.
+//! - `registry`: [`Jobs`], the one public face: submit, find, list, watch, cancel, shut down;
+//! - `client`: [`ClientJobs`], jobs whose F the caller evaluates (ask/tell), apart from the
+//!   rest: they hold no worker, and the engine runs only when a batch of values is complete.
 
 mod admission;
 mod budget;
 mod cache;
+mod client;
 mod dispatch;
 mod failure;
 mod families;
@@ -62,6 +65,9 @@ pub use budget::{
     cli_mesh_bytes_per_vertex, default_limit as default_memory_bytes,
 };
 pub use cache::{Cache, CacheSettings, Hit};
+pub use client::{
+    Asked, CLIENT_IDLE, ClientJob, ClientJobs, ClientStatus, MAX_CLIENT_JOBS, TellError, TooManyClientJobs,
+};
 pub use failure::{Cause, Failure};
 pub use history::{SUBMISSIONS_KEPT, Submission};
 pub use job::{Job, JobError, Lifetime, Outcome, Record, Snapshot, Status, Times};

@@ -8,11 +8,12 @@
 //! point it is the engine's own run over the told values, so the mesh depends on those values
 //! only: the same values give the same bytes, whoever told them and whenever.
 //!
-//! A replay costs what a refinement of its size costs (milliseconds at 10⁴ vertices); with
-//! batches of a few dozen points that is far below a point's evaluation in the caller's
-//! simulation, and a batch of 1 asks exactly the points the sequential algorithm would.
-//! A larger batch guesses ahead: when a told value differs from its stand-in, the replay
-//! may turn elsewhere, and a point asked on the guess goes unused (`Next::Done` counts them).
+//! A replay costs what a refinement of its size costs, once a batch: a job of n vertices in
+//! batches of k replays about n²/(2k) insertions, for an F whose evaluations take seconds. A
+//! batch of 1 asks exactly the points the sequential algorithm would. A larger batch guesses
+//! ahead: when a told value differs from its stand-in, the replay may turn elsewhere, and a
+//! point asked on the guess goes unused (`Next::Done` counts them; `examples/asked_batches.rs`
+//! measures how many).
 
 use super::driver::{finished, resume};
 use super::estimator::{Estimator, Field};

@@ -3,6 +3,7 @@
 
 mod access;
 mod cache;
+mod clients;
 mod connections;
 mod devices;
 mod errors;

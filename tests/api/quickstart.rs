@@ -3,7 +3,8 @@
 //! cannot drift from the service: a command that fails, a sample file that is missing or an
 //! answer that changed shape fails this test.
 //!
-//! Needs `bash` and `curl` (`.ci/run` installs curl); without curl the test says so and passes.
+//! Needs `bash`, `curl` and `jq` (`.ci/run` installs both); without them the test says so and
+//! passes.
 
 use crate::helpers::{spawn_with, temp_dir, test_config};
 use std::path::Path;
@@ -18,8 +19,8 @@ fn quick_start(readme: &str) -> &str {
 
 #[tokio::test]
 async fn the_readme_quick_start_runs_as_written_and_says_what_the_readme_says() {
-    if Command::new("curl").arg("--version").output().is_err() {
-        eprintln!("skipped: no curl (apt-get install curl)");
+    if ["curl", "jq"].iter().any(|tool| Command::new(tool).arg("--version").output().is_err()) {
+        eprintln!("skipped: no curl or no jq (apt-get install curl jq)");
         return;
     }
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -53,6 +54,7 @@ async fn the_readme_quick_start_runs_as_written_and_says_what_the_readme_says() 
         "event: result",
         r#",null]}"#,
         r#""status":"cancelled""#,
+        r#"{"status":"succeeded","evaluations":{"asked":"#,
         r#"{"status":"ok"}"#,
         "openapi: 3.1",
         "HTTP/1.1 202 Accepted",

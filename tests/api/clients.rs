@@ -1,0 +1,200 @@
+//! Client jobs: an F the caller evaluates, a batch of points at a time (ask/tell), played by
+//! the test as a client would, against the real server.
+
+use crate::helpers::{TestApp, spawn_app};
+use serde_json::{Value, json};
+
+/// The caller's F, and the same as an expression the server evaluates itself: sums and
+/// products alone, which both compute to the same bits.
+fn f(x: f64, y: f64) -> f64 {
+    x * y * y - 0.5 * x + y
+}
+const EXPRESSION: &str = "x*y*y - 0.5*x + y";
+
+/// Makes a client job of `body`: its id and status document.
+async fn create(app: &TestApp, body: Value) -> (String, Value) {
+    let response = app.post("/v1/jobs", &body).await;
+    assert_eq!(response.status(), 202, "{body}");
+    let location = response.headers()["location"].to_str().unwrap().to_owned();
+    let status: Value = response.json().await.unwrap();
+    assert_eq!(location, format!("/v1/jobs/{}", status["id"].as_str().unwrap()));
+    (status["id"].as_str().unwrap().to_owned(), status)
+}
+
+/// The values of `points` as a tell's body, F from `value`.
+fn told(points: &Value, value: impl Fn(f64, f64) -> Option<f64>) -> Value {
+    let values: Vec<Value> = (points.as_array().unwrap().iter())
+        .map(|p| json!({"id": p["id"], "value": value(p["x"].as_f64().unwrap(), p["y"].as_f64().unwrap())}))
+        .collect();
+    json!({"values": values})
+}
+
+/// Asks and tells until the job finishes: how many batches it asked.
+async fn play(app: &TestApp, id: &str, value: impl Fn(f64, f64) -> Option<f64>) -> usize {
+    let (mut batches, mut last) = (0, 0);
+    loop {
+        let response = app.get(&format!("/v1/jobs/{id}/ask?wait=9000")).await;
+        if response.status() == 204 {
+            continue;
+        }
+        assert_eq!(response.status(), 200);
+        let ask: Value = response.json().await.unwrap();
+        if ask["status"] != "running" {
+            assert_eq!(ask["points"], json!([]), "{ask}");
+            return batches;
+        }
+        batches += 1;
+        let number = ask["batch"].as_u64().unwrap();
+        assert!(number > last, "batches are numbered in order: {ask}");
+        last = number;
+        let response = app.post(&format!("/v1/jobs/{id}/tell"), &told(&ask["points"], &value)).await;
+        assert_eq!(response.status(), 200);
+    }
+}
+
+#[tokio::test]
+async fn a_client_job_asked_and_told_makes_the_mesh_the_server_makes_of_the_same_f() {
+    let app = spawn_app().await;
+    let body =
+        json!({"source": "client", "domain": {"x": [-1, 2], "y": [0, 1]}, "max_vertices": 400, "batch": 8});
+    let (id, status) = create(&app, body).await;
+    assert_eq!(status["status"], "running");
+    assert_eq!(status["evaluations"], json!({"asked": 4, "told": 0, "pending": 4, "failed": 0}));
+    assert_eq!(status["links"]["ask"], format!("/v1/jobs/{id}/ask"));
+    assert!(status["links"].get("events").is_none(), "a client job streams nothing: {status}");
+    let batches = play(&app, &id, |x, y| Some(f(x, y))).await;
+    let done: Value = app.get(&format!("/v1/jobs/{id}")).await.json().await.unwrap();
+    assert_eq!(done["status"], "succeeded", "{done}");
+    let evaluations = &done["evaluations"];
+    let (asked, told) = (evaluations["asked"].as_u64().unwrap(), evaluations["told"].as_u64().unwrap());
+    assert_eq!((asked, evaluations["pending"].as_u64()), (told, Some(0)), "{done}");
+    // The corners, then at most 8 a batch; the mesh used 400 of the points.
+    let midpoints = 400 - 4;
+    assert!(batches as u64 > midpoints / 8 && asked >= 400, "{batches} batches, {asked} points");
+    assert_eq!(done["stats"]["vertices"], 400);
+    assert_eq!(done["stats"]["evaluations"], 400, "the mesh's own evaluations, one a vertex");
+    // The same mesh, bit for bit, as the server's own run of the same F.
+    let mine: Value = app.get(&format!("/v1/jobs/{id}/mesh")).await.json().await.unwrap();
+    let theirs: Value = (app.post(
+        "/v1/meshes",
+        &json!({"function": EXPRESSION, "domain": {"x": [-1, 2], "y": [0, 1]},
+        "max_vertices": 400, "criterion": "variation"}),
+    ))
+    .await
+    .json()
+    .await
+    .unwrap();
+    assert_eq!(mine["vertices"], theirs["vertices"]);
+    assert_eq!(mine["triangles"], theirs["triangles"]);
+    // F_n at a point, as any job's; a client job streams no events.
+    let at: Value = app
+        .post(&format!("/v1/jobs/{id}/evaluate"), &json!({"points": [[0.5, 0.5]]}))
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert!((at["values"][0].as_f64().unwrap() - f(0.5, 0.5)).abs() < 1e-2, "{at}");
+    let events = app.get(&format!("/v1/jobs/{id}/events")).await;
+    assert_eq!(events.status(), 409);
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn tells_are_checked_point_by_point_and_a_repeat_is_a_no_op() {
+    let app = spawn_app().await;
+    let (id, _) = create(&app, json!({"source": "client", "max_vertices": 50})).await;
+    let ask: Value = app.get(&format!("/v1/jobs/{id}/ask")).await.json().await.unwrap();
+    let tell = |body: Value| {
+        let (app, id) = (&app, id.clone());
+        async move { app.post(&format!("/v1/jobs/{id}/tell"), &body).await }
+    };
+    // Not finished: no mesh, no point values.
+    assert_eq!(app.get(&format!("/v1/jobs/{id}/mesh")).await.status(), 409);
+    let at = app.post(&format!("/v1/jobs/{id}/evaluate"), &json!({"points": [[0.5, 0.5]]})).await;
+    assert_eq!(at.status(), 409);
+    // A value left out (rather than null) is no tell.
+    let response = tell(json!({"values": [{"id": 0}]})).await;
+    assert_eq!(response.status(), 422);
+    // An id never asked: 422 naming the entry, and nothing told.
+    let response = tell(json!({"values": [{"id": 0, "value": 1.0}, {"id": 99, "value": 1.0}]})).await;
+    assert_eq!(response.status(), 422);
+    let p: Value = response.json().await.unwrap();
+    assert_eq!(p["field"], "/values/1/id", "{p}");
+    let status: Value = app.get(&format!("/v1/jobs/{id}")).await.json().await.unwrap();
+    assert_eq!(status["evaluations"]["told"], 0, "all or none: {status}");
+    // A value, the same again (a no-op), then a different one (409 naming it).
+    let first = tell(json!({"values": [{"id": 0, "value": 1.5}]})).await;
+    assert_eq!(first.json::<Value>().await.unwrap()["accepted"], 1);
+    let again = tell(json!({"values": [{"id": 0, "value": 1.5}]})).await;
+    assert_eq!(again.status(), 200);
+    assert_eq!(again.json::<Value>().await.unwrap()["accepted"], 0);
+    let other = tell(json!({"values": [{"id": 0, "value": 2.5}]})).await;
+    assert_eq!(other.status(), 409);
+    let p: Value = other.json().await.unwrap();
+    assert_eq!(
+        (p["field"].as_str(), p["type"].as_str()),
+        (Some("/values/0/value"), Some("/problems/conflicting-value"))
+    );
+    assert!(p["detail"].as_str().unwrap().contains("point 0 was told 1.5, not 2.5"), "{p}");
+    // A failed point (null) counts as failed; the rest completes the corners' batch.
+    let rest = told(&ask["points"], |x, y| if x == 0.0 && y == 0.0 { None } else { Some(x + y) });
+    let rest: Vec<Value> =
+        rest["values"].as_array().unwrap().iter().filter(|v| v["id"] != 0).cloned().collect();
+    let response = tell(json!({"values": rest})).await;
+    let answer: Value = response.json().await.unwrap();
+    assert_eq!(answer["evaluations"]["told"], 4, "{answer}");
+    // Bad requests name their field.
+    for (body, field) in [
+        (json!({"source": "client", "criterion": "error"}), "/criterion"),
+        (json!({"source": "client", "batch": 0}), "/batch"),
+        (json!({"source": "client", "lease_ms": 5}), "/lease_ms"),
+        (json!({"source": "client", "method": "data-dependent"}), "/method"),
+        (json!({"source": "server"}), "/source"),
+        (json!({"source": "client", "function": "x"}), "/function"),
+    ] {
+        let response = app.post("/v1/jobs", &body).await;
+        assert_eq!(response.status(), 422, "{body}");
+        assert_eq!(response.json::<Value>().await.unwrap()["field"], field, "{body}");
+    }
+    assert_eq!(app.get(&format!("/v1/jobs/{id}/ask?wait=10000")).await.status(), 422);
+    assert_eq!(app.get(&format!("/v1/jobs/{}/ask", "0".repeat(64))).await.status(), 404);
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_batch_leased_and_not_told_is_offered_again_and_a_failed_point_keeps_the_job_going() {
+    let app = spawn_app().await;
+    let (id, _) =
+        create(&app, json!({"source": "client", "max_vertices": 40, "batch": 4, "lease_ms": 100})).await;
+    let first: Value = app.get(&format!("/v1/jobs/{id}/ask")).await.json().await.unwrap();
+    // Leased to the first asker: a second one waiting no time gets nothing, and when to retry.
+    let busy = app.get(&format!("/v1/jobs/{id}/ask")).await;
+    assert_eq!(busy.status(), 204);
+    assert!(busy.headers().contains_key("retry-after"));
+    // The first asker is lost: past the lease, a waiting asker gets the same batch.
+    let again: Value = app.get(&format!("/v1/jobs/{id}/ask?wait=9000")).await.json().await.unwrap();
+    assert_eq!((&again["batch"], &again["points"]), (&first["batch"], &first["points"]));
+    // One point of every batch fails; the job still finishes, counting them.
+    let failing = |x: f64, y: f64| if x > 0.0 && x < 1.0 && y == 0.0 { None } else { Some(f(x, y)) };
+    let response = app.post(&format!("/v1/jobs/{id}/tell"), &told(&again["points"], failing)).await;
+    assert_eq!(response.status(), 200);
+    play(&app, &id, failing).await;
+    let done: Value = app.get(&format!("/v1/jobs/{id}")).await.json().await.unwrap();
+    assert_eq!(done["status"], "succeeded", "{done}");
+    assert!(done["evaluations"]["failed"].as_u64().unwrap() >= 1, "{done}");
+    assert_eq!(done["stats"]["vertices"], 40);
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_cancelled_client_job_asks_for_nothing_more() {
+    let app = spawn_app().await;
+    let (id, _) = create(&app, json!({"source": "client"})).await;
+    let response = app.delete(&format!("/v1/jobs/{id}")).await;
+    assert_eq!(response.json::<Value>().await.unwrap()["status"], "cancelled");
+    let ask: Value = app.get(&format!("/v1/jobs/{id}/ask")).await.json().await.unwrap();
+    assert_eq!(ask, json!({"status": "cancelled", "points": []}));
+    let mesh = app.get(&format!("/v1/jobs/{id}/mesh")).await;
+    assert_eq!(mesh.status(), 409);
+    app.shutdown().await;
+}
