@@ -423,8 +423,10 @@ mod tests {
                 };
                 let mut pieces = Vec::new();
                 prop_assert!(locator.crossings(a, b, |t, fraction| pieces.push((t, fraction))));
+                // The walk's pieces telescope to 1 to rounding; the clip it falls back on meets
+                // its neighbours' crossings, each rounded on its own, to within its 1e-9.
                 let total: f64 = pieces.iter().map(|&(_, f)| f).sum();
-                prop_assert!((total - 1.0).abs() < 1e-12, "{total}");
+                prop_assert!((total - 1.0).abs() < 1e-9, "{total}");
                 let mut start = 0.0;
                 for &(t, fraction) in &pieces {
                     prop_assert!(fraction >= 0.0);
