@@ -379,14 +379,13 @@ impl Links {
         }
     }
 
-    /// The links of client job `id`.
+    /// The links of client job `id`: no events, and its ask and tell.
     pub fn of_client(id: &str) -> Self {
         Self {
-            this: format!("/v1/jobs/{id}"),
             events: None,
-            mesh: format!("/v1/jobs/{id}/mesh"),
             ask: Some(format!("/v1/jobs/{id}/ask")),
             tell: Some(format!("/v1/jobs/{id}/tell")),
+            ..Self::of(id)
         }
     }
 }

@@ -20,17 +20,6 @@ use std::time::{Duration, Instant};
 /// or a proxy commonly allows an answer; a caller asks again.
 pub const MAX_WAIT_MS: u64 = 9_000;
 
-/// Whether a JSON body asks for a client job: a top-level `"source"` (a byte search first, so a
-/// grid body is not parsed twice).
-pub(super) fn names_source(json: &[u8]) -> bool {
-    #[derive(serde::Deserialize)]
-    struct Probe {
-        source: Option<serde::de::IgnoredAny>,
-    }
-    memchr::memmem::find(json, b"\"source\"").is_some()
-        && serde_json::from_slice::<Probe>(json).is_ok_and(|p| p.source.is_some())
-}
-
 /// `POST /v1/jobs` with `"source": "client"`: 202 with the job's status, asking for its corners.
 pub(super) fn create(state: &AppState, body: &Body) -> Result<Response, ApiError> {
     let request: ClientJobRequest = parse_json(&body.bytes)?;

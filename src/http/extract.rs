@@ -83,6 +83,18 @@ pub fn parse_json<'a, T: Deserialize<'a>>(bytes: &'a [u8]) -> Result<T, ApiError
     })
 }
 
+/// Whether a JSON body has the top-level field `key`, not null (false when it does not parse:
+/// the route's parser then says what is wrong). `POST /v1/jobs` reads what a body is by it.
+///
+/// A byte search goes first, so a large grid body without the word is not parsed a second
+/// time just to find out. A key spelled with escapes (`"\u0070hysics"`) is not found.
+pub fn names(json: &[u8], key: &str) -> bool {
+    use serde::de::IgnoredAny;
+    memchr::memmem::find(json, format!("\"{key}\"").as_bytes()).is_some()
+        && serde_json::from_slice::<std::collections::HashMap<String, Option<IgnoredAny>>>(json)
+            .is_ok_and(|fields| fields.get(key).is_some_and(Option::is_some))
+}
+
 /// How a grid file is sent, for messages.
 const UPLOAD: &str = "curl -F grid=@FILE [-F request='{...}']";
 

@@ -1,6 +1,6 @@
 //! Handlers for meshes and jobs: create (synchronous or streamed), show, stream, fetch, cancel.
 
-use super::extract::{Body, JobBody, Takes, parse_json};
+use super::extract::{Body, JobBody, Takes, names, parse_json};
 use super::negotiate::{self, Wanted};
 use super::problem::ApiError;
 use super::sse;
@@ -47,20 +47,6 @@ impl Kind {
     }
 }
 
-/// Whether a JSON body has a top-level `physics` field (false when it does not parse: the
-/// mesh parser then says what is wrong).
-///
-/// A byte search goes first, so a large grid body without the word is not parsed a second
-/// time just to find out it is a mesh request. A key spelled with escapes (`"\u0070hysics"`) is not found and the body is read as a mesh request.
-fn names_physics(json: &[u8]) -> bool {
-    #[derive(serde::Deserialize)]
-    struct Probe {
-        physics: Option<serde::de::IgnoredAny>,
-    }
-    memchr::memmem::find(json, b"\"physics\"").is_some()
-        && serde_json::from_slice::<Probe>(json).is_ok_and(|p| p.physics.is_some())
-}
-
 /// A mesh request; one that names `physics` (which only problems have) is pointed to the
 /// route for problems. Looked at only when the parse fails, so a mesh body is read once.
 fn mesh_request(json: &[u8]) -> Result<JobRequest<'_>, ApiError> {
@@ -80,7 +66,7 @@ const INLINE_BODY_BYTES: usize = 16 << 10;
 /// Parses and validates a body read as `kind`, and hashes it: CPU work for a large grid.
 fn parse_body(body: JobBody, kind: Kind, limits: &Limits) -> Result<(JobKeys, JobSpec), ApiError> {
     let spec = match body {
-        JobBody::Json(json) if kind == Kind::Solution || (kind == Kind::Any && names_physics(&json)) => {
+        JobBody::Json(json) if kind == Kind::Solution || (kind == Kind::Any && names(&json, "physics")) => {
             JobSpec::from_solve_request(parse_json::<SolveRequest>(&json)?, limits)?
         }
         JobBody::Json(json) => JobSpec::from_request(mesh_request(&json)?, limits)?,
@@ -268,7 +254,7 @@ pub async fn jobs_create(
     headers: HeaderMap,
     body: Body,
 ) -> Result<Response, ApiError> {
-    if super::client::names_source(&body.bytes) {
+    if names(&body.bytes, "source") {
         return super::client::create(&state, &body);
     }
     let (keys, spec) = prepare(&state, &headers, body, Kind::Any).await?;

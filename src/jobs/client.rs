@@ -173,7 +173,11 @@ pub struct ClientStatus {
 
 impl ClientJob {
     fn new(id: String, spec: ClientSpec, now: Instant) -> Self {
-        let points = spec.rect.corners().to_vec();
+        // Nothing told: the refinement asks for its corners, without a replay.
+        let points = match asked::next(spec.rect, &spec.params, &Values::new(), spec.batch) {
+            Ok(Next::Ask(points)) => points,
+            _ => unreachable!("a refinement told nothing asks for its corners"),
+        };
         let state = State {
             values: Values::new(),
             told: vec![None; points.len()],

@@ -158,13 +158,17 @@ pub const ARC_SEGMENT_ANGLE: f64 = 5.0;
 /// How many corners `entries` make once each arc is drawn (a bad arc counts one, and is
 /// named when it is drawn).
 fn drawn_corners(entries: &[PolygonEntry]) -> usize {
-    let segments = |arc: &ArcInput| {
-        let most = arc.max_segment_angle.unwrap_or(ARC_SEGMENT_ANGLE);
-        let n = (arc.arc.abs() / most).ceil();
+    let drawn = |arc: &ArcInput| {
+        let n = segments(arc.arc, arc.max_segment_angle.unwrap_or(ARC_SEGMENT_ANGLE));
         // Beyond a polygon's corners the count need not be exact; NaN counts 1.
         if n >= 1.0 { n.min(MAX_POLYGON_POINTS as f64 + 1.0) as usize } else { 1 }
     };
-    entries.iter().map(|e| if let PolygonEntry::Arc(arc) = e { segments(arc) - 1 } else { 1 }).sum()
+    entries.iter().map(|e| if let PolygonEntry::Arc(arc) = e { drawn(arc) - 1 } else { 1 }).sum()
+}
+
+/// The straight segments an arc of `degrees` is drawn with, each sweeping at most `most`.
+fn segments(degrees: f64, most: f64) -> f64 {
+    (degrees.abs() / most).ceil()
 }
 
 /// The corners of region `here`'s polygon `entries`, in metres (`m`), each arc drawn as
@@ -208,7 +212,7 @@ fn outline(
                 format!("must be in (0, 90], got {most}"),
             ));
         }
-        let segments = (degrees.abs() / most).ceil();
+        let segments = segments(degrees, most);
         if segments > MAX_POLYGON_POINTS as f64 {
             return Err(invalid(
                 format!("{field}.max_segment_angle"),
