@@ -4,7 +4,8 @@
 //! and 10^5, on the 4097 × 4097 grid at 10^6, and on a real DEM: the 256 × 256 Terrain-RGB
 //! tile of examples/tiles (SRTM-derived heights) at 10^4 and 3·10^4 vertices. `check/delaunay`
 //! is the final independent Delaunay check alone, on the semi-recursive mesh of Franke's
-//! function at 10^6 vertices. `estimate/error` is the final E_n estimate alone (F through
+//! function at 10^6 vertices. The curvature criterion (ids `refine/<method>-curvature/...`)
+//! runs on the native Franke at 10^4, 10^5 and 10^6. `estimate/error` is the final E_n estimate alone (F through
 //! meval on every triangle's lattice), on the error criterion's mesh of Franke at 10^5.
 //!
 //! Run with `cargo bench --bench refine`; pick a subset with a filter, e.g.
@@ -50,10 +51,10 @@ fn run_with<S: Surface + ?Sized>(
         for &n in sizes {
             let params = Params::builder(n).method(method).criterion(criterion).build().unwrap();
             // Ids read refine/<method>/<surface>/<n> for the paper's criterion and
-            // refine/<method>-error/<surface>/<n> for the error criterion.
+            // refine/<method>-<criterion>/<surface>/<n> for the others.
             let method = match criterion {
                 meshfit::refine::Criterion::Variation => method.to_string(),
-                meshfit::refine::Criterion::Error => format!("{method}-error"),
+                other => format!("{method}-{other}"),
             };
             group.throughput(Throughput::Elements(n as u64));
             group.sample_size(if n >= 1_000_000 { 10 } else { 20 });
@@ -104,6 +105,8 @@ fn benches(c: &mut Criterion) {
     run_with(c, "franke_grid1025", &Source::Grid(franke_grid(1025)), error, &[10_000, 100_000]);
     run_with(c, "franke_grid4097", &grid4097, error, &[1_000_000]);
     run_with(c, "jacksboro_tile256", &Source::Grid(jacksboro_tile()), error, &[10_000, 30_000]);
+    let curvature = meshfit::refine::Criterion::Curvature;
+    run_with(c, "franke_native", &franke, curvature, &[10_000, 100_000, 1_000_000]);
 }
 
 criterion_group!(refine_benches, benches);

@@ -18,10 +18,14 @@ fn main() {
                 + 0.5 * (-((9.0 * x - 7.0).powi(2) + (9.0 * y - 3.0).powi(2)) / 4.0).exp()
         }),
     ];
-    println!("| F on the unit square | vertices | batch 1 | 4 | 16 | 64 |\n|---|---|---|---|---|---|");
+    println!(
+        "| F on the unit square | criterion | vertices | batch 1 | 4 | 16 | 64 |\n|---|---|---|---|---|---|---|"
+    );
     for (name, f) in functions {
-        for vertices in [1000, 5000] {
-            let params = Params::builder(vertices).criterion(Criterion::Variation).build().unwrap();
+        for (criterion, vertices) in
+            [Criterion::Curvature, Criterion::Variation].into_iter().flat_map(|c| [(c, 1000), (c, 5000)])
+        {
+            let params = Params::builder(vertices).criterion(criterion).build().unwrap();
             let unused: Vec<String> = [1, 4, 16, 64]
                 .into_iter()
                 .map(|batch| {
@@ -38,7 +42,7 @@ fn main() {
                     }
                 })
                 .collect();
-            println!("| {name} | {vertices} | {} |", unused.join(" | "));
+            println!("| {name} | {criterion} | {vertices} | {} |", unused.join(" | "));
         }
     }
 }

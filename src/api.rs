@@ -31,12 +31,18 @@ pub struct JobRequest<'a> {
     pub tolerance: Option<f64>,
     /// `semi-recursive` (default) or `recursive`.
     pub method: Option<Method>,
-    /// `error` (default) or `variation` (the paper's).
+    /// `error` (default), `variation` (the paper's) or `curvature` (one evaluation a vertex,
+    /// ranked by the interpolation error its gradients predict).
     pub criterion: Option<Criterion>,
     /// Criterion `error` only: repair every triangle whose smallest angle is below this many
     /// degrees (above 0, at most 30) before any error-driven split; `stats.below_min_angle`
     /// counts those a size floor, the budget or the tolerance left.
     pub min_angle: Option<f64>,
+    /// Criterion `curvature` only: no edge shorter than twice this is split (a length in the
+    /// domain's units).
+    pub min_size: Option<f64>,
+    /// Criterion `curvature` only: every edge longer than this is split first.
+    pub max_size: Option<f64>,
     /// Stop after this many milliseconds; capped by the server's job time limit.
     #[serde(default, deserialize_with = "optional_count")]
     pub time_limit_ms: Option<u64>,
@@ -219,12 +225,18 @@ pub struct ClientJobRequest {
     /// The vertex budget (default 10000, at least 4).
     #[serde(default, deserialize_with = "optional_count")]
     pub max_vertices: Option<u64>,
-    /// Stop once the largest |zi − zj| over edges is at most this.
+    /// Stop once the worst criterion value is at most this: the largest midpoint error the
+    /// gradients predict for `curvature`, the largest |zi − zj| for `variation`.
     pub tolerance: Option<f64>,
     /// `semi-recursive` (default) or `recursive`.
     pub method: Option<Method>,
-    /// `variation`, the only one that needs F at the vertices alone (and the default).
+    /// `curvature` (the default) or `variation`: the criteria that need F at the vertices
+    /// alone.
     pub criterion: Option<Criterion>,
+    /// Criterion `curvature`: no edge shorter than twice this is split.
+    pub min_size: Option<f64>,
+    /// Criterion `curvature`: every edge longer than this is split first.
+    pub max_size: Option<f64>,
     /// The most points one batch asks for (default 16, at most 1024).
     #[serde(default, deserialize_with = "optional_count")]
     pub batch: Option<u64>,
@@ -379,10 +391,9 @@ impl Links {
         }
     }
 
-    /// The links of client job `id`: no events, and its ask and tell.
+    /// The links of client job `id`: any job's, and its ask and tell.
     pub fn of_client(id: &str) -> Self {
         Self {
-            events: None,
             ask: Some(format!("/v1/jobs/{id}/ask")),
             tell: Some(format!("/v1/jobs/{id}/tell")),
             ..Self::of(id)

@@ -1,18 +1,24 @@
 //! Client jobs over HTTP: `POST /v1/jobs` with `"source": "client"` makes one,
 //! `GET /v1/jobs/{id}/ask` hands out a batch of points, `POST /v1/jobs/{id}/tell` takes their
-//! values; the job's status and mesh are served where every job's are.
+//! values; `GET /v1/jobs/{id}/events` announces each batch as an `ask` event. The job's
+//! status and mesh are served where every job's are.
 
 use super::extract::{Body, parse_json, query};
 use super::problem::ApiError;
+use super::sse;
 use super::state::AppState;
 use crate::api::{
-    AskAnswer, AskedPoint, ClientJobRequest, JobStatus, JsonError, Links, TellAnswer, TellRequest, timestamp,
+    AskAnswer, AskedPoint, ClientJobRequest, JobStatus, JsonError, Links, ResultEvent, TellAnswer,
+    TellRequest, timestamp,
 };
 use crate::jobs::{Asked, ClientJob, MAX_CLIENT_JOBS, TellError};
+use crate::output::Format;
 use crate::spec::ClientSpec;
 use axum::extract::{Path, State};
 use axum::http::{HeaderValue, StatusCode, Uri, header};
 use axum::response::{IntoResponse, Response};
+use bytes::Bytes;
+use futures_util::stream;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -87,10 +93,7 @@ pub async fn jobs_ask(
         changed.as_mut().enable();
         match job.ask(Instant::now()) {
             Asked::Batch { number, points, lease } => {
-                let points = points.into_iter().map(|(id, p)| AskedPoint { id, x: p.x, y: p.y }).collect();
-                let lease_ms = Some(lease.as_millis() as u64);
-                let answer = AskAnswer { status: "running", batch: Some(number), points, lease_ms };
-                return Ok(axum::Json(answer).into_response());
+                return Ok(axum::Json(batch_answer(number, points, lease)).into_response());
             }
             Asked::Finished => {
                 let answer = AskAnswer {
@@ -148,13 +151,95 @@ pub async fn jobs_tell(
         }),
     })?;
     if complete {
-        let chooser = job.clone();
+        let (chooser, job) = (job.clone(), job.clone());
         tokio::spawn(async move {
             if let Err(e) = crate::cpu::spawn(move || chooser.choose()).await {
-                tracing::error!(error = %e, "choosing a client job's next batch panicked");
+                tracing::error!(error = %e, job = %job.id, "choosing a client job's next batch panicked");
+                job.choosing_failed(format!("choosing the next batch failed on the server: {e}"));
             }
         });
     }
     let s = job.status(Instant::now());
     Ok(axum::Json(TellAnswer { status: s.status, accepted, evaluations: s.evaluations }).into_response())
+}
+
+/// The data of an `ask` event and of `GET /v1/jobs/{id}/ask`'s answer while points are out.
+fn batch_answer(number: u64, points: Vec<(u64, crate::geom::Point)>, lease: Duration) -> AskAnswer {
+    let points = points.into_iter().map(|(id, p)| AskedPoint { id, x: p.x, y: p.y }).collect();
+    AskAnswer { status: "running", batch: Some(number), points, lease_ms: Some(lease.as_millis() as u64) }
+}
+
+/// `GET /v1/jobs/{id}/events` of a client job: an `ask` event for each batch (its number as
+/// the event id, its untold points as data, leased to nobody: any listener may evaluate and
+/// tell them, or lease them through `ask`), then the final event as any job's, with the id
+/// after the last batch's. A listener that falls behind skips to the newest batch;
+/// `Last-Event-ID` skips what it has seen, and a 204 once it has seen the end.
+pub(super) fn events(job: Arc<ClientJob>, last_seen: u64, inline: bool) -> Response {
+    let (number, _) = job.current(Instant::now());
+    if finished(&job) && last_seen > number {
+        return StatusCode::NO_CONTENT.into_response();
+    }
+    struct Listener {
+        job: Arc<ClientJob>,
+        last_seen: u64,
+        inline: bool,
+        rest: Option<Box<dyn Iterator<Item = Bytes> + Send>>,
+    }
+    let listener = Listener { job, last_seen, inline, rest: None };
+    let events = stream::unfold(listener, |mut l| async move {
+        loop {
+            if let Some(rest) = &mut l.rest {
+                return rest.next().map(|chunk| (chunk, l));
+            }
+            let job = l.job.clone();
+            // Listen before looking, so a change between the two is not missed.
+            let changed = job.changed();
+            tokio::pin!(changed);
+            changed.as_mut().enable();
+            let (number, points) = job.current(Instant::now());
+            if let Some(points) = points.filter(|_| number > l.last_seen) {
+                l.last_seen = number;
+                let data =
+                    serde_json::to_string(&batch_answer(number, points, job.lease())).expect("serializes");
+                return Some((Bytes::from(format!("event: ask\nid: {number}\ndata: {data}\n\n")), l));
+            }
+            if finished(&job) {
+                if l.last_seen > number {
+                    return None;
+                }
+                l.last_seen = number + 1;
+                l.rest = Some(final_event(&job, number + 1, l.inline));
+                continue;
+            }
+            if tokio::time::timeout(sse::KEEP_ALIVE, changed).await.is_err() {
+                return Some((sse::keep_alive(), l));
+            }
+        }
+    });
+    sse::response(events)
+}
+
+/// Whether the job has ended, one way or another.
+fn finished(job: &ClientJob) -> bool {
+    !matches!(job.status(Instant::now()).status, "running" | "queued")
+}
+
+/// A finished client job's final event with id `id`: `result` (with the mesh when `inline`),
+/// or `error` with the problem.
+fn final_event(job: &ClientJob, id: u64, inline: bool) -> Box<dyn Iterator<Item = Bytes> + Send> {
+    let s = job.status(Instant::now());
+    match s.result {
+        Some(result) if inline => Box::new(sse::result(id, &job.id, &result)),
+        Some(_) => {
+            let formats = Format::ALL.iter().map(|f| f.name());
+            Box::new(std::iter::once(sse::finished(id, &ResultEvent::of(status(job), formats))))
+        }
+        None => {
+            let problem = match s.problem {
+                Some(detail) => ApiError::ClientJobFailed(detail),
+                None => ApiError::Cancelled,
+            };
+            Box::new(std::iter::once(sse::error(id, &problem.to_json())))
+        }
+    }
 }

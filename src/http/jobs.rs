@@ -445,8 +445,8 @@ pub async fn jobs_events(
         .and_then(|v| v.to_str().ok())
         .and_then(|v| v.trim().parse::<u64>().ok())
         .unwrap_or(0);
-    if state.clients.get(&id).is_some() {
-        return Err(ApiError::NoEvents);
+    if let Some(job) = state.clients.get(&id) {
+        return Ok(super::client::events(job, last_seen, options.inline));
     }
     let found = find(&state, &id).await?;
     if let Found::Job(_) | Found::Remote(_) = &found

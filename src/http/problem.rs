@@ -95,8 +95,6 @@ pub enum ApiError {
     ClientJobsFull(usize),
     /// 409 `client-job-failed`, in a client job's status: it expired, or cannot go on.
     ClientJobFailed(String),
-    /// 409 `no-events`: a client job streams no events.
-    NoEvents,
     /// A dataset or a tile: 422 `invalid-grid` or `limit-exceeded` for a file that does not
     /// decode, 422 `invalid-dem` for a grid that is no DEM on the globe, 404 `not-found`,
     /// 409 `dataset-configured`, 507 `datasets-full`.
@@ -324,12 +322,6 @@ impl ApiError {
                 );
                 (StatusCode::SERVICE_UNAVAILABLE, "queue-full", "Server is busy", detail)
             }
-            ApiError::NoEvents => (
-                StatusCode::CONFLICT,
-                "no-events",
-                "Client jobs stream no events",
-                "a client job streams no events yet: poll GET /v1/jobs/{id}, or long-poll its ask".into(),
-            ),
             ApiError::ClientJobFailed(detail) => {
                 (StatusCode::CONFLICT, "client-job-failed", "Client job failed", detail.clone())
             }

@@ -32,6 +32,7 @@ pub const fn cli_mesh_bytes_per_vertex(criterion: Criterion) -> u64 {
     match criterion {
         Criterion::Variation => 176,
         Criterion::Error => 224,
+        Criterion::Curvature => 256,
     }
 }
 

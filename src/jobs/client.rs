@@ -13,7 +13,7 @@
 
 use crate::api::Evaluations;
 use crate::geom::Point;
-use crate::refine::asked::{self, Next, Told, Values};
+use crate::refine::asked::{self, Asker, Next, Told, Values};
 use crate::result::RunResult;
 use crate::spec::ClientSpec;
 use sha2::{Digest, Sha256};
@@ -73,6 +73,8 @@ pub struct ClientJob {
     pub id: String,
     spec: ClientSpec,
     state: Mutex<State>,
+    /// Where the last replay stopped, for the next to start from; held while one runs.
+    asker: Mutex<Asker>,
     /// Woken when a batch is chosen or the job ends.
     changed: Notify,
     /// When it was made.
@@ -108,6 +110,16 @@ struct State {
     touched: Instant,
     failed: u64,
     finished: Option<SystemTime>,
+}
+
+impl State {
+    /// The current batch's points not told yet, by id.
+    fn untold(&self) -> Vec<(u64, Point)> {
+        (self.batch.iter())
+            .filter(|&&id| self.told[id as usize].is_none())
+            .map(|&id| (id, self.points[id as usize]))
+            .collect()
+    }
 }
 
 /// What `ask` gives.
@@ -190,7 +202,14 @@ impl ClientJob {
             failed: 0,
             finished: None,
         };
-        Self { id, spec, state: Mutex::new(state), changed: Notify::new(), created: SystemTime::now() }
+        Self {
+            id,
+            spec,
+            state: Mutex::new(state),
+            asker: Mutex::new(Asker::default()),
+            changed: Notify::new(),
+            created: SystemTime::now(),
+        }
     }
 
     /// The state, with a job idle past [`CLIENT_IDLE`] expired first.
@@ -218,6 +237,18 @@ impl ClientJob {
             && now.saturating_duration_since(state.touched) > CLIENT_IDLE
     }
 
+    /// The number of the latest batch, with its untold points while it is out (leased to
+    /// nobody: what an `ask` event announces).
+    pub fn current(&self, now: Instant) -> (u64, Option<Vec<(u64, Point)>>) {
+        let state = self.state(now);
+        (state.number, matches!(state.phase, Phase::Asking).then(|| state.untold()))
+    }
+
+    /// How long a batch handed out is leased.
+    pub fn lease(&self) -> Duration {
+        self.spec.lease
+    }
+
     /// The current batch's untold points, leased to the asker, when no lease holds them.
     pub fn ask(&self, now: Instant) -> Asked {
         let mut state = self.state(now);
@@ -231,11 +262,7 @@ impl ClientJob {
             return Asked::Wait { until: Some(until) };
         }
         state.lease_until = Some(now + self.spec.lease);
-        let points = (state.batch.iter())
-            .filter(|&&id| state.told[id as usize].is_none())
-            .map(|&id| (id, state.points[id as usize]))
-            .collect();
-        Asked::Batch { number: state.number, points, lease: self.spec.lease }
+        Asked::Batch { number: state.number, points: state.untold(), lease: self.spec.lease }
     }
 
     /// Tells `values` (id, F or None for a failure), all or none: how many were new, and
@@ -288,8 +315,10 @@ impl ClientJob {
     /// Chooses the next batch, or finishes the mesh, from the values told: a replay of the
     /// refinement, for the blocking pool.
     pub fn choose(&self) {
+        let mut asker = lock(&self.asker);
         let values = lock(&self.state).values.clone();
-        let next = asked::next(self.spec.rect, &self.spec.params, &values, self.spec.batch);
+        let next = asker.next(self.spec.rect, &self.spec.params, &values, self.spec.batch);
+        drop(asker);
         let mut state = lock(&self.state);
         if !matches!(state.phase, Phase::Choosing) {
             return;
@@ -312,6 +341,18 @@ impl ClientJob {
                 state.phase = Phase::Failed(e.to_string());
                 state.finished = Some(SystemTime::now());
             }
+        }
+        drop(state);
+        self.changed.notify_waiters();
+    }
+
+    /// Choosing the next batch broke off (a panic): the job fails, rather than wait for a
+    /// batch that never comes.
+    pub fn choosing_failed(&self, detail: String) {
+        let mut state = lock(&self.state);
+        if matches!(state.phase, Phase::Choosing) {
+            state.phase = Phase::Failed(detail);
+            state.finished = Some(SystemTime::now());
         }
         drop(state);
         self.changed.notify_waiters();

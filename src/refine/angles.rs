@@ -129,6 +129,12 @@ pub(super) fn cos_sq_of(degrees: f64) -> f64 {
     degrees.to_radians().cos().powi(2)
 }
 
+/// Whether the apex of half-edge `h`, on the boundary, lies in its diametral lens.
+pub(super) fn lens_encroached(mesh: &Mesh, h: u32) -> bool {
+    let (p, q, apex) = (mesh.point(mesh.origin(h)), mesh.point(mesh.dest(h)), mesh.point(mesh.apex(h)));
+    mesh.twin(h) == NONE && sees_wider(p, q, apex, 0.25)
+}
+
 /// Whether `apex` sees p q at an obtuse angle whose cos² is above `cos_sq`.
 fn sees_wider(p: Point, q: Point, apex: Point, cos_sq: f64) -> bool {
     let (u, v) = ((p.x - apex.x, p.y - apex.y), (q.x - apex.x, q.y - apex.y));

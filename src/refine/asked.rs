@@ -2,8 +2,9 @@
 //!
 //! The engine is not paused between batches: nothing is held while the caller evaluates.
 //! Each [`next`] replays the whole refinement from the corners over the values told so far,
-//! every midpoint not yet told standing in with the mean of its edge's ends (the linear
-//! interpolant, as if F were flat there), until `batch` untold midpoints are met: those are
+//! every midpoint not yet told standing in with the criterion's guess at F there (for
+//! `curvature` the cubic its edge's ends' values and gradients define, for `variation` the
+//! mean of its edge's ends), until `batch` untold midpoints are met: those are
 //! the next points to ask, in the order the engine met them. Once a replay needs no untold
 //! point it is the engine's own run over the told values, so the mesh depends on those values
 //! only: the same values give the same bytes, whoever told them and whenever.
@@ -18,6 +19,7 @@
 use super::driver::{finished, resume};
 use super::estimator::{Estimator, Field};
 use super::floors::Floors;
+use super::observer::Observer;
 use super::outcome::Refinement;
 use super::params::{Criterion, Params};
 use crate::geom::{Mesh, Point, Rect, Vertex};
@@ -29,8 +31,8 @@ use std::time::{Duration, Instant};
 pub enum Told {
     /// F there.
     Value(f64),
-    /// F could not be had there: the point takes the mean of its edge's ends, as an untold
-    /// one stands in, and keeps it (its triangles are refined as the interpolant says).
+    /// F could not be had there: the point keeps the stand-in an untold one has (the
+    /// criterion's guess), and its triangles are refined as if F were that.
     Failed,
 }
 
@@ -89,8 +91,8 @@ pub enum Next {
 /// Why a client refinement cannot go on.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum AskError {
-    /// Only criterion `variation` needs F at the vertices alone.
-    #[error("a refinement the client evaluates ranks edges by variation, not {0:?}")]
+    /// Only criteria `curvature` and `variation` need F at the vertices alone.
+    #[error("a refinement the client evaluates ranks edges by curvature or variation, not {0}")]
     Criterion(Criterion),
     /// A time limit would make the mesh depend on the machine's speed.
     #[error("a refinement the client evaluates has no time limit")]
@@ -102,41 +104,116 @@ pub enum AskError {
 
 /// The next step of refining `rect` by `params` over `values`: the next at most `batch`
 /// points to ask (at least 1; the four corners come first, together), or the finished
-/// refinement.
+/// refinement. A replay from the corners: [`Asker::next`] does the same from where the last
+/// replay left off.
 ///
 /// # Errors
-/// A criterion other than `variation`, a time limit, or a corner the caller could not
-/// evaluate.
+/// Criterion `error`, a time limit, or a corner the caller could not evaluate.
 pub fn next(rect: Rect, params: &Params, values: &Values, batch: usize) -> Result<Next, AskError> {
-    if params.criterion() != Criterion::Variation {
-        return Err(AskError::Criterion(params.criterion()));
-    }
-    if params.time_limit().is_some() {
-        return Err(AskError::TimeLimit);
-    }
-    let start = Instant::now();
-    let corners = rect.corners();
-    let untold: Vec<Point> = corners.iter().copied().filter(|&p| values.get(p).is_none()).collect();
-    if !untold.is_empty() {
-        return Ok(Next::Ask(untold));
-    }
-    let z = corners.map(|p| values.get(p));
-    let mut z4 = [0.0; 4];
-    for (k, told) in z.iter().enumerate() {
-        match told {
-            Some(Told::Value(v)) => z4[k] = *v,
-            _ => return Err(AskError::Corner(corners[k])),
+    Asker::default().next(rect, params, values, batch)
+}
+
+/// A client refinement's memory between batches: the mesh where the last replay first met a
+/// point not told (its *frontier*). Everything before it was built from told values, and a
+/// told value never changes, so the next replay starts there instead of at the corners: a
+/// batch costs a rebuild of the queue (a pass over the vertices) and its own steps, not the
+/// whole refinement again. The finished refinement is always replayed from the corners, so
+/// its stats (flips, retired edges, history), like its mesh, depend on the values alone.
+#[derive(Debug, Clone, Default)]
+pub struct Asker {
+    frontier: Option<Mesh>,
+}
+
+impl Asker {
+    /// [`next`], from the last frontier, for the same `rect` and `params` and values that
+    /// only grow.
+    ///
+    /// # Errors
+    /// As [`next`].
+    pub fn next(
+        &mut self,
+        rect: Rect,
+        params: &Params,
+        values: &Values,
+        batch: usize,
+    ) -> Result<Next, AskError> {
+        if params.criterion() == Criterion::Error {
+            return Err(AskError::Criterion(params.criterion()));
+        }
+        if params.time_limit().is_some() {
+            return Err(AskError::TimeLimit);
+        }
+        let start = Instant::now();
+        let corners = rect.corners();
+        let untold: Vec<Point> = corners.iter().copied().filter(|&p| values.get(p).is_none()).collect();
+        if !untold.is_empty() {
+            return Ok(Next::Ask(untold));
+        }
+        let mut z4 = [0.0; 4];
+        for (k, &p) in corners.iter().enumerate() {
+            match values.get(p) {
+                Some(Told::Value(v)) => z4[k] = v,
+                _ => return Err(AskError::Corner(p)),
+            }
+        }
+        let from_corners = || Mesh::with_capacity(rect, z4, params.max_vertices());
+        if let Some(frontier) = self.frontier.take() {
+            // A replay from the frontier that needs nothing more is not the finished
+            // refinement: its stats count from the frontier, and its state was rebuilt there
+            // (the queue from the mesh's edges), which can choose, rarely, otherwise than the
+            // run from the corners. So only its asks are taken.
+            if let Some(points) = self.replay(frontier, rect, params, values, batch) {
+                return Ok(Next::Ask(points));
+            }
+        }
+        let mut mesh = from_corners();
+        let mut replay = Replay::new(values, batch, &mesh);
+        let mut frontier = Frontier { values, mesh: None };
+        match resume(&mut mesh, &mut replay, params, Floors::of_rect(rect), &mut frontier) {
+            Ok(round) if replay.asked.is_empty() => {
+                let unused = values.len().saturating_sub(replay.used as usize);
+                let refinement = finished(mesh, round, params, replay.used, start, Duration::ZERO);
+                Ok(Next::Done(Box::new(refinement), unused))
+            }
+            _ => {
+                self.frontier = frontier.mesh;
+                Ok(Next::Ask(replay.asked))
+            }
         }
     }
-    let mut mesh = Mesh::with_capacity(rect, z4, params.max_vertices());
-    let mut replay = Replay { values, asked: Vec::new(), seen: HashSet::new(), batch: batch.max(1), used: 4 };
-    match resume(&mut mesh, &mut replay, params, Floors::of_rect(rect), &mut ()) {
-        Err(Full) => Ok(Next::Ask(replay.asked)),
-        Ok(_) if !replay.asked.is_empty() => Ok(Next::Ask(replay.asked)),
-        Ok(round) => {
-            let unused = values.len().saturating_sub(replay.used as usize);
-            let refinement = finished(mesh, round, params, replay.used, start, Duration::ZERO);
-            Ok(Next::Done(Box::new(refinement), unused))
+
+    /// The points a replay from `mesh` asks for, keeping its frontier; `None` when it needs
+    /// none.
+    fn replay(
+        &mut self,
+        mut mesh: Mesh,
+        rect: Rect,
+        params: &Params,
+        values: &Values,
+        batch: usize,
+    ) -> Option<Vec<Point>> {
+        let mut replay = Replay::new(values, batch, &mesh);
+        let mut frontier = Frontier { values, mesh: None };
+        let result = resume(&mut mesh, &mut replay, params, Floors::of_rect(rect), &mut frontier);
+        if result.is_ok() && replay.asked.is_empty() {
+            return None;
+        }
+        self.frontier = frontier.mesh;
+        Some(replay.asked)
+    }
+}
+
+/// Watches a replay for the first edge it chooses whose midpoint is untold, and keeps the
+/// mesh as it stood then.
+struct Frontier<'v> {
+    values: &'v Values,
+    mesh: Option<Mesh>,
+}
+
+impl Observer for Frontier<'_> {
+    fn selected(&mut self, mesh: &Mesh, a: u32, b: u32) {
+        if self.mesh.is_none() && self.values.get(mesh.point(a).midpoint(mesh.point(b))).is_none() {
+            self.mesh = Some(mesh.clone());
         }
     }
 }
@@ -155,11 +232,27 @@ struct Replay<'v> {
     used: u64,
 }
 
+impl<'v> Replay<'v> {
+    /// A replay over `values` that asks at most `batch` points, from `mesh`.
+    fn new(values: &'v Values, batch: usize, mesh: &Mesh) -> Self {
+        Replay {
+            values,
+            asked: Vec::new(),
+            seen: HashSet::new(),
+            batch: batch.max(1),
+            used: mesh.num_vertices() as u64,
+        }
+    }
+}
+
 impl Field for Replay<'_> {
     type Error = Full;
 
     fn midpoint(&mut self, a: Vertex, b: Vertex, m: Point) -> Result<f64, Full> {
-        let stand_in = 0.5 * (a.z + b.z);
+        self.predicted_midpoint(a, b, m, 0.5 * (a.z + b.z))
+    }
+
+    fn predicted_midpoint(&mut self, _a: Vertex, _b: Vertex, m: Point, stand_in: f64) -> Result<f64, Full> {
         match self.values.get(m) {
             Some(Told::Value(v)) => {
                 self.used += 1;
@@ -184,10 +277,10 @@ impl Field for Replay<'_> {
 }
 
 impl Estimator for Replay<'_> {
-    /// Never called: [`next`] runs criterion `variation` only, which ranks edges by the
-    /// vertices' values.
+    /// Never called: [`next`] refuses criterion `error`, the only one that estimates
+    /// triangles.
     fn estimate(&mut self, _mesh: &Mesh, _t: u32, _known: [Option<f64>; 3]) -> Result<(f64, [f64; 3]), Full> {
-        unreachable!("criterion variation estimates no triangle")
+        unreachable!("criteria variation and curvature estimate no triangle")
     }
 }
 
@@ -197,16 +290,17 @@ mod tests {
     use crate::refine::{Method, refine};
     use proptest::prelude::*;
 
-    /// Plays the caller: asks until done, telling F at every point asked.
+    /// Plays the caller: asks until done, telling F at every point asked, with one [`Asker`]
+    /// so each replay starts at the last one's frontier.
     fn played(
         f: impl Fn(f64, f64) -> f64,
         rect: Rect,
         params: &Params,
         batch: usize,
     ) -> (Refinement, usize, usize) {
-        let (mut values, mut asked) = (Values::new(), 0);
+        let (mut values, mut asked, mut asker) = (Values::new(), 0, Asker::default());
         loop {
-            match next(rect, params, &values, batch).unwrap() {
+            match asker.next(rect, params, &values, batch).unwrap() {
                 Next::Ask(points) => {
                     assert!(!points.is_empty() && points.len() <= batch.max(4), "{} points", points.len());
                     for p in points {
@@ -221,28 +315,41 @@ mod tests {
     }
 
     fn params(max_vertices: usize, method: Method) -> Params {
-        Params::builder(max_vertices).criterion(Criterion::Variation).method(method).build().unwrap()
+        with(max_vertices, method, Criterion::Variation)
     }
 
+    fn with(max_vertices: usize, method: Method, criterion: Criterion) -> Params {
+        Params::builder(max_vertices).criterion(criterion).method(method).build().unwrap()
+    }
+
+    /// The same mesh and the same stats but the clock's.
     fn same_mesh(a: &Refinement, b: &Refinement) {
         assert_eq!(a.mesh.vertices(), b.mesh.vertices());
         assert_eq!(a.mesh.triangles().collect::<Vec<_>>(), b.mesh.triangles().collect::<Vec<_>>());
+        let (s, t) = (&a.stats, &b.stats);
+        assert_eq!(
+            (s.flips, s.retired_edges, s.stop, s.delaunay),
+            (t.flips, t.retired_edges, t.stop, t.delaunay)
+        );
+        assert_eq!(format!("{:?}", s.history), format!("{:?}", t.history));
     }
 
     #[test]
     fn one_point_a_batch_asks_exactly_the_points_of_the_sequential_run() {
         let f = |x: f64, y: f64| (3.0 * x).sin() * (2.0 * y).cos() + x * y;
         let rect = Rect::new(-1.0, 2.0, 0.0, 1.5).unwrap();
-        let params = params(300, Method::SemiRecursive);
-        let (asked, points, unused) = played(f, rect, &params, 1);
-        let direct = refine(&f, rect, &params, &mut ()).unwrap();
-        same_mesh(&asked, &direct);
-        assert_eq!((points, unused), (300, 0), "one evaluation a vertex, none wasted");
-        assert_eq!(asked.stats.evaluations, direct.stats.evaluations);
-        // Fifty at a time guesses ahead, and some guesses miss: the same mesh, points unused.
-        let (ahead, points, unused) = played(f, rect, &params, 50);
-        same_mesh(&ahead, &direct);
-        assert!(unused > 0 && points == 300 + unused, "{points} asked, {unused} unused");
+        for criterion in [Criterion::Variation, Criterion::Curvature] {
+            let params = with(300, Method::SemiRecursive, criterion);
+            let (asked, points, unused) = played(f, rect, &params, 1);
+            let direct = refine(&f, rect, &params, &mut ()).unwrap();
+            same_mesh(&asked, &direct);
+            assert_eq!((points, unused), (300, 0), "one evaluation a vertex, none wasted");
+            assert_eq!(asked.stats.evaluations, direct.stats.evaluations);
+            // Fifty at a time guesses ahead, and some guesses miss: the same mesh, points unused.
+            let (ahead, points, unused) = played(f, rect, &params, 50);
+            same_mesh(&ahead, &direct);
+            assert!(unused > 0 && points == 300 + unused, "{criterion}: {points} asked, {unused} unused");
+        }
     }
 
     #[test]
@@ -289,11 +396,13 @@ mod tests {
             a in 0.5f64..6.0,
             b in -3.0f64..3.0,
             recursive in any::<bool>(),
+            curvature in any::<bool>(),
         ) {
             let f = move |x: f64, y: f64| (a * x).sin() + b * x * y * y;
             let rect = Rect::new(0.0, 1.0, -1.0, 1.0).unwrap();
             let method = if recursive { Method::Recursive } else { Method::SemiRecursive };
-            let params = params(200, method);
+            let criterion = if curvature { Criterion::Curvature } else { Criterion::Variation };
+            let params = with(200, method, criterion);
             let (asked, points, unused) = played(f, rect, &params, batch);
             same_mesh(&asked, &refine(&f, rect, &params, &mut ()).unwrap());
             prop_assert_eq!(points as u64, asked.stats.evaluations + unused as u64);

@@ -2,6 +2,7 @@
 //! stands with values that change between rounds.
 
 use super::angles;
+use super::curvature_criterion;
 use super::error_criterion;
 use super::estimator::Estimator;
 use super::floors::Floors;
@@ -100,6 +101,7 @@ pub(crate) fn resume<E: Estimator, O: Observer>(
     let mut run = Run::new(params, observer, floors);
     let (stop, triangle_errors) = match params.criterion() {
         Criterion::Variation => (variation_criterion::refine(mesh, estimator, &mut run)?, None),
+        Criterion::Curvature => (curvature_criterion::refine(mesh, estimator, &mut run)?, None),
         Criterion::Error => {
             let (stop, errors) = error_criterion::refine(mesh, estimator, &mut run)?;
             (stop, Some(errors))

@@ -173,7 +173,7 @@ pub(super) fn refine<E: Estimator, O: Observer>(
         };
         run.observer.selected(mesh, mesh.origin(e), mesh.dest(e));
         touched.clear();
-        let split = run.split_midpoint(mesh, estimator, e, |mesh, d| {
+        let split = run.split_midpoint(mesh, estimator, e, None, |mesh, d| {
             touched.extend([d / 3, mesh.twin(d) / 3]);
         })?;
         let Some(split) = split else {

@@ -49,6 +49,7 @@
 mod angles;
 pub mod asked;
 mod bands;
+mod curvature_criterion;
 mod driver;
 mod error_criterion;
 mod estimator;

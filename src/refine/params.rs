@@ -35,6 +35,11 @@ pub enum Criterion {
     /// features between vertex values, down to the sampling lattice's resolution.
     #[default]
     Error,
+    /// The edge whose midpoint the vertices' gradients say is worst interpolated:
+    /// |(gᵢ − gⱼ)·(Pⱼ − Pᵢ)| / 8, each vertex's gradient the area-weighted mean of its
+    /// triangles'. One evaluation a vertex, as `variation`, but spreads the interpolation
+    /// error instead of the slope; blind, as `variation` is, to what no vertex has seen.
+    Curvature,
 }
 
 /// The largest vertex budget the engine accepts: vertex and half-edge ids are `u32`, and a
@@ -51,6 +56,8 @@ pub struct Params {
     tolerance: Option<f64>,
     time_limit: Option<Duration>,
     min_angle: Option<f64>,
+    min_size: Option<f64>,
+    max_size: Option<f64>,
 }
 
 /// The largest `min_angle` in degrees: Lepp-Delaunay refinement is known to end below it.
@@ -74,9 +81,29 @@ pub enum ParamsError {
     /// The smallest angle asked for is not in (0, 30] degrees.
     #[error("min_angle must be above 0 and at most {MAX_MIN_ANGLE} degrees, got {0}")]
     MinAngle(f64),
-    /// `min_angle` with the paper's criterion, which has no triangles to repair first.
-    #[error("min_angle needs criterion error: the paper's variation splits only its worst edge")]
+    /// `min_angle` with a criterion of edges (`variation`, `curvature`), which has no
+    /// triangles to repair first.
+    #[error("min_angle needs criterion error: variation and curvature split their worst edge only")]
     MinAngleCriterion,
+    /// `min_size` or `max_size` not a finite length above 0.
+    #[error("{name} must be a finite length above 0, got {got}")]
+    Size {
+        /// `min_size` or `max_size`.
+        name: &'static str,
+        /// The length asked for.
+        got: f64,
+    },
+    /// `min_size` or `max_size` with a criterion other than `curvature`.
+    #[error("{0} needs criterion curvature: the others rank edges by the values alone")]
+    SizeCriterion(&'static str),
+    /// `max_size` below twice `min_size`: an edge longer than `max_size` could not be split.
+    #[error("max_size must be at least twice min_size (an edge is split into halves), got {max} < 2 x {min}")]
+    SizeOrder {
+        /// `min_size`.
+        min: f64,
+        /// `max_size`.
+        max: f64,
+    },
     /// Method `data-dependent` without a grid and criterion `error`.
     #[error(
         "method data-dependent needs a grid and criterion error: its flips compare the mesh with the grid's nodes"
@@ -102,6 +129,8 @@ impl Params {
             tolerance: None,
             time_limit: None,
             min_angle: None,
+            min_size: None,
+            max_size: None,
             on_grid: false,
         }
     }
@@ -130,6 +159,14 @@ impl Params {
     pub fn min_angle(&self) -> Option<f64> {
         self.min_angle
     }
+    /// Criterion `curvature`: no midpoint nearer than this to its edge's ends, if set.
+    pub fn min_size(&self) -> Option<f64> {
+        self.min_size
+    }
+    /// Criterion `curvature`: every edge longer than this is split first, if set.
+    pub fn max_size(&self) -> Option<f64> {
+        self.max_size
+    }
 }
 
 /// [`Params`] set one by one; [`ParamsBuilder::build`] checks each value and how they fit
@@ -151,6 +188,8 @@ pub struct ParamsBuilder {
     tolerance: Option<f64>,
     time_limit: Option<Duration>,
     min_angle: Option<f64>,
+    min_size: Option<f64>,
+    max_size: Option<f64>,
     on_grid: bool,
 }
 
@@ -182,6 +221,22 @@ impl ParamsBuilder {
         self
     }
 
+    /// With criterion `curvature`, never splits an edge shorter than twice `length` (in the
+    /// rectangle's units), so no midpoint is nearer than `length` to its edge's ends: a kink
+    /// or a step cannot draw the whole budget.
+    pub fn min_size(mut self, length: f64) -> Self {
+        self.min_size = Some(length);
+        self
+    }
+
+    /// With criterion `curvature`, splits every edge longer than `length` before any other
+    /// (longest first, and the tolerance waits for them): no part of the rectangle is left
+    /// unseen at a coarser scale.
+    pub fn max_size(mut self, length: f64) -> Self {
+        self.max_size = Some(length);
+        self
+    }
+
     /// Stops once this much time has passed.
     pub fn time_limit(mut self, limit: Duration) -> Self {
         self.time_limit = Some(limit);
@@ -202,9 +257,20 @@ impl ParamsBuilder {
     /// above [`MAX_VERTICES`], [`ParamsError::Tolerance`], [`ParamsError::MinAngleCriterion`]
     /// for `min_angle` with criterion `variation`, [`ParamsError::MinAngle`], and
     /// [`ParamsError::DataDependentSource`] for `data-dependent` off a grid or without
-    /// criterion `error`.
+    /// criterion `error`; then [`ParamsError::SizeCriterion`], [`ParamsError::Size`] and
+    /// [`ParamsError::SizeOrder`].
     pub fn build(self) -> Result<Params, ParamsError> {
-        let Self { max_vertices, method, criterion, tolerance, time_limit, min_angle, on_grid } = self;
+        let Self {
+            max_vertices,
+            method,
+            criterion,
+            tolerance,
+            time_limit,
+            min_angle,
+            min_size,
+            max_size,
+            on_grid,
+        } = self;
         if !(4..=MAX_VERTICES).contains(&max_vertices) {
             return Err(ParamsError::MaxVertices { got: max_vertices as u64, max: MAX_VERTICES as u64 });
         }
@@ -212,7 +278,7 @@ impl ParamsBuilder {
             return Err(ParamsError::Tolerance(t));
         }
         if let Some(degrees) = min_angle {
-            if criterion == Criterion::Variation {
+            if criterion != Criterion::Error {
                 return Err(ParamsError::MinAngleCriterion);
             }
             if !(degrees > 0.0 && degrees <= MAX_MIN_ANGLE) {
@@ -222,7 +288,21 @@ impl ParamsBuilder {
         if method == Method::DataDependent && !(on_grid && criterion == Criterion::Error) {
             return Err(ParamsError::DataDependentSource);
         }
-        Ok(Params { method, criterion, max_vertices, tolerance, time_limit, min_angle })
+        for (name, size) in [("min_size", min_size), ("max_size", max_size)] {
+            let Some(got) = size else { continue };
+            if criterion != Criterion::Curvature {
+                return Err(ParamsError::SizeCriterion(name));
+            }
+            if !(got.is_finite() && got > 0.0) {
+                return Err(ParamsError::Size { name, got });
+            }
+        }
+        if let (Some(min), Some(max)) = (min_size, max_size)
+            && max < 2.0 * min
+        {
+            return Err(ParamsError::SizeOrder { min, max });
+        }
+        Ok(Params { method, criterion, max_vertices, tolerance, time_limit, min_angle, min_size, max_size })
     }
 }
 
@@ -254,7 +334,13 @@ names!(
     "semi-recursive" => Method::SemiRecursive,
     "data-dependent" => Method::DataDependent
 );
-names!(Criterion, "criterion", "variation" => Criterion::Variation, "error" => Criterion::Error);
+names!(
+    Criterion,
+    "criterion",
+    "variation" => Criterion::Variation,
+    "error" => Criterion::Error,
+    "curvature" => Criterion::Curvature
+);
 
 #[cfg(test)]
 mod tests {
@@ -286,12 +372,18 @@ mod tests {
             Err(ParamsError::MinAngleCriterion),
             "the combination is named before the range"
         );
-        let dd = p.method(Method::DataDependent);
+        let dd = p.clone().method(Method::DataDependent);
         assert_eq!(dd.clone().on_grid(true).build().map(|p| p.method()), Ok(Method::DataDependent));
         assert_eq!(dd.clone().build(), Err(ParamsError::DataDependentSource));
         let variation = dd.on_grid(true).criterion(Criterion::Variation);
         assert_eq!(variation.clone().build(), Err(ParamsError::DataDependentSource));
         assert!(variation.method(Method::SemiRecursive).on_grid(false).build().is_ok());
+        let sizes = p.clone().min_size(0.1).max_size(0.15);
+        assert_eq!(sizes.clone().build(), Err(ParamsError::SizeCriterion("min_size")));
+        let curvature = sizes.criterion(Criterion::Curvature);
+        assert_eq!(curvature.clone().build(), Err(ParamsError::SizeOrder { min: 0.1, max: 0.15 }));
+        assert_eq!(curvature.clone().max_size(0.2).build().map(|p| p.max_size()), Ok(Some(0.2)));
+        assert_eq!(curvature.max_size(-1.0).build(), Err(ParamsError::Size { name: "max_size", got: -1.0 }));
     }
 
     #[test]

@@ -156,12 +156,14 @@ impl<'a, O: Observer> Run<'a, O> {
     /// Splits the edge of half-edge `e` at its midpoint, with z from `field`, and in
     /// semi-recursive mode restores the Delaunay property, telling `on_flip` the half-edge of
     /// each flip's new diagonal. `None` (and an untouched mesh) when the edge is below the
-    /// length floor or its split would make a too-small triangle.
+    /// length floor or its split would make a too-small triangle. `predicted` is the
+    /// criterion's guess at z there, if it makes one ([`Field::predicted_midpoint`]).
     pub(super) fn split_midpoint<F: Field>(
         &mut self,
         mesh: &mut Mesh,
         field: &mut F,
         e: u32,
+        predicted: Option<f64>,
         on_flip: impl FnMut(&Mesh, u32),
     ) -> Result<Option<Split>, F::Error> {
         let (a, b) = (mesh.vertex(mesh.origin(e)), mesh.vertex(mesh.dest(e)));
@@ -172,7 +174,10 @@ impl<'a, O: Observer> Run<'a, O> {
             self.history.retired();
             return Ok(None);
         }
-        let z = field.midpoint(a, b, m)?;
+        let z = match predicted {
+            Some(predicted) => field.predicted_midpoint(a, b, m, predicted)?,
+            None => field.midpoint(a, b, m)?,
+        };
         Ok(Some(self.insert(mesh, e, Vertex { x: m.x, y: m.y, z }, Placement::OnEdge, on_flip)))
     }
 

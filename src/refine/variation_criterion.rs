@@ -38,7 +38,7 @@ pub(super) fn refine<F: Field, O: Observer>(
         // A flip away from the new vertex (only after a midpoint rounded off its edge) makes
         // an edge the walk below does not see: queue it here. One flipped again later in the
         // same pass goes stale and is skipped.
-        let split = run.split_midpoint(mesh, field, e, |mesh, d| {
+        let split = run.split_midpoint(mesh, field, e, None, |mesh, d| {
             let (p, q, new) = (mesh.origin(d), mesh.dest(d), mesh.num_vertices() as u32 - 1);
             if p != new && q != new {
                 queue.push(candidate(mesh, p, q, d), mesh.vertices());

@@ -15,6 +15,7 @@ use super::checks::{Limits, SpecError, domain_error, expression, grid_error};
 use super::job::{JobSpec, Knobs, MeshSpec, Work};
 use super::solution::{BhTable, Function, MAX_CORNERS, MAX_REGIONS, SolveSpec, Steering};
 use crate::geom::{Point, Rect};
+use crate::refine::Criterion;
 use crate::result::Geometry;
 use crate::solve::{BhCurve, Boundary, Circuit, Coil, Region, Shape};
 use crate::source::{Grid, GridError, GridFileError, Source};
@@ -144,6 +145,11 @@ fn write_mesh<S: Sink>(w: &mut Writer<'_, S>, spec: &MeshSpec) {
     w.field("criterion", p.criterion().to_string().as_bytes());
     w.field("quality", &[u8::from(spec.quality)]);
     w.optional("min_angle", p.min_angle());
+    // Only curvature has sizes: every other request keeps the bytes (and ids) it had.
+    if p.criterion() == Criterion::Curvature {
+        w.optional("min_size", p.min_size());
+        w.optional("max_size", p.max_size());
+    }
     w.0.family();
     w.u64("max_vertices", p.max_vertices() as u64);
     w.optional("tolerance", p.tolerance());
@@ -389,11 +395,15 @@ fn read_mesh(r: &mut Reader<'_>, limits: &Limits) -> Result<JobSpec, DecodeError
         _ => return Err(r.malformed("quality is not 0 or 1")),
     };
     let min_angle = r.optional("min_angle")?;
+    let sizes = match criterion {
+        Criterion::Curvature => [r.optional("min_size")?, r.optional("max_size")?],
+        _ => [None, None],
+    };
     let max_vertices = Some(r.u64("max_vertices")?);
     let tolerance = r.optional("tolerance")?;
     let requested_time_limit = time_limit(r)?;
     let knobs =
-        Knobs { max_vertices, method, criterion, tolerance, min_angle, quality, requested_time_limit };
+        Knobs { max_vertices, method, criterion, tolerance, min_angle, sizes, quality, requested_time_limit };
     Ok(JobSpec::mesh_from(source.with_domain(domain), domain, knobs, limits)?)
 }
 

@@ -127,6 +127,8 @@ impl SpecError {
                 ParamsError::Tolerance(_) => "tolerance",
                 ParamsError::MinAngle(_) | ParamsError::MinAngleCriterion => "min_angle",
                 ParamsError::DataDependentSource => "method",
+                ParamsError::Size { name, .. } | ParamsError::SizeCriterion(name) => name,
+                ParamsError::SizeOrder { .. } => "max_size",
             },
             SpecError::Limit { name, .. } => name,
         })

@@ -28,7 +28,7 @@ pub const LEASE_MS: (u64, u64) = (100, 86_400_000);
 pub struct ClientSpec {
     /// The rectangle.
     pub rect: Rect,
-    /// The engine's parameters: criterion `variation`, no time limit.
+    /// The engine's parameters: criterion `curvature` or `variation`, no time limit.
     pub params: Params,
     /// The most points a batch asks for.
     pub batch: usize,
@@ -47,9 +47,10 @@ impl ClientSpec {
             None => Rect::unit(),
         };
         let problem = |field: &str, detail: String| SpecError::Problem { field: field.into(), detail };
-        if request.criterion.is_some_and(|c| c != Criterion::Variation) {
-            let detail = "a job the client evaluates ranks edges by `variation`, which needs F at the vertices \
-                          alone; `error` samples F inside every triangle";
+        let criterion = request.criterion.unwrap_or(Criterion::Curvature);
+        if criterion == Criterion::Error {
+            let detail = "a job the client evaluates ranks edges by `curvature` or `variation`, which need F at \
+                          the vertices alone; `error` samples F inside every triangle";
             return Err(problem("criterion", detail.into()));
         }
         if request.method == Some(Method::DataDependent) {
@@ -86,7 +87,13 @@ impl ClientSpec {
                 ));
             }
         };
-        let mut params = budget(Some(max_vertices), limits)?.criterion(Criterion::Variation);
+        let mut params = budget(Some(max_vertices), limits)?.criterion(criterion);
+        if let Some(length) = request.min_size {
+            params = params.min_size(length + 0.0);
+        }
+        if let Some(length) = request.max_size {
+            params = params.max_size(length + 0.0);
+        }
         if let Some(method) = request.method {
             params = params.method(method);
         }

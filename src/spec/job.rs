@@ -144,6 +144,7 @@ impl JobSpec {
             criterion: request.criterion.unwrap_or_default(),
             tolerance: request.tolerance,
             min_angle: request.min_angle,
+            sizes: [request.min_size, request.max_size],
             quality: request.quality.unwrap_or(false),
             requested_time_limit: super::checks::time_limit(request.time_limit_ms)?,
         };
@@ -158,8 +159,16 @@ impl JobSpec {
         knobs: Knobs,
         limits: &Limits,
     ) -> Result<Self, SpecError> {
-        let Knobs { max_vertices, method, criterion, tolerance, min_angle, quality, requested_time_limit } =
-            knobs;
+        let Knobs {
+            max_vertices,
+            method,
+            criterion,
+            tolerance,
+            min_angle,
+            sizes,
+            quality,
+            requested_time_limit,
+        } = knobs;
         let time_limit = requested_time_limit.map_or(limits.job_time_limit, |t| t.min(limits.job_time_limit));
         let mut params = budget(max_vertices, limits)?
             .method(method)
@@ -172,6 +181,12 @@ impl JobSpec {
         }
         if let Some(degrees) = min_angle {
             params = params.min_angle(degrees + 0.0);
+        }
+        if let Some(length) = sizes[0] {
+            params = params.min_size(length + 0.0);
+        }
+        if let Some(length) = sizes[1] {
+            params = params.max_size(length + 0.0);
         }
         let params = build(params, limits)?;
         let mesh = MeshSpec { source: Arc::new(source), domain, params, quality };
@@ -186,6 +201,8 @@ pub(super) struct Knobs {
     pub(super) criterion: Criterion,
     pub(super) tolerance: Option<f64>,
     pub(super) min_angle: Option<f64>,
+    /// `min_size` and `max_size`.
+    pub(super) sizes: [Option<f64>; 2],
     pub(super) quality: bool,
     pub(super) requested_time_limit: Option<Duration>,
 }

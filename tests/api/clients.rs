@@ -1,7 +1,7 @@
 //! Client jobs: an F the caller evaluates, a batch of points at a time (ask/tell), played by
 //! the test as a client would, against the real server.
 
-use crate::helpers::{TestApp, spawn_app};
+use crate::helpers::{TestApp, read_events, spawn_app};
 use serde_json::{Value, json};
 
 /// The caller's F, and the same as an expression the server evaluates itself: sums and
@@ -61,7 +61,7 @@ async fn a_client_job_asked_and_told_makes_the_mesh_the_server_makes_of_the_same
     assert_eq!(status["status"], "running");
     assert_eq!(status["evaluations"], json!({"asked": 4, "told": 0, "pending": 4, "failed": 0}));
     assert_eq!(status["links"]["ask"], format!("/v1/jobs/{id}/ask"));
-    assert!(status["links"].get("events").is_none(), "a client job streams nothing: {status}");
+    assert_eq!(status["links"]["events"], format!("/v1/jobs/{id}/events"), "{status}");
     let batches = play(&app, &id, |x, y| Some(f(x, y))).await;
     let done: Value = app.get(&format!("/v1/jobs/{id}")).await.json().await.unwrap();
     assert_eq!(done["status"], "succeeded", "{done}");
@@ -73,12 +73,13 @@ async fn a_client_job_asked_and_told_makes_the_mesh_the_server_makes_of_the_same
     assert!(batches as u64 > midpoints / 8 && asked >= 400, "{batches} batches, {asked} points");
     assert_eq!(done["stats"]["vertices"], 400);
     assert_eq!(done["stats"]["evaluations"], 400, "the mesh's own evaluations, one a vertex");
-    // The same mesh, bit for bit, as the server's own run of the same F.
+    // The same mesh, bit for bit, as the server's own run of the same F by the client job's
+    // default criterion.
     let mine: Value = app.get(&format!("/v1/jobs/{id}/mesh")).await.json().await.unwrap();
     let theirs: Value = (app.post(
         "/v1/meshes",
         &json!({"function": EXPRESSION, "domain": {"x": [-1, 2], "y": [0, 1]},
-        "max_vertices": 400, "criterion": "variation"}),
+        "max_vertices": 400, "criterion": "curvature"}),
     ))
     .await
     .json()
@@ -86,7 +87,7 @@ async fn a_client_job_asked_and_told_makes_the_mesh_the_server_makes_of_the_same
     .unwrap();
     assert_eq!(mine["vertices"], theirs["vertices"]);
     assert_eq!(mine["triangles"], theirs["triangles"]);
-    // F_n at a point, as any job's; a client job streams no events.
+    // F_n at a point, as any job's.
     let at: Value = app
         .post(&format!("/v1/jobs/{id}/evaluate"), &json!({"points": [[0.5, 0.5]]}))
         .await
@@ -94,8 +95,61 @@ async fn a_client_job_asked_and_told_makes_the_mesh_the_server_makes_of_the_same
         .await
         .unwrap();
     assert!((at["values"][0].as_f64().unwrap() - f(0.5, 0.5)).abs() < 1e-2, "{at}");
-    let events = app.get(&format!("/v1/jobs/{id}/events")).await;
-    assert_eq!(events.status(), 409);
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_caller_can_play_from_the_event_stream_alone() {
+    let app = spawn_app().await;
+    let (id, _) = create(&app, json!({"source": "client", "max_vertices": 80, "batch": 4})).await;
+    let mut stream = app.client.get(app.url(&format!("/v1/jobs/{id}/events"))).send().await.unwrap();
+    assert_eq!(stream.headers()["content-type"], "text/event-stream");
+    let (mut pending, mut asks) = (String::new(), Vec::new());
+    // Reads events as they come and tells each batch's points, no ask requests at all.
+    let result = 'stream: loop {
+        let chunk = stream.chunk().await.unwrap().expect("the stream ends after its result event");
+        pending.push_str(std::str::from_utf8(&chunk).unwrap());
+        while let Some(end) = pending.find("\n\n") {
+            let block: String = pending.drain(..end + 2).collect();
+            let field =
+                |name: &str| block.lines().find_map(|l| l.strip_prefix(name)).map(|v| v.trim().to_owned());
+            let (Some(event), Some(event_id), Some(data)) = (field("event:"), field("id:"), field("data:"))
+            else {
+                continue; // a keep-alive comment
+            };
+            let event_id: u64 = event_id.parse().unwrap();
+            let data: Value = serde_json::from_str(&data).unwrap();
+            if event != "ask" {
+                break 'stream (event, event_id, data);
+            }
+            assert_eq!(data["batch"], event_id, "{data}");
+            assert!(data["lease_ms"].as_u64().is_some() && !data["points"].as_array().unwrap().is_empty());
+            let response =
+                app.post(&format!("/v1/jobs/{id}/tell"), &told(&data["points"], |x, y| Some(f(x, y)))).await;
+            assert_eq!(response.status(), 200);
+            asks.push(event_id);
+        }
+    };
+    // Every batch, in order, from the corners on: a batch is chosen only once the last is told.
+    assert_eq!(asks, (1..=asks.len() as u64).collect::<Vec<_>>());
+    let (event, event_id, data) = result;
+    assert_eq!((event.as_str(), event_id), ("result", asks.len() as u64 + 1), "{data}");
+    assert_eq!(data["status"], "succeeded");
+    assert_eq!(data["stats"]["vertices"], 80);
+    // A listener that saw the end is told so; one that saw nothing gets the end at once, with
+    // the mesh inline if it asks.
+    let seen = app
+        .client
+        .get(app.url(&format!("/v1/jobs/{id}/events")))
+        .header("last-event-id", event_id.to_string())
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(seen.status(), 204);
+    let late = read_events(app.get(&format!("/v1/jobs/{id}/events?inline=mesh")).await).await;
+    assert_eq!(late.len(), 1, "{late:?}");
+    let mesh: Value = serde_json::from_str(&late[0].data).unwrap();
+    assert_eq!((late[0].event.as_str(), mesh["vertices"].as_array().unwrap().len()), ("result", 80));
     app.shutdown().await;
 }
 

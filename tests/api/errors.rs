@@ -230,8 +230,19 @@ fn cases() -> Vec<Case> {
         .field("/field", json!("/method")),
         case("unknown method", r#"{"function": "x", "method": "semi"}"#, 422, "invalid-request")
             .detail("semi-recursive"),
-        case("unknown criterion", r#"{"function": "x", "criterion": "curvature"}"#, 422, "invalid-request")
-            .detail("variation"),
+        case("unknown criterion", r#"{"function": "x", "criterion": "hessian"}"#, 422, "invalid-request")
+            .detail("curvature"),
+        case("min_size with criterion error", r#"{"function": "x", "min_size": 0.01}"#, 422, "invalid-parameter")
+            .detail("needs criterion curvature")
+            .field("/field", json!("/min_size")),
+        case(
+            "max_size below twice min_size",
+            r#"{"function": "x", "criterion": "curvature", "min_size": 0.1, "max_size": 0.15}"#,
+            422,
+            "invalid-parameter",
+        )
+        .detail("at least twice min_size")
+        .field("/field", json!("/max_size")),
         case("time limit as text", r#"{"function": "x", "time_limit_ms": "soon"}"#, 422, "invalid-request"),
     ]
 }

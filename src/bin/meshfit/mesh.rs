@@ -53,7 +53,9 @@ pub(crate) struct MeshArgs {
     #[arg(long, default_value_t = Method::default())]
     method: Method,
     /// How the worst edge is chosen: error (an edge of the triangle with the largest sampled
-    /// |F − F_n|) or variation (the paper's exact algorithm: the largest |zi − zj|).
+    /// |F − F_n|), variation (the paper's exact algorithm: the largest |zi − zj|) or
+    /// curvature (one evaluation a vertex: the edge whose midpoint the vertices' gradients say
+    /// is worst interpolated).
     #[arg(long, default_value_t = Criterion::default())]
     criterion: Criterion,
     /// Stop once the worst criterion value is at most T: the largest sampled triangle error
@@ -64,6 +66,12 @@ pub(crate) struct MeshArgs {
     /// most 30) before any error-driven split.
     #[arg(long, value_name = "DEG")]
     min_angle: Option<f64>,
+    /// Criterion curvature: never split an edge shorter than twice LEN.
+    #[arg(long, value_name = "LEN")]
+    min_size: Option<f64>,
+    /// Criterion curvature: split every edge longer than LEN first.
+    #[arg(long, value_name = "LEN")]
+    max_size: Option<f64>,
     /// Stop after this many milliseconds.
     #[arg(long, value_name = "MS", value_parser = parse_count::<u64>)]
     time_limit_ms: Option<u64>,
@@ -132,6 +140,8 @@ fn mesh_request(args: &MeshArgs) -> Result<(JobRequest<'static>, Option<Vec<u8>>
         method: Some(args.method),
         criterion: Some(args.criterion),
         min_angle: args.min_angle,
+        min_size: args.min_size,
+        max_size: args.max_size,
         time_limit_ms: args.time_limit_ms,
         quality: None,
     };

@@ -68,7 +68,7 @@ class Job:
 
     def events(self) -> Iterator[dict]:
         """The job's server-sent events, each `{"event", "id", "data"}`, until its `result`
-        or `error` event (not for a client job, which streams none)."""
+        or `error` event; a client job's `ask` events carry each batch's points."""
         headers = {"accept": "text/event-stream"}
         with self.client._http.stream("GET", f"/v1/jobs/{self.id}/events", headers=headers, timeout=None) as r:
             if r.status_code >= 400:
@@ -167,10 +167,12 @@ class Client:
     ) -> Result:
         """Meshes your own `f(x, y)` on [x0, x1] × [y0, y1]: the server asks for points in
         batches, `f` runs on `workers` threads (or processes, `pool="process"`, for a picklable
-        `f`), and the values go back, until the mesh has `max_vertices` (or its largest
-        |zi - zj| is at most `tolerance`). A point where `f` raises or returns NaN fails: the
-        mesh takes the interpolant there and goes on. Other `options` (`method`, `batch`,
-        `lease_ms`) go into the request; `batch` defaults to 4 points a worker, at least 16.
+        `f`), and the values go back, until the mesh has `max_vertices` (or its worst
+        criterion value is at most `tolerance`). A point where `f` raises or returns NaN
+        fails: the mesh takes the criterion's guess there and goes on. Other `options`
+        (`criterion`: `curvature`, the default, or `variation`; `min_size`, `max_size`,
+        `method`, `batch`, `lease_ms`) go into the request; `batch` defaults to 4 points a
+        worker, at least 16.
         Interrupted, the job stays on the server: `client.job(id)` and another loop resume it.
         """
         body: dict = {"source": "client", "domain": {"x": list(x), "y": list(y)}, "max_vertices": max_vertices}
