@@ -11,7 +11,7 @@ use crate::api::{
     AskAnswer, AskedPoint, ClientJobRequest, JobStatus, JsonError, Links, ResultEvent, TellAnswer,
     TellRequest, timestamp,
 };
-use crate::jobs::{Asked, ClientJob, MAX_CLIENT_JOBS, TellError};
+use crate::jobs::{Asked, Client, ClientJob, MAX_CLIENT_JOBS, TellError};
 use crate::output::Format;
 use crate::spec::ClientSpec;
 use axum::extract::{Path, State};
@@ -26,12 +26,14 @@ use std::time::{Duration, Instant};
 /// or a proxy commonly allows an answer; a caller asks again.
 pub const MAX_WAIT_MS: u64 = 9_000;
 
-/// `POST /v1/jobs` with `"source": "client"`: 202 with the job's status, asking for its corners.
-pub(super) fn create(state: &AppState, body: &Body) -> Result<Response, ApiError> {
+/// `POST /v1/jobs` with `"source": "client"`: 202 with the job's status, asking for its
+/// corners; `client`'s job list shows it.
+pub(super) fn create(state: &AppState, body: &Body, client: &Client) -> Result<Response, ApiError> {
     let request: ClientJobRequest = parse_json(&body.bytes)?;
     let spec = ClientSpec::from_request(request, &state.limits)?;
     let job =
         state.clients.create(spec, Instant::now()).map_err(|_| ApiError::ClientJobsFull(MAX_CLIENT_JOBS))?;
+    state.jobs.note_submission(&job.id, client);
     let status = status(&job);
     let location = HeaderValue::from_str(&status.links.this).expect("ascii path");
     let headers = [(header::LOCATION, location), (header::RETRY_AFTER, HeaderValue::from_static("0"))];

@@ -255,7 +255,7 @@ pub async fn jobs_create(
     body: Body,
 ) -> Result<Response, ApiError> {
     if names(&body.bytes, "source") {
-        return super::client::create(&state, &body);
+        return super::client::create(&state, &body, &client);
     }
     let (keys, spec) = prepare(&state, &headers, body, Kind::Any).await?;
     let id = keys.id.clone();
@@ -328,13 +328,19 @@ pub async fn jobs_list(
     };
     // A caller's own: its key's, or without keys its address's. Job ids are not guessable;
     // a list of everyone's would hand them out.
-    let (page, next) = state.jobs.list(Some(&client), status, before, limit as usize);
+    let client_status = |id: &str| state.clients.get(id).map(|job| super::client::status(&job));
+    let elsewhere = |id: &str| client_status(id).and_then(|s| Status::parse(s.status));
+    let (page, next) = state.jobs.list(Some(&client), status, before, limit as usize, elsewhere);
     let jobs = page
         .into_iter()
-        .map(|(submission, record)| {
-            let mut status = status_document(&submission.id, record);
+        .filter_map(|(submission, record)| {
+            let mut status = match record {
+                Some(record) => status_document(&submission.id, record),
+                // A client job: its own status document, as GET /v1/jobs/{id} shows it.
+                None => client_status(&submission.id)?,
+            };
             status.created_at = Some(timestamp(submission.at));
-            status
+            Some(status)
         })
         .collect();
     let next = next.map(|cursor| {

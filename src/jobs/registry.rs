@@ -150,29 +150,40 @@ impl Jobs {
         Ok(ticket)
     }
 
+    /// Notes that `client` made a job this registry does not run (a client job, which the
+    /// caller evaluates), so that the list shows it in its place.
+    pub fn note_submission(&self, id: &str, client: &Client) {
+        self.inner.history.note(id, client, SystemTime::now());
+    }
+
     /// The jobs submitted to this replica, newest first: of `client` alone when given, with
     /// `status` when given, numbered below `before` (the cursor); at most `limit`, and the
     /// cursor of the next page when more are left. Each job as this replica's table holds it
-    /// (never a read of the cache or the store); a job whose record is gone is left out.
+    /// (never a read of the cache or the store), or, with `None`, one the table does not hold
+    /// whose status `elsewhere` knows (a client job); a job neither knows is left out.
     pub fn list(
         &self,
         client: Option<&Client>,
         status: Option<Status>,
         before: Option<u64>,
         limit: usize,
-    ) -> (Vec<(Submission, Record)>, Option<u64>) {
+        elsewhere: impl Fn(&str) -> Option<Status>,
+    ) -> (Vec<(Submission, Option<Record>)>, Option<u64>) {
         let mut page = Vec::new();
         for submission in self.inner.history.newest(client, before, SystemTime::now()) {
             let record = match self.inner.table.get(&submission.id) {
-                Some(Listing::Live(job)) => Record::of(&job.snapshot()),
-                Some(Listing::Done(record)) => (*record).clone(),
-                None => continue,
+                Some(Listing::Live(job)) => Some(Record::of(&job.snapshot())),
+                Some(Listing::Done(record)) => Some((*record).clone()),
+                None => None,
             };
-            if status.is_some_and(|s| s != record.status) {
+            let Some(its) = record.as_ref().map(|r| r.status).or_else(|| elsewhere(&submission.id)) else {
+                continue;
+            };
+            if status.is_some_and(|s| s != its) {
                 continue;
             }
             if page.len() == limit {
-                let next = page.last().map(|(s, _): &(Submission, Record)| s.seq);
+                let next = page.last().map(|(s, _): &(Submission, Option<Record>)| s.seq);
                 return (page, next);
             }
             page.push((submission, record));

@@ -259,7 +259,7 @@ fn error_estimate_is_zero_for_a_linear_function_and_positive_for_a_curved_one() 
 #[test]
 fn the_history_samples_each_mark_once_and_ends_with_the_final_mesh() {
     let f = |x: f64, y: f64| (5.0 * x).sin() * y + x * x;
-    for criterion in [Criterion::Variation, Criterion::Error] {
+    for criterion in [Criterion::Variation, Criterion::Error, Criterion::Curvature] {
         for method in [Method::Recursive, Method::SemiRecursive] {
             let p = Params::builder(1000).method(method).criterion(criterion).build().unwrap();
             let r = refine(&f, Rect::unit(), &p, &mut ()).unwrap();

@@ -312,7 +312,7 @@ mod tests {
     fn a_prefix_replays_bit_for_bit_as_a_fresh_run_for_every_method_criterion_and_source() {
         for (name, source, rect) in sources() {
             for method in [Method::SemiRecursive, Method::Recursive] {
-                for criterion in [Criterion::Error, Criterion::Variation] {
+                for criterion in [Criterion::Error, Criterion::Variation, Criterion::Curvature] {
                     let params = Params::builder(1500).method(method).criterion(criterion).build().unwrap();
                     let (full, trace) = traced(&source, rect, &params);
                     let worst = trace.worst.clone();

@@ -180,7 +180,7 @@ pub fn write(result: &RunResult, id: &str, out: impl Write) -> io::Result<u64> {
 
 /// The codes of a trace's method, criterion and stop reason: their index here.
 const METHODS: [Method; 3] = [Method::Recursive, Method::SemiRecursive, Method::DataDependent];
-const CRITERIA: [Criterion; 2] = [Criterion::Variation, Criterion::Error];
+const CRITERIA: [Criterion; 3] = [Criterion::Variation, Criterion::Error, Criterion::Curvature];
 const STOPS: [StopReason; 5] = [
     StopReason::MaxVertices,
     StopReason::Tolerance,
@@ -382,7 +382,7 @@ mod tests {
 
     #[test]
     fn a_result_reads_back_equal_with_and_without_triangle_errors() {
-        for criterion in [Criterion::Error, Criterion::Variation] {
+        for criterion in CRITERIA {
             let result = sample(300, criterion);
             assert_eq!(result.indicator().is_some(), criterion == Criterion::Error);
             assert_eq!(read(&bytes(&result), ID).unwrap(), result);
@@ -391,7 +391,7 @@ mod tests {
 
     #[test]
     fn a_result_with_its_trace_reads_back_equal() {
-        for criterion in [Criterion::Error, Criterion::Variation] {
+        for criterion in CRITERIA {
             let result = crate::result::testing::traced(300, criterion);
             assert!(result.trace.is_some());
             assert_eq!(read(&bytes(&result), ID).unwrap(), result);

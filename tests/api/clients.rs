@@ -102,6 +102,16 @@ async fn a_client_job_asked_and_told_makes_the_mesh_the_server_makes_of_the_same
 async fn a_caller_can_play_from_the_event_stream_alone() {
     let app = spawn_app().await;
     let (id, _) = create(&app, json!({"source": "client", "max_vertices": 80, "batch": 4})).await;
+    let listed = |status: &'static str| {
+        let (app, id) = (&app, id.clone());
+        async move {
+            let list: Value = app.get(&format!("/v1/jobs?status={status}")).await.json().await.unwrap();
+            list["jobs"].as_array().unwrap().iter().find(|j| j["id"] == id.as_str()).cloned()
+        }
+    };
+    // The caller's job list shows it as any job, with its evaluations.
+    let running = listed("running").await.expect("a running client job is listed");
+    assert_eq!(running["evaluations"]["pending"], 4, "{running}");
     let mut stream = app.client.get(app.url(&format!("/v1/jobs/{id}/events"))).send().await.unwrap();
     assert_eq!(stream.headers()["content-type"], "text/event-stream");
     let (mut pending, mut asks) = (String::new(), Vec::new());
@@ -136,6 +146,9 @@ async fn a_caller_can_play_from_the_event_stream_alone() {
     assert_eq!((event.as_str(), event_id), ("result", asks.len() as u64 + 1), "{data}");
     assert_eq!(data["status"], "succeeded");
     assert_eq!(data["stats"]["vertices"], 80);
+    assert!(listed("running").await.is_none());
+    let succeeded = listed("succeeded").await.expect("a finished client job is listed");
+    assert_eq!(succeeded["stats"]["vertices"], 80, "{succeeded}");
     // A listener that saw the end is told so; one that saw nothing gets the end at once, with
     // the mesh inline if it asks.
     let seen = app

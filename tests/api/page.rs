@@ -152,6 +152,7 @@ async fn the_page_runs_a_shared_address_draws_the_mesh_and_shows_the_apis_stats(
         boundary_value_problem(&app, &client).await;
         device(&app, &client).await;
         terrain(&app, &client).await;
+        client_job(&app, &client).await;
         api_key(&keyed, &client).await;
     })
     .catch_unwind()
@@ -399,6 +400,49 @@ async fn terrain(app: &TestApp, client: &Client) {
     assert!(curl.contains("-F grid=@'dem-4326.tif'"), "{curl}");
     let levels = client.find(Locator::Css("#dataset tr[data-stat=levels] td:last-child")).await.unwrap();
     assert_eq!(levels.text().await.unwrap(), "0 to 14");
+}
+
+/// A client job opened by its address: the page says each batch waits for its caller, then
+/// shows the mesh its caller's values made.
+async fn client_job(app: &TestApp, client: &Client) {
+    let body = json!({"source": "client", "max_vertices": 50, "batch": 8});
+    let created: Value = app.post("/v1/jobs", &body).await.json().await.unwrap();
+    let id = created["id"].as_str().unwrap().to_owned();
+    client.goto(&app.url(&format!("/?job={id}"))).await.unwrap();
+    let status = client.find(Locator::Id("status")).await.unwrap();
+    let shown = tokio::time::timeout(PATIENCE, async {
+        loop {
+            let text = status.text().await.unwrap();
+            if text.contains("waiting for the caller") {
+                return text;
+            }
+            tokio::time::sleep(std::time::Duration::from_millis(50)).await;
+        }
+    })
+    .await
+    .expect("the page says the job waits for its caller");
+    assert_eq!(shown, "waiting for the caller: batch 1, 4 points to tell");
+    // Plays the caller: F = x·y + y.
+    loop {
+        let ask: Value =
+            app.get(&format!("/v1/jobs/{id}/ask?wait=9000")).await.json().await.unwrap_or(Value::Null);
+        if ask.is_null() {
+            continue; // 204: the next batch is being chosen
+        }
+        if ask["status"] != "running" {
+            break;
+        }
+        let values: Vec<Value> = (ask["points"].as_array().unwrap().iter())
+            .map(|p| {
+                let (x, y) = (p["x"].as_f64().unwrap(), p["y"].as_f64().unwrap());
+                json!({"id": p["id"], "value": x * y + y})
+            })
+            .collect();
+        assert_eq!(app.post(&format!("/v1/jobs/{id}/tell"), &json!({"values": values})).await.status(), 200);
+    }
+    wait_until(client, "body[data-state=done]").await;
+    assert_eq!(page_stats(client).await["vertices"], json!(50));
+    assert_eq!(page_job(client).await, id);
 }
 
 async fn boundary_value_problem(app: &TestApp, client: &Client) {

@@ -84,6 +84,7 @@ async function follow(id, signal) {
       if (data.length === 0) continue;
       const payload = JSON.parse(data.join("\n"));
       if (event === "progress") progress(payload);
+      else if (event === "ask") asking(payload);
       else if (event === "result") await finished(payload);
       else if (event === "error") {
         showProblem(payload);
@@ -104,6 +105,12 @@ function progress(p) {
   const done = typeof p.fraction === "number" ? `${Math.floor(100 * p.fraction)}%: ` : "";
   setStatus(`running ${done}${p.vertices} vertices, ${worst} ${fmt(p.worst)}, ${Math.round(p.elapsed_ms)} ms`);
   scheduleDraw();
+}
+
+// A client job's batch is out: its caller evaluates F there (the page never does).
+function asking(a) {
+  const n = a.points.length;
+  setStatus(`waiting for the caller: batch ${a.batch}, ${n} point${n === 1 ? "" : "s"} to tell`);
 }
 
 // `/?job=ID`: shows a job that exists, running or finished, as its events tell.
