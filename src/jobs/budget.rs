@@ -18,6 +18,11 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// 236 MB; rounded up.
 pub const MESH_BYTES_PER_VERTEX: u64 = 256;
 
+/// [`MESH_BYTES_PER_VERTEX`] for criterion `curvature`, whose gradients and lazier queue take
+/// more: the command line's 247 MB at 10^6 vertices (2026-12-07, measured as below), with
+/// the viewers' copy 271 MB; rounded up.
+pub const CURVATURE_BYTES_PER_VERTEX: u64 = 288;
+
 /// Peak bytes per vertex of a solution: the sparse Cholesky factor dominates. Measured the
 /// same way on `meshfit solve` (2026-12-06, 08f08c1): at 10^5 vertices a Poisson peak 140 MB and
 /// examples/requests/electromagnet.json 169 MB (Newton keeps its analysis and Jacobian), at
@@ -27,7 +32,8 @@ pub const SOLUTION_BYTES_PER_VERTEX: u64 = 1792;
 
 /// Peak bytes per vertex of the command line's `meshfit mesh` (no viewer copy, no trace):
 /// measured as the server's `MESH_BYTES_PER_VERTEX` is, 163 MB at 10^6 vertices with `--criterion
-/// variation` and 201 MB with `error`, the output written as JSON or PLY; rounded up.
+/// variation`, 201 MB with `error` and 247 MB with `curvature` (2026-12-07), the output written
+/// as JSON or PLY; rounded up.
 pub const fn cli_mesh_bytes_per_vertex(criterion: Criterion) -> u64 {
     match criterion {
         Criterion::Variation => 176,
@@ -178,7 +184,11 @@ pub(crate) fn memory_bytes(spec: &JobSpec) -> u64 {
                 Source::Grid(g) => (g.nx() * g.ny()) as u64 * GRID_BYTES_PER_POINT,
                 Source::Expression(_) => 0,
             };
-            grid + m.params.max_vertices() as u64 * MESH_BYTES_PER_VERTEX
+            let per_vertex = match m.params.criterion() {
+                Criterion::Curvature => CURVATURE_BYTES_PER_VERTEX,
+                Criterion::Variation | Criterion::Error => MESH_BYTES_PER_VERTEX,
+            };
+            grid + m.params.max_vertices() as u64 * per_vertex
         }
         Work::Solve(s) => s.settings.max_vertices as u64 * SOLUTION_BYTES_PER_VERTEX,
     }

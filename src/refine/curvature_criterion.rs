@@ -1,18 +1,21 @@
 //! Criterion `curvature`: split the edge whose midpoint the vertices' gradients say is worst
 //! interpolated, from F at the vertices alone (one evaluation a vertex, as `variation`).
 //!
-//! Each vertex carries a gradient g, the area-weighted mean of the gradients of the triangles
-//! around it. Along an edge d = q − p the cubic that matches z and g·d at both ends leaves the
-//! chord at the midpoint by (g_p − g_q)·d / 8: that is the edge's value, |F − F_n| at the
-//! midpoint of a quadratic F whose vertex gradients are exact. Where `variation` spreads
+//! Each vertex carries a gradient g, that of the quadratic fitted in least squares to the
+//! values around it ([`Gradients`]). Along an edge d = q − p the cubic that matches z and g·d
+//! at both ends leaves the chord at the midpoint by (g_p − g_q)·d / 8: that is the edge's
+//! value ([`value`]), |F − F_n| at the midpoint of a quadratic F. Where `variation` spreads
 //! |zᵢ − zⱼ| (the slope) evenly, this spreads the interpolation error, so flat and straight
-//! slopes get few vertices and bends many.
+//! slopes get few vertices and bends many. An exploration term on the edge's length keeps
+//! looking where the vertices lie on one plane, and encroached boundary edges, edges above
+//! `max_size` and overflows go first.
 //!
 //! A split changes the triangles around the new vertex only, so the gradients of it and its
-//! neighbours are estimated again and their edges queued with new values; an entry whose value
-//! is no longer its edge's surfaces later and is skipped. `max_size` ranks every longer edge
-//! above any estimate (longest first), and an edge shorter than twice `min_size` is never
-//! queued, so no midpoint comes nearer than `min_size` to the ends of the edge it splits.
+//! neighbours (and of the vertices that fit over two rings next to them) are fitted again and
+//! their edges queued with new values; an entry whose value is no longer its edge's surfaces
+//! later and is skipped. The queue is then a function of the mesh alone, which is what lets a
+//! client job's replay resume from any of its meshes (`asked`). An edge shorter than twice
+//! `min_size` is never queued, so no midpoint comes nearer than `min_size` to its edge's ends.
 
 use super::angles::lens_encroached;
 use super::estimator::Field;
@@ -35,7 +38,7 @@ pub(super) fn refine<F: Field, O: Observer>(
     let mut grads = Gradients::new(mesh, run.params.max_vertices());
     let mut queue = Queue { heap: WorstEdgeQueue::new(), len: 0, scales };
     queue.refill(mesh, &grads.at);
-    // The vertices and the triangles a step changed, reused so steps do not allocate.
+    // The vertices whose gradients a step changed, reused so steps do not allocate.
     let mut touched: Vec<u32> = Vec::with_capacity(64);
     run.observer.started(field.evaluations());
     loop {
@@ -83,7 +86,7 @@ pub(super) fn refine<F: Field, O: Observer>(
         for &v in &touched {
             grads.at[v as usize] = grads.fit(mesh, v);
         }
-        // Each edge once: one between two touched vertices is queued from its larger end.
+        // Each edge once: one between two touched vertices is queued from its smaller end.
         for &v in &touched {
             mesh.for_each_neighbour(v, |other, h| {
                 if other > v || touched.binary_search(&other).is_err() {

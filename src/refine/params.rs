@@ -94,7 +94,9 @@ pub enum ParamsError {
         got: f64,
     },
     /// `min_size` or `max_size` with a criterion other than `curvature`.
-    #[error("{0} needs criterion curvature: the others rank edges by the values alone")]
+    #[error(
+        "{0} needs criterion curvature, whose edges it bounds (error and variation have size floors of their own)"
+    )]
     SizeCriterion(&'static str),
     /// `max_size` below twice `min_size`: an edge longer than `max_size` could not be split.
     #[error("max_size must be at least twice min_size (an edge is split into halves), got {max} < 2 x {min}")]
