@@ -174,8 +174,9 @@ fn batch_answer(number: u64, points: Vec<(u64, crate::geom::Point)>, lease: Dura
 /// `GET /v1/jobs/{id}/events` of a client job: an `ask` event for each batch (its number as
 /// the event id, its untold points as data, leased to nobody: any listener may evaluate and
 /// tell them, or lease them through `ask`), then the final event as any job's, with the id
-/// after the last batch's. A listener that falls behind skips to the newest batch;
-/// `Last-Event-ID` skips what it has seen, and a 204 once it has seen the end.
+/// after the last batch's. A listener that falls behind skips to the newest batch; the stream
+/// ends after [`sse::KEEP_ALIVE`] without news, and `Last-Event-ID` resumes it (a 204 once
+/// the listener has seen the end).
 pub(super) fn events(job: Arc<ClientJob>, last_seen: u64, inline: bool) -> Response {
     let (number, _) = job.current(Instant::now());
     if finished(&job) && last_seen > number {
@@ -213,8 +214,11 @@ pub(super) fn events(job: Arc<ClientJob>, last_seen: u64, inline: bool) -> Respo
                 l.rest = Some(final_event(&job, number + 1, l.inline));
                 continue;
             }
+            // A caller may take hours between batches: rather than hold the stream (and a
+            // proxy's connection) open, it ends after a quiet spell, and the listener comes
+            // back with Last-Event-ID, as an EventSource does by itself.
             if tokio::time::timeout(sse::KEEP_ALIVE, changed).await.is_err() {
-                return Some((sse::keep_alive(), l));
+                return None;
             }
         }
     });
