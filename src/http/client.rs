@@ -11,7 +11,7 @@ use crate::api::{
     AskAnswer, AskedPoint, ClientJobRequest, JobStatus, JsonError, Links, ResultEvent, TellAnswer,
     TellRequest, timestamp,
 };
-use crate::jobs::{Asked, Client, ClientJob, MAX_CLIENT_JOBS, TellError};
+use crate::jobs::{Asked, Client, ClientJob, ClientStatus, MAX_CLIENT_JOBS, TellError};
 use crate::output::Format;
 use crate::spec::ClientSpec;
 use axum::extract::{Path, State};
@@ -42,13 +42,17 @@ pub(super) fn create(state: &AppState, body: &Body, client: &Client) -> Result<R
 
 /// Client job `id`'s status document.
 pub(super) fn status(job: &ClientJob) -> JobStatus {
-    let s = job.status(Instant::now());
-    let problem = s.problem.map(|detail| ApiError::ClientJobFailed(detail).to_json());
+    document(job, &job.status(Instant::now()))
+}
+
+/// The status document of `job` as `s` says it stands.
+fn document(job: &ClientJob, s: &ClientStatus) -> JobStatus {
+    let problem = s.problem.clone().map(|detail| ApiError::ClientJobFailed(detail).to_json());
     JobStatus {
         id: job.id.clone(),
         status: s.status,
         progress: None,
-        stats: s.result.map(|r| r.stats.clone()),
+        stats: s.result.as_ref().map(|r| r.stats.clone()),
         elapsed_ms: None,
         created_at: Some(timestamp(job.created)),
         started_at: Some(timestamp(job.created)),
@@ -179,7 +183,7 @@ fn batch_answer(number: u64, points: Vec<(u64, crate::geom::Point)>, lease: Dura
 /// the listener has seen the end).
 pub(super) fn events(job: Arc<ClientJob>, last_seen: u64, inline: bool) -> Response {
     let (number, _) = job.current(Instant::now());
-    if finished(&job) && last_seen > number {
+    if job.is_finished(Instant::now()) && last_seen > number {
         return StatusCode::NO_CONTENT.into_response();
     }
     struct Listener {
@@ -206,7 +210,7 @@ pub(super) fn events(job: Arc<ClientJob>, last_seen: u64, inline: bool) -> Respo
                     serde_json::to_string(&batch_answer(number, points, job.lease())).expect("serializes");
                 return Some((Bytes::from(format!("event: ask\nid: {number}\ndata: {data}\n\n")), l));
             }
-            if finished(&job) {
+            if job.is_finished(Instant::now()) {
                 if l.last_seen > number {
                     return None;
                 }
@@ -225,20 +229,15 @@ pub(super) fn events(job: Arc<ClientJob>, last_seen: u64, inline: bool) -> Respo
     sse::response(events)
 }
 
-/// Whether the job has ended, one way or another.
-fn finished(job: &ClientJob) -> bool {
-    !matches!(job.status(Instant::now()).status, "running" | "queued")
-}
-
 /// A finished client job's final event with id `id`: `result` (with the mesh when `inline`),
 /// or `error` with the problem.
 fn final_event(job: &ClientJob, id: u64, inline: bool) -> Box<dyn Iterator<Item = Bytes> + Send> {
     let s = job.status(Instant::now());
-    match s.result {
-        Some(result) if inline => Box::new(sse::result(id, &job.id, &result)),
+    match &s.result {
+        Some(result) if inline => Box::new(sse::result(id, &job.id, result)),
         Some(_) => {
             let formats = Format::ALL.iter().map(|f| f.name());
-            Box::new(std::iter::once(sse::finished(id, &ResultEvent::of(status(job), formats))))
+            Box::new(std::iter::once(sse::finished(id, &ResultEvent::of(document(job, &s), formats))))
         }
         None => {
             let problem = match s.problem {

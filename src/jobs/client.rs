@@ -112,6 +112,13 @@ struct State {
     finished: Option<SystemTime>,
 }
 
+impl Phase {
+    /// Whether the job has ended: succeeded, failed or cancelled.
+    fn ended(&self) -> bool {
+        !matches!(self, Phase::Asking | Phase::Choosing)
+    }
+}
+
 impl State {
     /// The current batch's points not told yet, by id.
     fn untold(&self) -> Vec<(u64, Point)> {
@@ -233,8 +240,7 @@ impl ClientJob {
     /// Whether the job has ended and nobody spoke to it for [`CLIENT_IDLE`]: it may go.
     fn is_stale(&self, now: Instant) -> bool {
         let state = self.state(now);
-        !matches!(state.phase, Phase::Asking | Phase::Choosing)
-            && now.saturating_duration_since(state.touched) > CLIENT_IDLE
+        state.phase.ended() && now.saturating_duration_since(state.touched) > CLIENT_IDLE
     }
 
     /// The number of the latest batch, with its untold points while it is out (leased to
@@ -242,6 +248,11 @@ impl ClientJob {
     pub fn current(&self, now: Instant) -> (u64, Option<Vec<(u64, Point)>>) {
         let state = self.state(now);
         (state.number, matches!(state.phase, Phase::Asking).then(|| state.untold()))
+    }
+
+    /// Whether the job has ended, one way or another.
+    pub fn is_finished(&self, now: Instant) -> bool {
+        self.state(now).phase.ended()
     }
 
     /// How long a batch handed out is leased.
@@ -273,7 +284,7 @@ impl ClientJob {
     /// finished job.
     pub fn tell(&self, values: &[(u64, Option<f64>)], now: Instant) -> Result<(u64, bool), TellError> {
         let mut state = self.state(now);
-        let finished = !matches!(state.phase, Phase::Asking | Phase::Choosing);
+        let finished = state.phase.ended();
         for (index, &(id, value)) in values.iter().enumerate() {
             let Some(told) = state.told.get(id as usize) else {
                 return Err(TellError::Unknown { index, id });
@@ -361,7 +372,7 @@ impl ClientJob {
     /// Cancels the job unless it has finished: it asks for nothing more.
     pub fn cancel(&self, now: Instant) {
         let mut state = self.state(now);
-        if matches!(state.phase, Phase::Asking | Phase::Choosing) {
+        if !state.phase.ended() {
             state.phase = Phase::Cancelled;
             state.finished = Some(SystemTime::now());
         }

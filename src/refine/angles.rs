@@ -39,10 +39,13 @@ impl Encroachment {
         match self {
             Encroachment::Never => None,
             Encroachment::Circle => Some(0.0),
-            Encroachment::Lens => Some(0.25),
+            Encroachment::Lens => Some(LENS_COS_SQ),
         }
     }
 }
+
+/// cos² of 120°, the diametral lens's angle.
+const LENS_COS_SQ: f64 = 0.25;
 
 /// What a triangle needs, if anything.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -101,13 +104,10 @@ impl Repairs {
     /// What triangle `t` needs, if anything: an encroached boundary edge first.
     pub(super) fn needs(&self, mesh: &Mesh, t: u32) -> Option<Repair> {
         let [a, b, c] = mesh.triangle(t as usize).map(|v| mesh.point(v));
-        if let Some(cos_sq) = self.encroachment {
-            for (k, (p, q, apex)) in [(a, b, c), (b, c, a), (c, a, b)].into_iter().enumerate() {
-                let e = 3 * t + k as u32;
-                if mesh.twin(e) == NONE && sees_wider(p, q, apex, cos_sq) {
-                    return Some(Repair::Encroached(e));
-                }
-            }
+        if let Some(cos_sq) = self.encroachment
+            && let Some(e) = (3 * t..3 * t + 3).find(|&e| encroached(mesh, e, cos_sq))
+        {
+            return Some(Repair::Encroached(e));
         }
         // Without a floor the angles are not measured at all.
         let skinny = self.min_angle_cos_sq.is_some_and(|floor| smallest_angle_cos_sq(a, b, c) > floor);
@@ -129,10 +129,16 @@ pub(super) fn cos_sq_of(degrees: f64) -> f64 {
     degrees.to_radians().cos().powi(2)
 }
 
-/// Whether the apex of half-edge `h`, on the boundary, lies in its diametral lens.
+/// Whether half-edge `h` lies on the boundary and its apex in its diametral lens.
 pub(super) fn lens_encroached(mesh: &Mesh, h: u32) -> bool {
-    let (p, q, apex) = (mesh.point(mesh.origin(h)), mesh.point(mesh.dest(h)), mesh.point(mesh.apex(h)));
-    mesh.twin(h) == NONE && sees_wider(p, q, apex, 0.25)
+    encroached(mesh, h, LENS_COS_SQ)
+}
+
+/// Whether half-edge `h` lies on the boundary and its apex sees it at an angle whose cos² is
+/// above `cos_sq`; an interior edge is rejected before any point is read.
+fn encroached(mesh: &Mesh, h: u32, cos_sq: f64) -> bool {
+    mesh.twin(h) == NONE
+        && sees_wider(mesh.point(mesh.origin(h)), mesh.point(mesh.dest(h)), mesh.point(mesh.apex(h)), cos_sq)
 }
 
 /// Whether `apex` sees p q at an obtuse angle whose cos² is above `cos_sq`.

@@ -22,6 +22,7 @@ use super::floors::Floors;
 use super::observer::Observer;
 use super::outcome::Refinement;
 use super::params::{Criterion, Params};
+use super::run::Round;
 use crate::geom::{Mesh, Point, Rect, Vertex};
 use std::collections::{HashMap, HashSet};
 use std::time::{Duration, Instant};
@@ -156,34 +157,28 @@ impl Asker {
                 _ => return Err(AskError::Corner(p)),
             }
         }
-        let from_corners = || Mesh::with_capacity(rect, z4, params.max_vertices());
         if let Some(frontier) = self.frontier.take() {
             // A replay from the frontier that needs nothing more is not the finished
             // refinement: its stats count from the frontier, and its state was rebuilt there
             // (the queue from the mesh's edges), which can choose, rarely, otherwise than the
             // run from the corners. So only its asks are taken.
-            if let Some(points) = self.replay(frontier, rect, params, values, batch) {
+            if let Err(points) = self.replay(frontier, rect, params, values, batch) {
                 return Ok(Next::Ask(points));
             }
         }
-        let mut mesh = from_corners();
-        let mut replay = Replay::new(values, batch, &mesh);
-        let mut frontier = Frontier { values, mesh: None };
-        match resume(&mut mesh, &mut replay, params, Floors::of_rect(rect), &mut frontier) {
-            Ok(round) if replay.asked.is_empty() => {
-                let unused = values.len().saturating_sub(replay.used as usize);
-                let refinement = finished(mesh, round, params, replay.used, start, Duration::ZERO);
+        let corners = Mesh::with_capacity(rect, z4, params.max_vertices());
+        match self.replay(corners, rect, params, values, batch) {
+            Ok((mesh, round, used)) => {
+                let unused = values.len().saturating_sub(used as usize);
+                let refinement = finished(mesh, round, params, used, start, Duration::ZERO);
                 Ok(Next::Done(Box::new(refinement), unused))
             }
-            _ => {
-                self.frontier = frontier.mesh;
-                Ok(Next::Ask(replay.asked))
-            }
+            Err(points) => Ok(Next::Ask(points)),
         }
     }
 
-    /// The points a replay from `mesh` asks for, keeping its frontier; `None` when it needs
-    /// none.
+    /// A replay from `mesh`: the refinement and the told points it used when it met no untold
+    /// point, else the points to ask, its frontier kept for the next replay.
     fn replay(
         &mut self,
         mut mesh: Mesh,
@@ -191,15 +186,16 @@ impl Asker {
         params: &Params,
         values: &Values,
         batch: usize,
-    ) -> Option<Vec<Point>> {
+    ) -> Result<(Mesh, Round, u64), Vec<Point>> {
         let mut replay = Replay::new(values, batch, &mesh);
         let mut frontier = Frontier { values, mesh: None };
-        let result = resume(&mut mesh, &mut replay, params, Floors::of_rect(rect), &mut frontier);
-        if result.is_ok() && replay.asked.is_empty() {
-            return None;
+        match resume(&mut mesh, &mut replay, params, Floors::of_rect(rect), &mut frontier) {
+            Ok(round) if replay.asked.is_empty() => Ok((mesh, round, replay.used)),
+            _ => {
+                self.frontier = frontier.mesh;
+                Err(replay.asked)
+            }
         }
-        self.frontier = frontier.mesh;
-        Some(replay.asked)
     }
 }
 

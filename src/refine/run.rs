@@ -122,6 +122,24 @@ impl<'a, O: Observer> Run<'a, O> {
         None
     }
 
+    /// Starts a step of an edge criterion's loop (`variation`, `curvature`) whose queue's
+    /// worst value is `top`: the stop rules, then the check of that value against the
+    /// tolerance. `Err` is why the run stops (`Exhausted` with the queue empty).
+    pub(super) fn begin_edge_step(&mut self, mesh: &Mesh, top: Option<f64>) -> Result<(), StopReason> {
+        if let Some(stop) = self.stop_before_step(mesh, || top.unwrap_or(0.0)) {
+            if let Some(worst) = top {
+                self.history.ended(mesh.num_vertices(), worst);
+            }
+            return Err(stop);
+        }
+        let worst = top.ok_or(StopReason::Exhausted)?;
+        self.checked(mesh, worst);
+        if self.is_tolerance_met(worst) {
+            return Err(StopReason::Tolerance);
+        }
+        Ok(())
+    }
+
     /// Starts a step of criterion `error`'s loops, whose queue's worst value is `top`: the
     /// stop rules before it, then the check of the worst value against the tolerance. A
     /// pending repair goes first (`Ok(Some(..))`); `Ok(None)` takes the queue's top. With the

@@ -20,19 +20,10 @@ pub(super) fn refine<F: Field, O: Observer>(
     run.observer.started(field.evaluations());
     loop {
         let top = settle(&mut queue, mesh);
-        if let Some(stop) = run.stop_before_step(mesh, || top.map_or(0.0, |(c, _)| c.value)) {
-            if let Some((worst, _)) = top {
-                run.history.ended(mesh.num_vertices(), worst.value);
-            }
+        if let Err(stop) = run.begin_edge_step(mesh, top.map(|(c, _)| c.value)) {
             return Ok(stop);
         }
-        let Some((worst, e)) = top else {
-            return Ok(StopReason::Exhausted);
-        };
-        run.checked(mesh, worst.value);
-        if run.is_tolerance_met(worst.value) {
-            return Ok(StopReason::Tolerance);
-        }
+        let (worst, e) = top.expect("a step goes on with a queued edge");
         queue.pop(mesh.vertices());
         run.observer.selected(mesh, worst.a, worst.b);
         // A flip away from the new vertex (only after a midpoint rounded off its edge) makes

@@ -155,6 +155,18 @@ pub(super) fn budget(max_vertices: Option<u64>, limits: &Limits) -> Result<Param
     Ok(Params::builder(max_vertices as usize))
 }
 
+/// `params` with a request's `[min_size, max_size]`, -0.0 taken as 0.0 (one value, one cache
+/// key); the engine's checks come at [`build`].
+pub(super) fn with_sizes(mut params: ParamsBuilder, [min, max]: [Option<f64>; 2]) -> ParamsBuilder {
+    if let Some(length) = min {
+        params = params.min_size(length + 0.0);
+    }
+    if let Some(length) = max {
+        params = params.max_size(length + 0.0);
+    }
+    params
+}
+
 /// The engine's checks of `params`, with a budget below 4 told against this server's limit
 /// rather than the engine's.
 pub(super) fn build(params: ParamsBuilder, limits: &Limits) -> Result<Params, SpecError> {

@@ -1,6 +1,6 @@
 //! ClientSpec: a refinement whose F the caller evaluates, validated.
 
-use super::checks::{Limits, SpecError, budget, build, domain_of};
+use super::checks::{Limits, SpecError, budget, build, domain_of, with_sizes};
 use crate::api::ClientJobRequest;
 use crate::geom::Rect;
 use crate::refine::{Criterion, Method, Params};
@@ -87,13 +87,8 @@ impl ClientSpec {
                 ));
             }
         };
-        let mut params = budget(Some(max_vertices), limits)?.criterion(criterion);
-        if let Some(length) = request.min_size {
-            params = params.min_size(length + 0.0);
-        }
-        if let Some(length) = request.max_size {
-            params = params.max_size(length + 0.0);
-        }
+        let sizes = [request.min_size, request.max_size];
+        let mut params = with_sizes(budget(Some(max_vertices), limits)?.criterion(criterion), sizes);
         if let Some(method) = request.method {
             params = params.method(method);
         }

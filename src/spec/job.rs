@@ -1,6 +1,6 @@
 //! JobSpec: a request validated against the server's limits, in canonical form.
 
-use super::checks::{Limits, SpecError, budget, build, domain_of, expression, grid_error};
+use super::checks::{Limits, SpecError, budget, build, domain_of, expression, grid_error, with_sizes};
 use super::solution::SolveSpec;
 use crate::api::{JobRequest, SolveRequest};
 use crate::geom::Rect;
@@ -182,13 +182,7 @@ impl JobSpec {
         if let Some(degrees) = min_angle {
             params = params.min_angle(degrees + 0.0);
         }
-        if let Some(length) = sizes[0] {
-            params = params.min_size(length + 0.0);
-        }
-        if let Some(length) = sizes[1] {
-            params = params.max_size(length + 0.0);
-        }
-        let params = build(params, limits)?;
+        let params = build(with_sizes(params, sizes), limits)?;
         let mesh = MeshSpec { source: Arc::new(source), domain, params, quality };
         Ok(Self { work: Work::Mesh(mesh), requested_time_limit })
     }
