@@ -244,6 +244,10 @@ pub struct ClientJobRequest {
     /// (default 60000).
     #[serde(default, deserialize_with = "optional_count")]
     pub lease_ms: Option<u64>,
+    /// A client job of the same F whose values this one starts from: what it was told is not
+    /// asked again, so a smaller budget finishes without asking, a larger one asks only for
+    /// the points that job did not.
+    pub from: Option<String>,
 }
 
 /// Where a job's F comes from: the caller.

@@ -1,6 +1,8 @@
 //! [`Cluster`]: the replica's handle on Redis, and its [`Peers`] implementation.
 
-use super::keys::{ACQUIRE, CONTROL, DROPPED, EVENTS, PENDING, POST, RELEASE, RENEW, key, result_key};
+use super::keys::{
+    ACQUIRE, APPEND_LOG, CONTROL, DROPPED, EVENTS, PENDING, POST, RELEASE, RENEW, key, result_key,
+};
 use super::link::Inner;
 use super::listen;
 use crate::config::Redis;
@@ -295,5 +297,26 @@ impl Peers for Cluster {
             .query_async::<(bool, bool)>(&mut self.conn()?)
             .await;
         self.note(asked).map(|(cancel, detach)| Asked { cancel, detach })
+    }
+
+    async fn append_log(
+        &self,
+        id: &str,
+        at: u64,
+        entries: &[Vec<u8>],
+        keep: Duration,
+    ) -> Result<Option<Vec<Vec<u8>>>> {
+        let mut script = APPEND_LOG.key(key("log", id));
+        script.arg(at).arg(keep.as_millis() as u64);
+        for entry in entries {
+            script.arg(entry.as_slice());
+        }
+        let answer = script.invoke_async::<(u8, Vec<Vec<u8>>)>(&mut self.bulk()?).await;
+        self.note(answer).map(|(appended, missed)| (appended == 0).then_some(missed))
+    }
+
+    async fn log(&self, id: &str, from: u64) -> Result<Vec<Vec<u8>>> {
+        let entries = self.bulk()?.lrange(key("log", id), from as isize, -1).await;
+        self.note(entries)
     }
 }

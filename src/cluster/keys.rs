@@ -62,3 +62,17 @@ redis.call('publish', ARGV[4], ARGV[5])
 return 1",
     )
 });
+
+/// Appends ARGV[3..] to list KEYS[1] if it holds ARGV[1] entries, and keeps it ARGV[2] ms;
+/// else answers the entries from ARGV[1] on (a list of lists, so that no entry count meets
+/// Lua's stack).
+pub(super) static APPEND_LOG: Lua = Lua::new(|| {
+    redis::Script::new(
+        r"if redis.call('llen', KEYS[1]) ~= tonumber(ARGV[1]) then
+  return {0, redis.call('lrange', KEYS[1], ARGV[1], -1)}
+end
+for i = 3, #ARGV do redis.call('rpush', KEYS[1], ARGV[i]) end
+redis.call('pexpire', KEYS[1], ARGV[2])
+return {1, {}}",
+    )
+});

@@ -19,6 +19,7 @@
 //! | `meshfit:spec:{id}` | the job's spec in canonical form ([`crate::spec::canonical`]), so another replica can take the job over | same as results |
 //! | `meshfit:pending` | ids of jobs not finished, with a stored spec | |
 //! | `meshfit:cancel:{id}`, `meshfit:detach:{id}` | asked of the run by a replica that follows it | three leases |
+//! | `meshfit:log:{id}` | a client job's log, a list of JSON entries appended by a script only at the length the writer read | two hours after the last entry |
 //!
 //! Only the run holding the lease writes the job's posting (a script checks the token), so a
 //! run that lost its lease cannot overwrite its successor's. Postings go out on the channel

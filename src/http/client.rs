@@ -11,9 +11,12 @@ use crate::api::{
     AskAnswer, AskedPoint, ClientJobRequest, JobStatus, JsonError, Links, ResultEvent, TellAnswer,
     TellRequest, timestamp,
 };
-use crate::jobs::{Asked, Client, ClientJob, ClientStatus, MAX_CLIENT_JOBS, TellError};
+use crate::jobs::{
+    Asked, Client, ClientError, ClientJob, ClientJobs, ClientStatus, MAX_CLIENT_JOBS, TellError,
+};
 use crate::output::Format;
-use crate::spec::ClientSpec;
+use crate::refine::asked::Values;
+use crate::spec::{ClientSpec, SpecError};
 use axum::extract::{Path, State};
 use axum::http::{HeaderValue, StatusCode, Uri, header};
 use axum::response::{IntoResponse, Response};
@@ -27,12 +30,29 @@ use std::time::{Duration, Instant};
 pub const MAX_WAIT_MS: u64 = 9_000;
 
 /// `POST /v1/jobs` with `"source": "client"`: 202 with the job's status, asking for its
-/// corners; `client`'s job list shows it.
-pub(super) fn create(state: &AppState, body: &Body, client: &Client) -> Result<Response, ApiError> {
+/// corners (or, `from` another job, for what that job was not told); `client`'s job list
+/// shows it.
+pub(super) async fn create(state: &AppState, body: &Body, client: &Client) -> Result<Response, ApiError> {
     let request: ClientJobRequest = parse_json(&body.bytes)?;
+    // The log keeps the request as sent, for another replica to check and rebuild.
+    let logged: serde_json::Value = parse_json(&body.bytes)?;
+    let seeds = match &request.from {
+        Some(from) => {
+            let source = state.clients.get(from).await.map_err(|_| ApiError::Unreachable)?;
+            let source = source.ok_or_else(|| {
+                ApiError::Spec(SpecError::Field {
+                    field: "from".into(),
+                    detail: format!(
+                        "no client job with id {from}: `from` names a client job whose values to reuse"
+                    ),
+                })
+            })?;
+            source.values()
+        }
+        None => Values::new(),
+    };
     let spec = ClientSpec::from_request(request, &state.limits)?;
-    let job =
-        state.clients.create(spec, Instant::now()).map_err(|_| ApiError::ClientJobsFull(MAX_CLIENT_JOBS))?;
+    let job = state.clients.create(logged, spec, seeds, Instant::now()).await.map_err(client_error)?;
     state.jobs.note_submission(&job.id, client);
     let status = status(&job);
     let location = HeaderValue::from_str(&status.links.this).expect("ascii path");
@@ -64,10 +84,38 @@ fn document(job: &ClientJob, s: &ClientStatus) -> JobStatus {
 }
 
 /// Client job `id`, or a 404 that says what the id is not.
-fn find(state: &AppState, id: &str) -> Result<Arc<ClientJob>, ApiError> {
-    state.clients.get(id).ok_or_else(|| {
-        ApiError::NotFound(format!("no client job with id {id} on this replica (only a job made with \"source\": \"client\" asks for points)"))
+async fn find(state: &AppState, id: &str) -> Result<Arc<ClientJob>, ApiError> {
+    let job = state.clients.get(id).await.map_err(|_| ApiError::Unreachable)?;
+    job.ok_or_else(|| {
+        ApiError::NotFound(format!(
+            "no client job with id {id} (only a job made with \"source\": \"client\" asks for points)"
+        ))
     })
+}
+
+/// Client job `id` if there is one, for a handler that serves any job: a store that does
+/// not answer leaves the id to the other jobs' lookup, which says so.
+pub(super) async fn lookup(state: &AppState, id: &str) -> Option<Arc<ClientJob>> {
+    state.clients.get(id).await.ok().flatten()
+}
+
+/// The problem of a client job that was not made or not told.
+fn client_error(e: ClientError) -> ApiError {
+    match e {
+        ClientError::TooMany => ApiError::ClientJobsFull(MAX_CLIENT_JOBS),
+        ClientError::Unreachable => ApiError::Unreachable,
+        ClientError::Tell(e) => ApiError::Json(match e {
+            TellError::Unknown { index, id } => JsonError::Shape {
+                path: format!("values[{index}].id"),
+                message: format!("no point {id} was asked for"),
+            },
+            TellError::Finished { index } => JsonError::Shape {
+                path: format!("values[{index}].id"),
+                message: "the job has finished: it takes no new values".into(),
+            },
+            TellError::Conflict { .. } => unreachable!("a conflict names both values: see jobs_tell"),
+        }),
+    }
 }
 
 /// The query of `GET /v1/jobs/{id}/ask`.
@@ -85,7 +133,7 @@ pub async fn jobs_ask(
     Path(id): Path<String>,
     uri: Uri,
 ) -> Result<Response, ApiError> {
-    let job = find(&state, &id)?;
+    let job = find(&state, &id).await?;
     let query: AskQuery = query(&uri)?;
     let wait = query.wait.unwrap_or(0);
     if wait > MAX_WAIT_MS {
@@ -121,7 +169,11 @@ pub async fn jobs_ask(
                     return Ok(response);
                 }
                 let lease_end = until.map_or(deadline, |t| now + t.saturating_duration_since(Instant::now()));
-                let _ = tokio::time::timeout_at(deadline.min(lease_end), changed).await;
+                // Another replica's batch wakes nobody here: look at the log now and then.
+                let look = state.clients.refresh_every().map_or(deadline, |every| now + every);
+                if tokio::time::timeout_at(deadline.min(lease_end).min(look), changed).await.is_err() {
+                    state.clients.refresh(&job).await;
+                }
             }
         }
     }
@@ -135,15 +187,11 @@ pub async fn jobs_tell(
     Path(id): Path<String>,
     body: Body,
 ) -> Result<Response, ApiError> {
-    let job = find(&state, &id)?;
+    let job = find(&state, &id).await?;
     let request: TellRequest = parse_json(&body.bytes)?;
     let values: Vec<(u64, Option<f64>)> = request.values.iter().map(|v| (v.id, v.value)).collect();
-    let (accepted, complete) = job.tell(&values, Instant::now()).map_err(|e| match e {
-        TellError::Unknown { index, id } => ApiError::Json(JsonError::Shape {
-            path: format!("values[{index}].id"),
-            message: format!("no point {id} was asked for"),
-        }),
-        TellError::Conflict { index, id, was } => ApiError::Conflict {
+    let accepted = state.clients.tell(&job, &values, Instant::now()).await.map_err(|e| match e {
+        ClientError::Tell(TellError::Conflict { index, id, was }) => ApiError::Conflict {
             field: format!("values[{index}].value"),
             detail: format!(
                 "point {id} was told {}, not {}",
@@ -151,20 +199,8 @@ pub async fn jobs_tell(
                 request.values[index].value.map_or("null".to_owned(), |v| v.to_string())
             ),
         },
-        TellError::Finished { index } => ApiError::Json(JsonError::Shape {
-            path: format!("values[{index}].id"),
-            message: "the job has finished: it takes no new values".into(),
-        }),
+        e => client_error(e),
     })?;
-    if complete {
-        let (chooser, job) = (job.clone(), job.clone());
-        tokio::spawn(async move {
-            if let Err(e) = crate::cpu::spawn(move || chooser.choose()).await {
-                tracing::error!(error = %e, job = %job.id, "choosing a client job's next batch panicked");
-                job.choosing_failed(format!("choosing the next batch failed on the server: {e}"));
-            }
-        });
-    }
     let s = job.status(Instant::now());
     Ok(axum::Json(TellAnswer { status: s.status, accepted, evaluations: s.evaluations }).into_response())
 }
@@ -181,18 +217,19 @@ fn batch_answer(number: u64, points: Vec<(u64, crate::geom::Point)>, lease: Dura
 /// after the last batch's. A listener that falls behind skips to the newest batch; the stream
 /// ends after [`sse::KEEP_ALIVE`] without news, and `Last-Event-ID` resumes it (a 204 once
 /// the listener has seen the end).
-pub(super) fn events(job: Arc<ClientJob>, last_seen: u64, inline: bool) -> Response {
+pub(super) fn events(clients: ClientJobs, job: Arc<ClientJob>, last_seen: u64, inline: bool) -> Response {
     let (number, _) = job.current(Instant::now());
     if job.is_finished(Instant::now()) && last_seen > number {
         return StatusCode::NO_CONTENT.into_response();
     }
     struct Listener {
+        clients: ClientJobs,
         job: Arc<ClientJob>,
         last_seen: u64,
         inline: bool,
         rest: Option<Box<dyn Iterator<Item = Bytes> + Send>>,
     }
-    let listener = Listener { job, last_seen, inline, rest: None };
+    let listener = Listener { clients, job, last_seen, inline, rest: None };
     let events = stream::unfold(listener, |mut l| async move {
         loop {
             if let Some(rest) = &mut l.rest {
@@ -220,9 +257,25 @@ pub(super) fn events(job: Arc<ClientJob>, last_seen: u64, inline: bool) -> Respo
             }
             // A caller may take hours between batches: rather than hold the stream (and a
             // proxy's connection) open, it ends after a quiet spell, and the listener comes
-            // back with Last-Event-ID, as an EventSource does by itself.
-            if tokio::time::timeout(sse::KEEP_ALIVE, changed).await.is_err() {
-                return None;
+            // back with Last-Event-ID, as an EventSource does by itself. Another replica's
+            // batch wakes nobody here: the log is read now and then.
+            let quiet = tokio::time::Instant::now() + sse::KEEP_ALIVE;
+            loop {
+                let look = l
+                    .clients
+                    .refresh_every()
+                    .map_or(quiet, |every| quiet.min(tokio::time::Instant::now() + every));
+                if tokio::time::timeout_at(look, changed.as_mut()).await.is_ok() {
+                    break;
+                }
+                if tokio::time::Instant::now() >= quiet {
+                    return None;
+                }
+                l.clients.refresh(&job).await;
+                let news = matches!(job.current(Instant::now()), (n, Some(_)) if n > l.last_seen);
+                if news || job.is_finished(Instant::now()) {
+                    break;
+                }
             }
         }
     });

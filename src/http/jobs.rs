@@ -255,7 +255,7 @@ pub async fn jobs_create(
     body: Body,
 ) -> Result<Response, ApiError> {
     if names(&body.bytes, "source") {
-        return super::client::create(&state, &body, &client);
+        return super::client::create(&state, &body, &client).await;
     }
     let (keys, spec) = prepare(&state, &headers, body, Kind::Any).await?;
     let id = keys.id.clone();
@@ -328,7 +328,7 @@ pub async fn jobs_list(
     };
     // A caller's own: its key's, or without keys its address's. Job ids are not guessable;
     // a list of everyone's would hand them out.
-    let client_status = |id: &str| state.clients.get(id).map(|job| super::client::status(&job));
+    let client_status = |id: &str| state.clients.local(id).map(|job| super::client::status(&job));
     let elsewhere = |id: &str| client_status(id).and_then(|s| Status::parse(s.status));
     let (page, next) = state.jobs.list(Some(&client), status, before, limit as usize, elsewhere);
     let jobs = page
@@ -352,7 +352,7 @@ pub async fn jobs_list(
 
 /// `GET /v1/jobs/{id}`.
 pub async fn jobs_show(State(state): State<AppState>, Path(id): Path<String>) -> Result<Response, ApiError> {
-    if let Some(job) = state.clients.get(&id) {
+    if let Some(job) = super::client::lookup(&state, &id).await {
         return Ok(axum::Json(super::client::status(&job)).into_response());
     }
     let found = find(&state, &id).await?;
@@ -391,7 +391,7 @@ pub(super) async fn finished_result(
     state: &AppState,
     id: &str,
 ) -> Result<(Arc<RunResult>, Option<Duration>), ApiError> {
-    if let Some(job) = state.clients.get(id) {
+    if let Some(job) = super::client::lookup(state, id).await {
         let s = job.status(std::time::Instant::now());
         return s.result.map(|r| (r, None)).ok_or(ApiError::NotFinished(s.status, 1));
     }
@@ -451,8 +451,8 @@ pub async fn jobs_events(
         .and_then(|v| v.to_str().ok())
         .and_then(|v| v.trim().parse::<u64>().ok())
         .unwrap_or(0);
-    if let Some(job) = state.clients.get(&id) {
-        return Ok(super::client::events(job, last_seen, options.inline));
+    if let Some(job) = super::client::lookup(&state, &id).await {
+        return Ok(super::client::events(state.clients.clone(), job, last_seen, options.inline));
     }
     let found = find(&state, &id).await?;
     if let Found::Job(_) | Found::Remote(_) = &found
@@ -527,8 +527,8 @@ pub async fn jobs_cancel(
     State(state): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
-    if let Some(job) = state.clients.get(&id) {
-        job.cancel(std::time::Instant::now());
+    if let Some(job) = super::client::lookup(&state, &id).await {
+        state.clients.cancel(&job, std::time::Instant::now()).await.map_err(|_| ApiError::Unreachable)?;
         return Ok(axum::Json(super::client::status(&job)).into_response());
     }
     let found = find(&state, &id).await?;

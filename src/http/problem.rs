@@ -220,6 +220,7 @@ impl ApiError {
                         ("invalid-expression", "Expression does not parse")
                     }
                     SpecError::Problem { .. } => ("invalid-problem", "Boundary value problem is invalid"),
+                    SpecError::Field { .. } => ("invalid-request", "Request field is invalid"),
                     SpecError::Parameter(_) => ("invalid-parameter", "Parameter out of range"),
                     SpecError::Limit { setting, limit, .. } => {
                         ext.insert("limit".into(), json!({"name": setting, "value": limit}));

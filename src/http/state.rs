@@ -58,7 +58,7 @@ impl AppState {
     ) -> Self {
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
         let parsers = Arc::new(tokio::sync::Semaphore::new(cores.saturating_sub(1).max(1)));
-        let clients = ClientJobs::default();
+        let clients = ClientJobs::new(jobs.peers(), limits);
         Self { jobs, clients, datasets, keyed, limits, locators: locators(locator_bytes), body, parsers }
     }
 }

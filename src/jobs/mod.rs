@@ -38,7 +38,8 @@
 //! - `history`: who submitted which job and when, for the job list;
 //! - `registry`: [`Jobs`], the one public face: submit, find, list, watch, cancel, shut down;
 //! - `client`: [`ClientJobs`], jobs whose F the caller evaluates (ask/tell), apart from the
-//!   rest: they hold no worker, and the engine runs only when a batch of values is complete.
+//!   rest: they hold no worker, and the engine runs only when a batch of values is complete;
+//!   shared, their logs in the store let any replica carry them on.
 
 mod admission;
 mod budget;
@@ -66,7 +67,7 @@ pub use budget::{
 };
 pub use cache::{Cache, CacheSettings, Hit};
 pub use client::{
-    Asked, CLIENT_IDLE, ClientJob, ClientJobs, ClientStatus, MAX_CLIENT_JOBS, TellError, TooManyClientJobs,
+    Asked, CLIENT_IDLE, ClientError, ClientJob, ClientJobs, ClientStatus, MAX_CLIENT_JOBS, TellError,
 };
 pub use failure::{Cause, Failure};
 pub use history::{SUBMISSIONS_KEPT, Submission};

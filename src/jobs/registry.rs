@@ -96,6 +96,12 @@ impl Jobs {
         peers.is_shared().then(|| peers.is_up())
     }
 
+    /// The store this replica shares with others (`peers::Alone`'s, that fails every
+    /// operation, for a replica on its own).
+    pub fn peers(&self) -> Arc<dyn Peers> {
+        self.inner.peers.clone()
+    }
+
     /// The metrics the registry updates.
     pub fn metrics(&self) -> &Arc<Metrics> {
         &self.inner.metrics

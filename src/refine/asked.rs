@@ -64,6 +64,12 @@ impl Values {
         self.told.get(&key(p)).copied()
     }
 
+    /// Every point told and what was told of it, in no particular order.
+    pub fn iter(&self) -> impl Iterator<Item = (Point, Told)> + '_ {
+        let point = |k: &[u64; 2]| Point::new(f64::from_bits(k[0]), f64::from_bits(k[1]));
+        self.told.iter().map(move |(k, &told)| (point(k), told))
+    }
+
     /// How many points were told.
     pub fn len(&self) -> usize {
         self.told.len()

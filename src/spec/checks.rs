@@ -69,6 +69,15 @@ pub enum SpecError {
         /// What is wrong.
         detail: String,
     },
+    /// A field of another request (a client job's, a time limit) is out of its range or not
+    /// allowed.
+    #[error("{field}: {detail}")]
+    Field {
+        /// The request field, e.g. `batch`.
+        field: String,
+        /// What is wrong.
+        detail: String,
+    },
     /// A parameter out of its range.
     #[error("{0}")]
     Parameter(ParamsError),
@@ -121,7 +130,7 @@ impl SpecError {
             SpecError::Grid { .. } => "grid",
             SpecError::Domain(_) => "domain",
             SpecError::Coefficient { field, .. } => field,
-            SpecError::Problem { field, .. } => field,
+            SpecError::Problem { field, .. } | SpecError::Field { field, .. } => field,
             SpecError::Parameter(e) => match e {
                 ParamsError::MaxVertices { .. } => "max_vertices",
                 ParamsError::Tolerance(_) => "tolerance",
@@ -139,7 +148,7 @@ impl SpecError {
 /// step, so it is refused rather than answered with the starting mesh.
 pub(super) fn time_limit(ms: Option<u64>) -> Result<Option<std::time::Duration>, SpecError> {
     match ms {
-        Some(0) => Err(SpecError::Problem {
+        Some(0) => Err(SpecError::Field {
             field: "time_limit_ms".into(),
             detail: "must be at least 1; leave it out for the server's limit".into(),
         }),

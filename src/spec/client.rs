@@ -46,7 +46,7 @@ impl ClientSpec {
             Some(d) => domain_of(d)?,
             None => Rect::unit(),
         };
-        let problem = |field: &str, detail: String| SpecError::Problem { field: field.into(), detail };
+        let problem = |field: &str, detail: String| SpecError::Field { field: field.into(), detail };
         let criterion = request.criterion.unwrap_or(Criterion::Curvature);
         if criterion == Criterion::Error {
             let detail = "a job the client evaluates ranks edges by `curvature` or `variation`, which need F at \

@@ -218,10 +218,16 @@ async fn tells_are_checked_point_by_point_and_a_repeat_is_a_no_op() {
         (json!({"source": "client", "method": "data-dependent"}), "/method"),
         (json!({"source": "server"}), "/source"),
         (json!({"source": "client", "function": "x"}), "/function"),
+        (json!({"source": "client", "from": "0".repeat(64)}), "/from"),
     ] {
         let response = app.post("/v1/jobs", &body).await;
         assert_eq!(response.status(), 422, "{body}");
-        assert_eq!(response.json::<Value>().await.unwrap()["field"], field, "{body}");
+        let problem: Value = response.json().await.unwrap();
+        assert_eq!(
+            (&problem["field"], &problem["type"]),
+            (&json!(field), &json!("/problems/invalid-request")),
+            "{body}"
+        );
     }
     assert_eq!(app.get(&format!("/v1/jobs/{id}/ask?wait=10000")).await.status(), 422);
     assert_eq!(app.get(&format!("/v1/jobs/{}/ask", "0".repeat(64))).await.status(), 404);
@@ -263,5 +269,44 @@ async fn a_cancelled_client_job_asks_for_nothing_more() {
     assert_eq!(ask, json!({"status": "cancelled", "points": []}));
     let mesh = app.get(&format!("/v1/jobs/{id}/mesh")).await;
     assert_eq!(mesh.status(), 409);
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_job_from_another_reuses_its_values_asking_only_for_new_points() {
+    let app = spawn_app().await;
+    let job = |vertices: u64| json!({"source": "client", "max_vertices": vertices, "batch": 8});
+    let (big, _) = create(&app, job(300)).await;
+    play(&app, &big, |x, y| Some(f(x, y))).await;
+    let mesh = |id: String| {
+        let app = &app;
+        async move {
+            let response = app.get(&format!("/v1/jobs/{id}/mesh")).await;
+            assert_eq!(response.status(), 200);
+            let mut mesh: Value = response.json().await.unwrap();
+            assert_eq!(mesh["id"].take(), json!(id));
+            mesh
+        }
+    };
+
+    // A smaller budget is a prefix of the run: it finishes without asking for anything.
+    let mut smaller = job(120);
+    smaller["from"] = json!(big);
+    let (small, status) = create(&app, smaller).await;
+    assert_eq!(status["evaluations"]["asked"], 0, "{status}");
+    assert_eq!(play(&app, &small, |_, _| panic!("nothing is asked")).await, 0);
+    let (fresh, _) = create(&app, job(120)).await;
+    play(&app, &fresh, |x, y| Some(f(x, y))).await;
+    assert!(mesh(small.clone()).await == mesh(fresh).await, "the mesh a fresh run of the budget makes");
+
+    // A larger one asks only for what the first was not told.
+    let mut larger = job(400);
+    larger["from"] = json!(small);
+    let (larger, _) = create(&app, larger).await;
+    play(&app, &larger, |x, y| Some(f(x, y))).await;
+    let done: Value = app.get(&format!("/v1/jobs/{larger}")).await.json().await.unwrap();
+    assert_eq!(done["stats"]["vertices"], 400, "{done}");
+    let asked = done["evaluations"]["asked"].as_u64().unwrap();
+    assert!((100..300).contains(&asked), "about 100 new points, not 400: {asked}");
     app.shutdown().await;
 }

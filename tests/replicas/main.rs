@@ -318,3 +318,66 @@ async fn a_dataset_larger_than_redis_keeps_is_served_by_its_replica_and_the_othe
     let problem: Value = missing.json().await.unwrap();
     assert!(problem["detail"].as_str().unwrap().contains("MESHFIT_REDIS_MAX_BYTES"), "{problem}");
 }
+
+/// `{"values": [...]}` telling F = x·y + sin(3x) at `points` as an `ask` answer lists them.
+fn told(points: &Value) -> Value {
+    let values: Vec<Value> = (points.as_array().unwrap().iter())
+        .map(|p| {
+            let (x, y) = (p["x"].as_f64().unwrap(), p["y"].as_f64().unwrap());
+            json!({"id": p["id"], "value": x * y + (3.0 * x).sin()})
+        })
+        .collect();
+    json!({"values": values})
+}
+
+/// Asks `replica` for job `id`'s next batch and tells it, `batches` times or until the job
+/// ends: how many batches were told.
+async fn play(replica: &Replica, id: &str, batches: usize) -> usize {
+    let mut played = 0;
+    while played < batches {
+        let response = replica.get(&format!("/v1/jobs/{id}/ask?wait=9000")).await;
+        if response.status() == 204 {
+            continue;
+        }
+        assert_eq!(response.status(), 200, "{} answers for the job", replica.addr);
+        let ask: Value = response.json().await.unwrap();
+        if ask["status"] != "running" {
+            break;
+        }
+        let response = replica.post(&format!("/v1/jobs/{id}/tell"), &told(&ask["points"])).await;
+        assert_eq!(response.status(), 200);
+        played += 1;
+    }
+    played
+}
+
+#[tokio::test]
+async fn a_client_job_made_on_a_replica_that_dies_is_carried_on_by_another() {
+    let Some((redis, mut a, b)) = pair(&[]).await else { return };
+    let body = json!({"source": "client", "max_vertices": 300, "batch": 8});
+    let id = submit(&a, &body).await;
+    assert_eq!(play(&a, &id, 5).await, 5);
+    let told_on_a = a.status(&id).await["evaluations"]["told"].clone();
+    a.kill();
+
+    // B never saw the job: it rebuilds it from the log in Redis, with nothing told lost.
+    assert_eq!(b.status(&id).await["evaluations"]["told"], told_on_a);
+    assert!(play(&b, &id, usize::MAX).await > 0);
+    let done = b.wait_status(&id, |s| s != "running").await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    assert_eq!(done["stats"]["vertices"], 300);
+
+    // The same values played on another replica from the start make the same bytes.
+    let c = Replica::start("c", &redis).await;
+    let again = submit(&c, &body).await;
+    play(&c, &again, usize::MAX).await;
+    c.wait_status(&again, |s| s != "running").await;
+    let mesh_of = |(_, bytes): (String, bytes::Bytes)| {
+        let mut mesh: Value = serde_json::from_slice(&bytes).unwrap();
+        mesh["id"].take();
+        mesh
+    };
+    let (on_b, on_c) = (mesh_of(mesh(&b, &id).await), mesh_of(mesh(&c, &again).await));
+    assert_eq!(on_b["stats"]["vertices"], 300);
+    assert!(on_b == on_c, "the mesh depends on the values alone");
+}

@@ -57,6 +57,23 @@ def test_learn_meshes_the_callers_f_as_the_server_meshes_its_expression(client):
     np.testing.assert_array_equal(mine.values, f(mine.vertices[:, 0], mine.vertices[:, 1]))
 
 
+def test_a_run_started_from_another_evaluates_only_new_points(client):
+    calls = []
+
+    def counted(x, y):
+        calls.append((x, y))
+        return f(x, y)
+
+    first = client.learn(counted, max_vertices=200, progress=False)
+    assert len(calls) == first.evaluations["asked"]
+    calls.clear()
+    again = client.learn(counted, max_vertices=150, progress=False, start_from=first)
+    assert calls == [] and np.array_equal(again.vertices, first.vertices[:150])
+    larger = client.learn(counted, max_vertices=300, progress=False, start_from=first.job_id)
+    assert 100 <= len(calls) < 200, len(calls)
+    assert set(map(tuple, first.vertices)) <= set(map(tuple, larger.vertices))
+
+
 def test_points_where_f_raises_or_is_nan_fail_and_the_mesh_goes_on(client):
     failures = {"raised": 0, "nan": 0}
 

@@ -58,18 +58,37 @@ export async function run(req) {
 }
 
 // Follows the job's server-sent events with fetch (an EventSource cannot send a key).
+// Follows a job's events until its final one. A stream the server ends before that (a
+// client job's, after a quiet spell) is taken up again from the last event seen, as an
+// EventSource would.
 async function follow(id, signal) {
   const points = view.kind === "mesh" ? "?vertices=true" : "";
-  const response = await fetch(`/v1/jobs/${id}/events${points}`, { headers: authHeaders(), signal });
-  if (!response.ok) {
-    showProblem(await response.json());
-    return;
+  let lastId = null;
+  for (;;) {
+    const headers = authHeaders();
+    if (lastId !== null) headers["last-event-id"] = lastId;
+    const response = await fetch(`/v1/jobs/${id}/events${points}`, { headers, signal });
+    if (response.status === 204) return; // the final event was seen
+    if (!response.ok) {
+      showProblem(await response.json());
+      return;
+    }
+    const before = lastId;
+    const seen = await readEvents(response, (eventId) => { lastId = eventId; });
+    if (seen === "final") return;
+    // Nothing new in a whole stream: wait a moment rather than ask again at once.
+    if (lastId === before) await new Promise((resolve) => setTimeout(resolve, 1000));
   }
+}
+
+// Reads one stream's events, telling `onId` each event's id: "final" once the result or
+// error event came, else "ended".
+async function readEvents(response, onId) {
   const reader = response.body.pipeThrough(new TextDecoderStream()).getReader();
   let buffer = "";
   for (;;) {
     const { value, done } = await reader.read();
-    if (done) break;
+    if (done) return "ended";
     buffer += value;
     let end;
     while ((end = buffer.indexOf("\n\n")) >= 0) {
@@ -79,16 +98,20 @@ async function follow(id, signal) {
       const data = [];
       for (const line of block.split("\n")) {
         if (line.startsWith("event:")) event = line.slice(6).trim();
+        else if (line.startsWith("id:")) onId(line.slice(3).trim());
         else if (line.startsWith("data:")) data.push(line.slice(5).replace(/^ /, ""));
       }
       if (data.length === 0) continue;
       const payload = JSON.parse(data.join("\n"));
       if (event === "progress") progress(payload);
       else if (event === "ask") asking(payload);
-      else if (event === "result") await finished(payload);
-      else if (event === "error") {
+      else if (event === "result") {
+        await finished(payload);
+        return "final";
+      } else if (event === "error") {
         showProblem(payload);
         setStatus(payload.title || "failed");
+        return "final";
       }
     }
   }

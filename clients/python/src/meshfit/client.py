@@ -68,27 +68,36 @@ class Job:
 
     def events(self) -> Iterator[dict]:
         """The job's server-sent events, each `{"event", "id", "data"}`, until its `result`
-        or `error` event; a client job's `ask` events carry each batch's points."""
-        headers = {"accept": "text/event-stream"}
-        with self.client._http.stream("GET", f"/v1/jobs/{self.id}/events", headers=headers, timeout=None) as r:
-            if r.status_code >= 400:
-                r.read()
-                raise self.client._error(r)
-            event: dict = {}
-            for line in r.iter_lines():
-                if line.startswith(":"):
-                    continue
-                if not line:
-                    if "data" in event:
-                        event["data"] = json.loads(event["data"])
-                        yield event
-                        if event.get("event") in ("result", "error"):
-                            return
-                    event = {}
-                    continue
-                name, _, value = line.partition(":")
-                value = value[1:] if value.startswith(" ") else value
-                event[name] = event[name] + "\n" + value if name == "data" and name in event else value
+        or `error` event; a client job's `ask` events carry each batch's points. A stream the
+        server ends before that (a client job's, after a quiet spell) is resumed from the last
+        event seen, as a browser's EventSource does."""
+        last_id = None
+        while True:
+            headers = {"accept": "text/event-stream"}
+            if last_id is not None:
+                headers["last-event-id"] = last_id
+            with self.client._http.stream("GET", f"/v1/jobs/{self.id}/events", headers=headers, timeout=None) as r:
+                if r.status_code == 204:
+                    return  # the final event was seen
+                if r.status_code >= 400:
+                    r.read()
+                    raise self.client._error(r)
+                event: dict = {}
+                for line in r.iter_lines():
+                    if line.startswith(":"):
+                        continue
+                    if not line:
+                        if "data" in event:
+                            event["data"] = json.loads(event["data"])
+                            last_id = event.get("id", last_id)
+                            yield event
+                            if event.get("event") in ("result", "error"):
+                                return
+                        event = {}
+                        continue
+                    name, _, value = line.partition(":")
+                    value = value[1:] if value.startswith(" ") else value
+                    event[name] = event[name] + "\n" + value if name == "data" and name in event else value
 
     def result(self) -> Result:
         """The finished mesh as arrays."""
@@ -163,6 +172,7 @@ class Client:
         workers: int = 1,
         progress: bool = True,
         pool: str = "thread",
+        start_from: Union[str, "Result", None] = None,
         **options: Any,
     ) -> Result:
         """Meshes your own `f(x, y)` on [x0, x1] × [y0, y1]: the server asks for points in
@@ -172,13 +182,17 @@ class Client:
         fails: the mesh takes the criterion's guess there and goes on. Other `options`
         (`criterion`: `curvature`, the default, or `variation`; `min_size`, `max_size`,
         `method`, `batch`, `lease_ms`) go into the request; `batch` defaults to 4 points a
-        worker, at least 16.
+        worker, at least 16. `start_from` (an earlier result of the same `f`, or its job id)
+        reuses every value that job was told: a smaller budget evaluates nothing, a larger
+        one only the new points.
         Interrupted, the job stays on the server: `client.job(id)` and another loop resume it.
         """
         body: dict = {"source": "client", "domain": {"x": list(x), "y": list(y)}, "max_vertices": max_vertices}
         if tolerance is not None:
             body["tolerance"] = tolerance
         body.setdefault("batch", max(16, 4 * workers, math.ceil(max_vertices / 10_000)))
+        if start_from is not None:
+            body["from"] = start_from.job_id if isinstance(start_from, Result) else start_from
         body.update(options)
         job_id = self._request("POST", "/v1/jobs", json=body).json()["id"]
         executor: Executor = (ProcessPoolExecutor if pool == "process" else ThreadPoolExecutor)(max_workers=workers)

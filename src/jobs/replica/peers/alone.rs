@@ -119,4 +119,12 @@ impl Peers for Alone {
     async fn drop_file(&self, _: Shelf, _: &str) -> Result<()> {
         none()
     }
+
+    async fn append_log(&self, _: &str, _: u64, _: &[Vec<u8>], _: Duration) -> Result<Option<Vec<Vec<u8>>>> {
+        none()
+    }
+
+    async fn log(&self, _: &str, _: u64) -> Result<Vec<Vec<u8>>> {
+        none()
+    }
 }

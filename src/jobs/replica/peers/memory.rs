@@ -39,6 +39,8 @@ struct State {
     marks: HashMap<(String, Control), Instant>,
     results: HashMap<(String, Kept), Vec<u8>>,
     files: HashMap<(Shelf, String), Vec<u8>>,
+    /// Logs, with when each is dropped.
+    logs: HashMap<String, (Vec<Vec<u8>>, Instant)>,
 }
 
 impl State {
@@ -291,5 +293,30 @@ impl Peers for Replica {
         self.reach(false).await?.files.remove(&(shelf, id.to_owned()));
         self.send(Message::Dropped(shelf, id.to_owned()));
         Ok(())
+    }
+
+    async fn append_log(
+        &self,
+        id: &str,
+        at: u64,
+        entries: &[Vec<u8>],
+        keep: Duration,
+    ) -> Result<Option<Vec<Vec<u8>>>> {
+        let mut state = self.reach(false).await?;
+        let now = Instant::now();
+        state.logs.retain(|_, (_, until)| *until > now);
+        let (log, until) = state.logs.entry(id.to_owned()).or_insert_with(|| (Vec::new(), now));
+        if log.len() as u64 != at {
+            return Ok(Some(log.get(at as usize..).unwrap_or_default().to_vec()));
+        }
+        log.extend(entries.iter().cloned());
+        *until = now + keep;
+        Ok(None)
+    }
+
+    async fn log(&self, id: &str, from: u64) -> Result<Vec<Vec<u8>>> {
+        let state = self.reach(false).await?;
+        let log = state.logs.get(id).filter(|(_, until)| *until > Instant::now());
+        Ok(log.and_then(|(log, _)| log.get(from as usize..)).unwrap_or_default().to_vec())
     }
 }

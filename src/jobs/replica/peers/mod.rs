@@ -19,7 +19,7 @@
 
 mod alone;
 #[cfg(test)]
-pub(super) mod memory;
+pub(in crate::jobs) mod memory;
 mod store;
 #[cfg(test)]
 mod tests;

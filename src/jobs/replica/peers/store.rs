@@ -114,4 +114,18 @@ pub trait Peers: Send + Sync + 'static {
 
     /// Drops file `id` from `shelf` and tells every replica ([`Message::Dropped`]).
     async fn drop_file(&self, shelf: Shelf, id: &str) -> Result<()>;
+
+    /// Appends `entries` to log `id` if it holds exactly `at` entries (`None`: appended),
+    /// else appends nothing and answers the entries from `at` on, which the caller missed.
+    /// The log is dropped `keep` after its last append.
+    async fn append_log(
+        &self,
+        id: &str,
+        at: u64,
+        entries: &[Vec<u8>],
+        keep: Duration,
+    ) -> Result<Option<Vec<Vec<u8>>>>;
+
+    /// Log `id`'s entries from `from` on: none when there is no such log.
+    async fn log(&self, id: &str, from: u64) -> Result<Vec<Vec<u8>>>;
 }

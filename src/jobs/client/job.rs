@@ -1,71 +1,20 @@
-//! Jobs whose F the caller evaluates (ask/tell).
-//!
-//! A client job holds the points it asked for and the values told, and nothing else between
-//! batches: no worker, no engine state, no clock but its lease. When every point of a batch is
-//! told, [`choose`](ClientJob::choose) replays the refinement over the values on the blocking
-//! pool ([`crate::refine::asked`]) and names the next batch, or finishes the mesh. The mesh
-//! depends on the values alone, never on who told them or when.
-//!
-//! A batch handed out is leased to whoever asked; unanswered past its lease it is offered again
-//! to whoever asks next. A job nobody asks or tells for [`CLIENT_IDLE`] expires (a failed job
-//! with a problem saying so), and a finished one is dropped that long after its last word.
-//! Client jobs live in this replica's memory: another replica does not know them.
+//! One client job: the points it asked for, the values told, and where it stands. Every
+//! change comes as a log [`Entry`], applied in the log's order, so that every replica that
+//! applies the same log holds the same job.
 
+use super::log::Entry;
 use crate::api::Evaluations;
 use crate::geom::Point;
 use crate::refine::asked::{self, Asker, Next, Told, Values};
 use crate::result::RunResult;
 use crate::spec::ClientSpec;
-use sha2::{Digest, Sha256};
-use std::collections::HashMap;
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant, SystemTime};
 use tokio::sync::Notify;
 
-/// The most client jobs a replica keeps, finished ones included.
-pub const MAX_CLIENT_JOBS: usize = 256;
-
 /// How long a client job waits for a word from its caller before it expires, and how long a
 /// finished one is kept.
 pub const CLIENT_IDLE: Duration = Duration::from_secs(3600);
-
-/// The client jobs of this replica.
-#[derive(Clone, Default)]
-pub struct ClientJobs {
-    jobs: Arc<Mutex<HashMap<String, Arc<ClientJob>>>>,
-    made: Arc<AtomicU64>,
-}
-
-/// Too many client jobs are kept already.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct TooManyClientJobs;
-
-impl ClientJobs {
-    /// A new client job of `spec`, asking for its corners first.
-    ///
-    /// # Errors
-    /// [`TooManyClientJobs`] when [`MAX_CLIENT_JOBS`] are kept and none has expired.
-    pub fn create(&self, spec: ClientSpec, now: Instant) -> Result<Arc<ClientJob>, TooManyClientJobs> {
-        let mut jobs = lock(&self.jobs);
-        jobs.retain(|_, job| !job.is_stale(now));
-        if jobs.len() >= MAX_CLIENT_JOBS {
-            return Err(TooManyClientJobs);
-        }
-        // Not a hash of the request: two callers with the same request run two sessions.
-        let made = self.made.fetch_add(1, Ordering::Relaxed);
-        let nanos = SystemTime::now().duration_since(SystemTime::UNIX_EPOCH).unwrap_or_default().as_nanos();
-        let id = format!("{:x}", Sha256::digest(format!("client {made} {nanos} {}", std::process::id())));
-        let job = Arc::new(ClientJob::new(id.clone(), spec, now));
-        jobs.insert(id, job.clone());
-        Ok(job)
-    }
-
-    /// Client job `id`, if this replica keeps it.
-    pub fn get(&self, id: &str) -> Option<Arc<ClientJob>> {
-        lock(&self.jobs).get(id).cloned()
-    }
-}
 
 /// One client job.
 pub struct ClientJob {
@@ -75,6 +24,9 @@ pub struct ClientJob {
     state: Mutex<State>,
     /// Where the last replay stopped, for the next to start from; held while one runs.
     asker: Mutex<Asker>,
+    /// Held while an entry is written to the log and applied, so that entries are applied
+    /// once each and in the log's order.
+    pub(super) writer: tokio::sync::Mutex<()>,
     /// Woken when a batch is chosen or the job ends.
     changed: Notify,
     /// When it was made.
@@ -110,6 +62,10 @@ struct State {
     touched: Instant,
     failed: u64,
     finished: Option<SystemTime>,
+    /// How many log entries are applied.
+    applied: u64,
+    /// Whether a replay on this replica is choosing the next batch.
+    choosing: bool,
 }
 
 impl Phase {
@@ -191,32 +147,58 @@ pub struct ClientStatus {
 }
 
 impl ClientJob {
-    fn new(id: String, spec: ClientSpec, now: Instant) -> Self {
-        // Nothing told: the refinement asks for its corners, without a replay.
-        let points = match asked::next(spec.rect, &spec.params, &Values::new(), spec.batch) {
-            Ok(Next::Ask(points)) => points,
-            _ => unreachable!("a refinement told nothing asks for its corners"),
+    /// Job `id` of `spec`, made at `created` with `seeds` (another job's values), having
+    /// applied `applied` log entries. Told nothing, it asks for its corners at once; seeded,
+    /// its first batch is chosen by a replay, as any next batch.
+    pub(super) fn new(
+        id: String,
+        spec: ClientSpec,
+        created: SystemTime,
+        seeds: Values,
+        applied: u64,
+        now: Instant,
+    ) -> Self {
+        let (points, phase, number) = if seeds.is_empty() {
+            match asked::next(spec.rect, &spec.params, &seeds, spec.batch) {
+                Ok(Next::Ask(points)) => (points, Phase::Asking, 1),
+                _ => unreachable!("a refinement told nothing asks for its corners"),
+            }
+        } else {
+            (Vec::new(), Phase::Choosing, 0)
         };
         let state = State {
-            values: Values::new(),
+            values: seeds,
             told: vec![None; points.len()],
             batch: (0..points.len() as u64).collect(),
             points,
-            number: 1,
+            number,
             lease_until: None,
-            phase: Phase::Asking,
+            phase,
             touched: now,
             failed: 0,
             finished: None,
+            applied,
+            choosing: false,
         };
         Self {
             id,
             spec,
             state: Mutex::new(state),
             asker: Mutex::new(Asker::default()),
+            writer: tokio::sync::Mutex::new(()),
             changed: Notify::new(),
-            created: SystemTime::now(),
+            created,
         }
+    }
+
+    /// How many log entries the job has applied: where its next entry goes.
+    pub(super) fn applied(&self) -> u64 {
+        lock(&self.state).applied
+    }
+
+    /// The values told so far, with those it was seeded with.
+    pub fn values(&self) -> Values {
+        lock(&self.state).values.clone()
     }
 
     /// The state, with a job idle past [`CLIENT_IDLE`] expired first.
@@ -238,7 +220,7 @@ impl ClientJob {
     }
 
     /// Whether the job has ended and nobody spoke to it for [`CLIENT_IDLE`]: it may go.
-    fn is_stale(&self, now: Instant) -> bool {
+    pub(super) fn is_stale(&self, now: Instant) -> bool {
         let state = self.state(now);
         state.phase.ended() && now.saturating_duration_since(state.touched) > CLIENT_IDLE
     }
@@ -276,13 +258,17 @@ impl ClientJob {
         Asked::Batch { number: state.number, points: state.untold(), lease: self.spec.lease }
     }
 
-    /// Tells `values` (id, F or None for a failure), all or none: how many were new, and
-    /// whether they completed the batch (then [`choose`](Self::choose) must run).
+    /// The entry that tells `values` (id, F or None for a failure), all or none: `None` when
+    /// every one was told before (a repeat is a no-op). Apply it to tell them.
     ///
     /// # Errors
     /// An id never asked for, a value that differs from one told before, or a new value for a
     /// finished job.
-    pub fn tell(&self, values: &[(u64, Option<f64>)], now: Instant) -> Result<(u64, bool), TellError> {
+    pub(super) fn check_tell(
+        &self,
+        values: &[(u64, Option<f64>)],
+        now: Instant,
+    ) -> Result<Option<Entry>, TellError> {
         let mut state = self.state(now);
         let finished = state.phase.ended();
         for (index, &(id, value)) in values.iter().enumerate() {
@@ -303,58 +289,125 @@ impl ClientJob {
             }
         }
         state.touched = now;
-        let mut accepted = 0;
-        for &(id, value) in values {
-            if state.told[id as usize].is_some() {
-                continue;
-            }
-            let told = to_told(value);
-            state.failed += u64::from(told == Told::Failed);
-            state.told[id as usize] = Some(told);
-            let point = state.points[id as usize];
-            state.values.tell(point, told);
-            accepted += 1;
-        }
-        let complete = matches!(state.phase, Phase::Asking)
-            && state.batch.iter().all(|&id| state.told[id as usize].is_some());
-        if complete {
-            state.phase = Phase::Choosing;
-        }
-        Ok((accepted, complete))
+        // The first of an id told twice in one request stands, as a later request's would.
+        let mut seen = std::collections::HashSet::new();
+        let new: Vec<(u64, Option<f64>)> = (values.iter())
+            .filter(|&&(id, _)| state.told[id as usize].is_none() && seen.insert(id))
+            .map(|&(id, value)| {
+                (
+                    id,
+                    match to_told(value) {
+                        Told::Value(v) => Some(v),
+                        Told::Failed => None,
+                    },
+                )
+            })
+            .collect();
+        Ok((!new.is_empty()).then_some(Entry::Told(new)))
     }
 
-    /// Chooses the next batch, or finishes the mesh, from the values told: a replay of the
-    /// refinement, for the blocking pool.
-    pub fn choose(&self) {
+    /// Applies log entry `entry`, the next in the log, whoever wrote it.
+    pub(super) fn apply(&self, entry: Option<&Entry>, now: Instant) {
+        let mut state = self.state(now);
+        state.applied += 1;
+        match entry {
+            // Read when the job was made, or from another version: nothing to change.
+            None | Some(Entry::Made { .. }) => {}
+            Some(Entry::Seeded(values)) => {
+                for &(x, y, value) in values {
+                    state.values.tell(Point::new(x, y), to_told(value));
+                }
+            }
+            Some(Entry::Told(values)) => {
+                state.touched = now;
+                for &(id, value) in values {
+                    let Some(None) = state.told.get(id as usize) else { continue };
+                    let told = to_told(value);
+                    state.failed += u64::from(told == Told::Failed);
+                    state.told[id as usize] = Some(told);
+                    let point = state.points[id as usize];
+                    state.values.tell(point, told);
+                }
+                let complete = state.batch.iter().all(|&id| state.told[id as usize].is_some());
+                if matches!(state.phase, Phase::Asking) && complete {
+                    state.phase = Phase::Choosing;
+                }
+            }
+            Some(Entry::Batch { number, points }) => {
+                // Chosen here or on another replica: the same points either way.
+                if matches!(state.phase, Phase::Choosing) && *number == state.number + 1 {
+                    let first = state.points.len() as u64;
+                    state.batch = (first..first + points.len() as u64).collect();
+                    state.told.extend(points.iter().map(|_| None));
+                    state.points.extend(points.iter().map(|&(x, y)| Point::new(x, y)));
+                    state.number = *number;
+                    state.lease_until = None;
+                    state.phase = Phase::Asking;
+                    self.changed.notify_waiters();
+                }
+            }
+            Some(Entry::Cancelled) => {
+                if !state.phase.ended() {
+                    state.phase = Phase::Cancelled;
+                    state.finished = Some(SystemTime::now());
+                    self.changed.notify_waiters();
+                }
+                state.touched = now;
+            }
+        }
+    }
+
+    /// Whether batch entry `entry` is the one this job waits for.
+    pub(super) fn awaits(&self, entry: &Entry) -> bool {
+        let state = lock(&self.state);
+        matches!((&state.phase, entry), (Phase::Choosing, Entry::Batch { number, .. }) if *number == state.number + 1)
+    }
+
+    /// Marks a replay as choosing the next batch, unless one is or none is needed: whether
+    /// the caller is to run it.
+    pub(super) fn start_choosing(&self) -> bool {
+        let mut state = lock(&self.state);
+        let start = matches!(state.phase, Phase::Choosing) && !state.choosing;
+        state.choosing |= start;
+        start
+    }
+
+    /// The replay that chose is over (its batch applied, or not written for now: the next
+    /// look at the job starts another).
+    pub(super) fn stop_choosing(&self) {
+        lock(&self.state).choosing = false;
+    }
+
+    /// Chooses the next batch from the values told, a replay of the refinement for the
+    /// blocking pool: the batch's entry, for the log; `None` when the mesh is finished (or the
+    /// refinement cannot go on), which every replica finds alike from the same values.
+    pub(super) fn choose(&self) -> Option<Entry> {
         let mut asker = lock(&self.asker);
-        let values = lock(&self.state).values.clone();
+        let (values, number) = {
+            let state = lock(&self.state);
+            if !matches!(state.phase, Phase::Choosing) {
+                return None;
+            }
+            (state.values.clone(), state.number)
+        };
         let next = asker.next(self.spec.rect, &self.spec.params, &values, self.spec.batch);
         drop(asker);
-        let mut state = lock(&self.state);
-        if !matches!(state.phase, Phase::Choosing) {
-            return;
-        }
-        match next {
+        let phase = match next {
             Ok(Next::Ask(points)) => {
-                let first = state.points.len() as u64;
-                state.batch = (first..first + points.len() as u64).collect();
-                state.told.extend(points.iter().map(|_| None));
-                state.points.extend(points);
-                state.number += 1;
-                state.lease_until = None;
-                state.phase = Phase::Asking;
+                let points = points.iter().map(|p| (p.x, p.y)).collect();
+                return Some(Entry::Batch { number: number + 1, points });
             }
-            Ok(Next::Done(refinement, _unused)) => {
-                state.phase = Phase::Succeeded(Arc::new(RunResult::from(*refinement)));
-                state.finished = Some(SystemTime::now());
-            }
-            Err(e) => {
-                state.phase = Phase::Failed(e.to_string());
-                state.finished = Some(SystemTime::now());
-            }
+            Ok(Next::Done(refinement, _unused)) => Phase::Succeeded(Arc::new(RunResult::from(*refinement))),
+            Err(e) => Phase::Failed(e.to_string()),
+        };
+        let mut state = lock(&self.state);
+        if matches!(state.phase, Phase::Choosing) {
+            state.phase = phase;
+            state.finished = Some(SystemTime::now());
         }
         drop(state);
         self.changed.notify_waiters();
+        None
     }
 
     /// Choosing the next batch broke off (a panic): the job fails, rather than wait for a
@@ -369,16 +422,11 @@ impl ClientJob {
         self.changed.notify_waiters();
     }
 
-    /// Cancels the job unless it has finished: it asks for nothing more.
-    pub fn cancel(&self, now: Instant) {
+    /// The entry that cancels the job, unless it has ended.
+    pub(super) fn check_cancel(&self, now: Instant) -> Option<Entry> {
         let mut state = self.state(now);
-        if !state.phase.ended() {
-            state.phase = Phase::Cancelled;
-            state.finished = Some(SystemTime::now());
-        }
         state.touched = now;
-        drop(state);
-        self.changed.notify_waiters();
+        (!state.phase.ended()).then_some(Entry::Cancelled)
     }
 
     /// Resolves once the job may have something new for an asker: enable it before asking,
