@@ -333,6 +333,10 @@ pub struct TellAnswer {
     pub accepted: u64,
     /// The job's counts.
     pub evaluations: Evaluations,
+    /// With `?ask=ms`: what `GET /v1/jobs/{id}/ask?wait=ms` would answer next (`None` when
+    /// nothing came within the wait), so that a caller plays one request a batch.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub next: Option<AskAnswer>,
 }
 
 /// The `result` event that ends a stream: the job's status document (its stats, times and

@@ -125,6 +125,65 @@ struct AskQuery {
     wait: Option<u64>,
 }
 
+/// The query of `POST /v1/jobs/{id}/tell`.
+#[derive(Debug, Default, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TellQuery {
+    ask: Option<u64>,
+}
+
+/// A wait of `ms` (named `name` in the query), checked against [`MAX_WAIT_MS`].
+fn wait_of(name: &str, ms: u64) -> Result<Duration, ApiError> {
+    if ms > MAX_WAIT_MS {
+        return Err(ApiError::InvalidRequest(format!("{name} must be from 0 to {MAX_WAIT_MS} ms, got {ms}")));
+    }
+    Ok(Duration::from_millis(ms))
+}
+
+/// What an asker is given.
+enum Given {
+    /// Points, or none once the job has finished.
+    Answer(AskAnswer),
+    /// Nothing within the wait: ask again after this many seconds.
+    Nothing(u64),
+}
+
+/// The current batch's untold points, leased to the caller, waiting up to `wait` for them
+/// while another caller holds them or the next batch is being chosen.
+async fn hand_out(state: &AppState, job: &Arc<ClientJob>, wait: Duration) -> Given {
+    let deadline = tokio::time::Instant::now() + wait;
+    loop {
+        // Listen before looking, so a change between the two is not missed.
+        let changed = job.changed();
+        tokio::pin!(changed);
+        changed.as_mut().enable();
+        match job.ask(Instant::now()) {
+            Asked::Batch { number, points, lease } => {
+                return Given::Answer(batch_answer(number, points, lease));
+            }
+            Asked::Finished => {
+                let status = job.status(Instant::now()).status;
+                return Given::Answer(AskAnswer { status, batch: None, points: vec![], lease_ms: None });
+            }
+            Asked::Wait { until } => {
+                let now = tokio::time::Instant::now();
+                if now >= deadline {
+                    // A lease's end is when the batch comes round again.
+                    let seconds =
+                        until.map_or(1, |t| t.saturating_duration_since(Instant::now()).as_secs().max(1));
+                    return Given::Nothing(seconds);
+                }
+                let lease_end = until.map_or(deadline, |t| now + t.saturating_duration_since(Instant::now()));
+                // Another replica's batch wakes nobody here: look at the log now and then.
+                let look = state.clients.refresh_every().map_or(deadline, |every| now + every);
+                if tokio::time::timeout_at(deadline.min(lease_end).min(look), changed).await.is_err() {
+                    state.clients.refresh(job).await;
+                }
+            }
+        }
+    }
+}
+
 /// `GET /v1/jobs/{id}/ask?wait=ms`: the current batch's untold points, leased to the caller;
 /// 204 with `Retry-After` when another caller holds them or the next batch is being chosen
 /// and nothing changed within `wait`; once finished, the status and no points.
@@ -135,59 +194,30 @@ pub async fn jobs_ask(
 ) -> Result<Response, ApiError> {
     let job = find(&state, &id).await?;
     let query: AskQuery = query(&uri)?;
-    let wait = query.wait.unwrap_or(0);
-    if wait > MAX_WAIT_MS {
-        return Err(ApiError::InvalidRequest(format!("wait must be from 0 to {MAX_WAIT_MS} ms, got {wait}")));
-    }
-    let deadline = tokio::time::Instant::now() + Duration::from_millis(wait);
-    loop {
-        // Listen before looking, so a change between the two is not missed.
-        let changed = job.changed();
-        tokio::pin!(changed);
-        changed.as_mut().enable();
-        match job.ask(Instant::now()) {
-            Asked::Batch { number, points, lease } => {
-                return Ok(axum::Json(batch_answer(number, points, lease)).into_response());
-            }
-            Asked::Finished => {
-                let answer = AskAnswer {
-                    status: job.status(Instant::now()).status,
-                    batch: None,
-                    points: vec![],
-                    lease_ms: None,
-                };
-                return Ok(axum::Json(answer).into_response());
-            }
-            Asked::Wait { until } => {
-                let now = tokio::time::Instant::now();
-                if now >= deadline {
-                    // A lease's end is when the batch comes round again.
-                    let seconds =
-                        until.map_or(1, |t| t.saturating_duration_since(Instant::now()).as_secs().max(1));
-                    let mut response = StatusCode::NO_CONTENT.into_response();
-                    response.headers_mut().insert(header::RETRY_AFTER, HeaderValue::from(seconds));
-                    return Ok(response);
-                }
-                let lease_end = until.map_or(deadline, |t| now + t.saturating_duration_since(Instant::now()));
-                // Another replica's batch wakes nobody here: look at the log now and then.
-                let look = state.clients.refresh_every().map_or(deadline, |every| now + every);
-                if tokio::time::timeout_at(deadline.min(lease_end).min(look), changed).await.is_err() {
-                    state.clients.refresh(&job).await;
-                }
-            }
+    let wait = wait_of("wait", query.wait.unwrap_or(0))?;
+    Ok(match hand_out(&state, &job, wait).await {
+        Given::Answer(answer) => axum::Json(answer).into_response(),
+        Given::Nothing(seconds) => {
+            let mut response = StatusCode::NO_CONTENT.into_response();
+            response.headers_mut().insert(header::RETRY_AFTER, HeaderValue::from(seconds));
+            response
         }
-    }
+    })
 }
 
-/// `POST /v1/jobs/{id}/tell`: values for points asked, all or none. A value told again is a
-/// no-op; a different one is a 409 naming the entry; an id never asked is a 422 naming it.
-/// The value completing a batch sets the next one choosing on the blocking pool.
+/// `POST /v1/jobs/{id}/tell?ask=ms`: values for points asked, all or none. A value told again
+/// is a no-op; a different one is a 409 naming the entry; an id never asked is a 422 naming
+/// it. The value completing a batch sets the next one choosing on the blocking pool; with
+/// `ask`, the answer carries what `ask?wait=ms` would give next.
 pub async fn jobs_tell(
     State(state): State<AppState>,
     Path(id): Path<String>,
+    uri: Uri,
     body: Body,
 ) -> Result<Response, ApiError> {
     let job = find(&state, &id).await?;
+    let query: TellQuery = query(&uri)?;
+    let ask = query.ask.map(|ms| wait_of("ask", ms)).transpose()?;
     let request: TellRequest = parse_json(&body.bytes)?;
     let values: Vec<(u64, Option<f64>)> = request.values.iter().map(|v| (v.id, v.value)).collect();
     let accepted = state.clients.tell(&job, &values, Instant::now()).await.map_err(|e| match e {
@@ -201,8 +231,16 @@ pub async fn jobs_tell(
         },
         e => client_error(e),
     })?;
+    let next = match ask {
+        Some(wait) => match hand_out(&state, &job, wait).await {
+            Given::Answer(answer) => Some(answer),
+            Given::Nothing(_) => None,
+        },
+        None => None,
+    };
     let s = job.status(Instant::now());
-    Ok(axum::Json(TellAnswer { status: s.status, accepted, evaluations: s.evaluations }).into_response())
+    Ok(axum::Json(TellAnswer { status: s.status, accepted, evaluations: s.evaluations, next })
+        .into_response())
 }
 
 /// The data of an `ask` event and of `GET /v1/jobs/{id}/ask`'s answer while points are out.

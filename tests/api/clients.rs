@@ -310,3 +310,42 @@ async fn a_job_from_another_reuses_its_values_asking_only_for_new_points() {
     assert!((100..300).contains(&asked), "about 100 new points, not 400: {asked}");
     app.shutdown().await;
 }
+
+#[tokio::test]
+async fn a_tell_with_ask_brings_the_next_batch_back_one_request_a_batch() {
+    let app = spawn_app().await;
+    let body = json!({"source": "client", "max_vertices": 120, "batch": 8});
+    let (id, _) = create(&app, body.clone()).await;
+    let mut ask: Value = app.get(&format!("/v1/jobs/{id}/ask")).await.json().await.unwrap();
+    let mut requests = 0;
+    while ask["status"] == "running" {
+        let values = told(&ask["points"], |x, y| Some(f(x, y)));
+        let response = app.post(&format!("/v1/jobs/{id}/tell?ask=9000"), &values).await;
+        assert_eq!(response.status(), 200);
+        let answer: Value = response.json().await.unwrap();
+        ask = answer["next"].clone();
+        assert!(ask["points"].is_array(), "the next batch (or the end) came back: {answer}");
+        requests += 1;
+    }
+    assert_eq!((&ask["status"], &ask["points"]), (&json!("succeeded"), &json!([])));
+    // A tell without `ask` answers no `next`; a wait past the longest is refused.
+    let again =
+        app.post(&format!("/v1/jobs/{id}/tell"), &json!({"values": [{"id": 0, "value": f(0.0, 0.0)}]})).await;
+    assert_eq!(again.json::<Value>().await.unwrap().get("next"), None);
+    let long = app.post(&format!("/v1/jobs/{id}/tell?ask=9001"), &json!({"values": []})).await;
+    assert_eq!(long.status(), 422);
+
+    // The same values played with two requests a batch make the same batches and mesh.
+    let (other, _) = create(&app, body).await;
+    assert_eq!(play(&app, &other, |x, y| Some(f(x, y))).await, requests);
+    let mesh = |id: String| {
+        let app = &app;
+        async move {
+            let mut mesh: Value = app.get(&format!("/v1/jobs/{id}/mesh")).await.json().await.unwrap();
+            mesh["id"].take();
+            mesh
+        }
+    };
+    assert!(mesh(id).await == mesh(other).await);
+    app.shutdown().await;
+}

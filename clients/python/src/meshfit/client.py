@@ -195,12 +195,16 @@ class Client:
             body["from"] = start_from.job_id if isinstance(start_from, Result) else start_from
         body.update(options)
         job_id = self._request("POST", "/v1/jobs", json=body).json()["id"]
-        executor: Executor = (ProcessPoolExecutor if pool == "process" else ThreadPoolExecutor)(max_workers=workers)
+        # One thread evaluates in place: a pool would only add its hand-offs to every point.
+        executor: Optional[Executor] = None
+        if workers > 1 or pool == "process":
+            executor = (ProcessPoolExecutor if pool == "process" else ThreadPoolExecutor)(max_workers=workers)
         bar = _progress(max_vertices) if progress else None
         try:
             self._play(job_id, f, executor, bar)
         finally:
-            executor.shutdown(wait=False, cancel_futures=True)
+            if executor is not None:
+                executor.shutdown(wait=False, cancel_futures=True)
             if bar is not None:
                 bar.close()
         job = self.job(job_id)
@@ -209,30 +213,43 @@ class Client:
             raise MeshfitError(status.get("problem") or {"detail": f"the job ended {status['status']}"})
         return job.result()
 
-    def _play(self, job_id: str, f: Callable[[float, float], Any], executor: Executor, bar: Any) -> None:
-        """Asks and tells until the job finishes."""
+    def _play(self, job_id: str, f: Callable[[float, float], Any], executor: Optional[Executor], bar: Any) -> None:
+        """Asks and tells until the job finishes: one request a batch, each tell bringing the
+        next batch back (`tell?ask=`)."""
         timeout = ASK_WAIT_MS / 1000 + self._http.timeout.read if self._http.timeout.read else None
+        ask = self._ask(job_id, timeout)
+        while ask["status"] == "running":
+            points = ask["points"]
+            if executor is None:
+                results = [_evaluate(f, p["x"], p["y"]) for p in points]
+            else:
+                futures = [executor.submit(_evaluate, f, p["x"], p["y"]) for p in points]
+                results = [future.result() for future in futures]
+            values = []
+            for p, (value, reason) in zip(points, results):
+                entry: dict = {"id": p["id"], "value": value}
+                if reason is not None:
+                    entry["reason"] = reason
+                values.append(entry)
+            response = self._http.post(
+                f"/v1/jobs/{job_id}/tell", params={"ask": ASK_WAIT_MS}, json={"values": values}, timeout=timeout
+            )
+            if response.status_code >= 400:
+                raise self._error(response)
+            told = response.json()
+            if bar is not None:
+                bar.update(min(told["evaluations"]["told"], bar.total) - bar.n)
+            ask = told.get("next") or self._ask(job_id, timeout)
+
+    def _ask(self, job_id: str, timeout: Optional[float]) -> dict:
+        """The job's next batch, or its end: long polls until one comes."""
         while True:
             response = self._http.get(f"/v1/jobs/{job_id}/ask", params={"wait": ASK_WAIT_MS}, timeout=timeout)
             if response.status_code == 204:
                 continue
             if response.status_code >= 400:
                 raise self._error(response)
-            ask = response.json()
-            if ask["status"] != "running":
-                return
-            points = ask["points"]
-            futures = [executor.submit(_evaluate, f, p["x"], p["y"]) for p in points]
-            values = []
-            for p, future in zip(points, futures):
-                value, reason = future.result()
-                entry: dict = {"id": p["id"], "value": value}
-                if reason is not None:
-                    entry["reason"] = reason
-                values.append(entry)
-            told = self._request("POST", f"/v1/jobs/{job_id}/tell", json={"values": values}).json()
-            if bar is not None:
-                bar.update(min(told["evaluations"]["told"], bar.total) - bar.n)
+            return response.json()
 
     def mesh(
         self,
