@@ -104,18 +104,24 @@ fn client_error(e: ClientError) -> ApiError {
     match e {
         ClientError::TooMany => ApiError::ClientJobsFull(MAX_CLIENT_JOBS),
         ClientError::Unreachable => ApiError::Unreachable,
-        ClientError::Tell(e) => ApiError::Json(match e {
-            TellError::Unknown { index, id } => JsonError::Shape {
-                path: format!("values[{index}].id"),
-                message: format!("no point {id} was asked for"),
-            },
-            TellError::Finished { index } => JsonError::Shape {
-                path: format!("values[{index}].id"),
-                message: "the job has finished: it takes no new values".into(),
-            },
-            TellError::Conflict { .. } => unreachable!("a conflict names both values: see jobs_tell"),
+        ClientError::Tell(TellError::Conflict { index, id, was, told }) => ApiError::Conflict {
+            field: format!("values[{index}].value"),
+            detail: format!("point {id} was told {}, not {}", said(was), said(told)),
+        },
+        ClientError::Tell(TellError::Unknown { index, id }) => ApiError::Json(JsonError::Shape {
+            path: format!("values[{index}].id"),
+            message: format!("no point {id} was asked for"),
+        }),
+        ClientError::Tell(TellError::Finished { index }) => ApiError::Json(JsonError::Shape {
+            path: format!("values[{index}].id"),
+            message: "the job has finished: it takes no new values".into(),
         }),
     }
+}
+
+/// A value told, as a message says it.
+fn said(value: Option<f64>) -> String {
+    value.map_or("null (failed)".to_owned(), |v| v.to_string())
 }
 
 /// The query of `GET /v1/jobs/{id}/ask`.
@@ -220,17 +226,7 @@ pub async fn jobs_tell(
     let ask = query.ask.map(|ms| wait_of("ask", ms)).transpose()?;
     let request: TellRequest = parse_json(&body.bytes)?;
     let values: Vec<(u64, Option<f64>)> = request.values.iter().map(|v| (v.id, v.value)).collect();
-    let accepted = state.clients.tell(&job, &values, Instant::now()).await.map_err(|e| match e {
-        ClientError::Tell(TellError::Conflict { index, id, was }) => ApiError::Conflict {
-            field: format!("values[{index}].value"),
-            detail: format!(
-                "point {id} was told {}, not {}",
-                was.map_or("null (failed)".to_owned(), |v| v.to_string()),
-                request.values[index].value.map_or("null".to_owned(), |v| v.to_string())
-            ),
-        },
-        e => client_error(e),
-    })?;
+    let accepted = state.clients.tell(&job, &values, Instant::now()).await.map_err(client_error)?;
     let next = match ask {
         Some(wait) => match hand_out(&state, &job, wait).await {
             Given::Answer(answer) => Some(answer),

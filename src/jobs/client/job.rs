@@ -124,6 +124,8 @@ pub enum TellError {
         id: u64,
         /// What was told before (None: failed).
         was: Option<f64>,
+        /// What the entry tells (None: failed).
+        told: Option<f64>,
     },
     /// The job has finished, and the entry is new.
     Finished {
@@ -282,7 +284,7 @@ impl ClientJob {
                         Told::Value(v) => Some(*v),
                         Told::Failed => None,
                     };
-                    return Err(TellError::Conflict { index, id, was });
+                    return Err(TellError::Conflict { index, id, was, told: value });
                 }
                 None if finished => return Err(TellError::Finished { index }),
                 None => {}

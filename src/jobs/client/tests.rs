@@ -129,7 +129,10 @@ async fn two_replicas_told_different_values_of_a_point_keep_the_first() {
     assert_eq!(a.tell(&job_a, &[(0, Some(1.0))], Instant::now()).await, Ok(1));
     // B has not read A's entry: its tell meets it in the log and is checked against it.
     let conflict = b.tell(&job_b, &[(1, Some(2.0)), (0, Some(3.0))], Instant::now()).await;
-    assert_eq!(conflict, Err(ClientError::Tell(TellError::Conflict { index: 1, id: 0, was: Some(1.0) })));
+    assert_eq!(
+        conflict,
+        Err(ClientError::Tell(TellError::Conflict { index: 1, id: 0, was: Some(1.0), told: Some(3.0) }))
+    );
     assert_eq!(job_b.status(Instant::now()).evaluations.told, 1, "all or none: point 1 was not told");
     assert_eq!(b.tell(&job_b, &[(0, Some(1.0))], Instant::now()).await, Ok(0), "a repeat is a no-op");
     // A cancellation on B ends the job on A.
