@@ -248,6 +248,20 @@ pub struct ClientJobRequest {
     /// asked again, so a smaller budget finishes without asking, a larger one asks only for
     /// the points that job did not.
     pub from: Option<String>,
+    /// What a failed point (a `null` value) does: `guess` (the default) keeps the
+    /// criterion's guess there and goes on; `fail` fails the job.
+    pub on_failure: Option<OnFailure>,
+}
+
+/// What a client job does with a point whose evaluation failed.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OnFailure {
+    /// The point keeps the criterion's guess, and the refinement goes on.
+    #[default]
+    Guess,
+    /// The job fails, naming the point.
+    Fail,
 }
 
 /// Where a job's F comes from: the caller.

@@ -1,7 +1,7 @@
 //! ClientSpec: a refinement whose F the caller evaluates, validated.
 
 use super::checks::{Limits, SpecError, budget, build, domain_of, with_sizes};
-use crate::api::ClientJobRequest;
+use crate::api::{ClientJobRequest, OnFailure};
 use crate::geom::Rect;
 use crate::refine::{Criterion, Method, Params};
 use std::time::Duration;
@@ -34,6 +34,8 @@ pub struct ClientSpec {
     pub batch: usize,
     /// How long a batch handed out waits before it is offered again.
     pub lease: Duration,
+    /// What a failed point does.
+    pub on_failure: OnFailure,
 }
 
 impl ClientSpec {
@@ -95,6 +97,7 @@ impl ClientSpec {
         if let Some(tolerance) = request.tolerance {
             params = params.tolerance(tolerance);
         }
-        Ok(Self { rect, params: build(params, limits)?, batch: batch as usize, lease })
+        let on_failure = request.on_failure.unwrap_or_default();
+        Ok(Self { rect, params: build(params, limits)?, batch: batch as usize, lease, on_failure })
     }
 }

@@ -219,6 +219,7 @@ async fn tells_are_checked_point_by_point_and_a_repeat_is_a_no_op() {
         (json!({"source": "server"}), "/source"),
         (json!({"source": "client", "function": "x"}), "/function"),
         (json!({"source": "client", "from": "0".repeat(64)}), "/from"),
+        (json!({"source": "client", "on_failure": "retry"}), "/on_failure"),
     ] {
         let response = app.post("/v1/jobs", &body).await;
         assert_eq!(response.status(), 422, "{body}");
@@ -347,5 +348,34 @@ async fn a_tell_with_ask_brings_the_next_batch_back_one_request_a_batch() {
         }
     };
     assert!(mesh(id).await == mesh(other).await);
+    app.shutdown().await;
+}
+
+#[tokio::test]
+async fn a_job_made_to_fail_on_a_failed_point_fails_naming_it() {
+    let app = spawn_app().await;
+    let (id, _) = create(&app, json!({"source": "client", "max_vertices": 40, "on_failure": "fail"})).await;
+    let ask: Value = app.get(&format!("/v1/jobs/{id}/ask")).await.json().await.unwrap();
+    let values = told(&ask["points"], |x, y| Some(f(x, y)));
+    app.post(&format!("/v1/jobs/{id}/tell"), &values).await;
+    let ask: Value = app.get(&format!("/v1/jobs/{id}/ask?wait=9000")).await.json().await.unwrap();
+    let points = ask["points"].as_array().unwrap();
+    let (bad, x, y) = (&points[1]["id"], points[1]["x"].as_f64().unwrap(), points[1]["y"].as_f64().unwrap());
+    // Two fail at once: the job names the first.
+    let values = json!({"values": [
+        {"id": points[0]["id"], "value": 1.0},
+        {"id": bad, "value": null, "reason": "diverged"},
+        {"id": points[2]["id"], "value": null},
+    ]});
+    let answer: Value = app.post(&format!("/v1/jobs/{id}/tell"), &values).await.json().await.unwrap();
+    assert_eq!(answer["status"], "failed", "{answer}");
+    let status: Value = app.get(&format!("/v1/jobs/{id}")).await.json().await.unwrap();
+    let problem = &status["problem"];
+    assert_eq!(problem["type"], "/problems/client-job-failed", "{status}");
+    let named = format!("point {bad} at ({x}, {y}) failed");
+    assert!(problem["detail"].as_str().unwrap().starts_with(&named), "{problem}");
+    assert_eq!(status["evaluations"]["failed"], 2);
+    let ask: Value = app.get(&format!("/v1/jobs/{id}/ask")).await.json().await.unwrap();
+    assert_eq!(ask, json!({"status": "failed", "points": []}));
     app.shutdown().await;
 }

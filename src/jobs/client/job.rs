@@ -3,7 +3,7 @@
 //! applies the same log holds the same job.
 
 use super::log::Entry;
-use crate::api::Evaluations;
+use crate::api::{Evaluations, OnFailure};
 use crate::geom::Point;
 use crate::refine::asked::{self, Asker, Next, Told, Values};
 use crate::result::RunResult;
@@ -322,6 +322,7 @@ impl ClientJob {
             }
             Some(Entry::Told(values)) => {
                 state.touched = now;
+                let mut first_failure = None;
                 for &(id, value) in values {
                     let Some(None) = state.told.get(id as usize) else { continue };
                     let told = to_told(value);
@@ -329,6 +330,22 @@ impl ClientJob {
                     state.told[id as usize] = Some(told);
                     let point = state.points[id as usize];
                     state.values.tell(point, told);
+                    if told == Told::Failed && first_failure.is_none() {
+                        first_failure = Some((id, point));
+                    }
+                }
+                if let (OnFailure::Fail, Some((id, p)), false) =
+                    (self.spec.on_failure, first_failure, state.phase.ended())
+                {
+                    let detail = format!(
+                        "point {id} at ({}, {}) failed, and the job was made to fail on a failed point \
+                         (on_failure: fail)",
+                        p.x, p.y
+                    );
+                    state.phase = Phase::Failed(detail);
+                    state.finished = Some(SystemTime::now());
+                    self.changed.notify_waiters();
+                    return;
                 }
                 let complete = state.batch.iter().all(|&id| state.told[id as usize].is_some());
                 if matches!(state.phase, Phase::Asking) && complete {
