@@ -118,7 +118,8 @@ impl ClientJobs {
         if self.peers.is_shared() {
             let encoded: Vec<Vec<u8>> = entries.iter().map(Entry::encode).collect();
             if self.peers.append_log(&id, 0, &encoded, LOG_KEEP).await?.is_some() {
-                unreachable!("a fresh id has no log");
+                // Another replica made this id in the same nanosecond: refuse rather than share.
+                return Err(Unavailable(format!("client job id {id} is taken")).into());
             }
         }
         let job = Arc::new(ClientJob::new(id.clone(), spec, created, seeds, entries.len() as u64, now));
