@@ -180,11 +180,7 @@ async fn hand_out(state: &AppState, job: &Arc<ClientJob>, wait: Duration) -> Giv
                     return Given::Nothing(seconds);
                 }
                 let lease_end = until.map_or(deadline, |t| now + t.saturating_duration_since(Instant::now()));
-                // Another replica's batch wakes nobody here: look at the log now and then.
-                let look = state.clients.refresh_every().map_or(deadline, |every| now + every);
-                if tokio::time::timeout_at(deadline.min(lease_end).min(look), changed).await.is_err() {
-                    state.clients.refresh(job).await;
-                }
+                state.clients.wait(job, changed, deadline.min(lease_end)).await;
             }
         }
     }
@@ -262,8 +258,14 @@ pub(super) fn events(clients: ClientJobs, job: Arc<ClientJob>, last_seen: u64, i
         last_seen: u64,
         inline: bool,
         rest: Option<Box<dyn Iterator<Item = Bytes> + Send>>,
+        /// When the stream ends if nothing more comes.
+        quiet: tokio::time::Instant,
     }
-    let listener = Listener { clients, job, last_seen, inline, rest: None };
+    // A caller may take hours between batches: rather than hold the stream (and a proxy's
+    // connection) open, it ends after a quiet spell, and the listener comes back with
+    // Last-Event-ID, as an EventSource does by itself.
+    let quiet = tokio::time::Instant::now() + sse::KEEP_ALIVE;
+    let listener = Listener { clients, job, last_seen, inline, rest: None, quiet };
     let events = stream::unfold(listener, |mut l| async move {
         loop {
             if let Some(rest) = &mut l.rest {
@@ -277,6 +279,7 @@ pub(super) fn events(clients: ClientJobs, job: Arc<ClientJob>, last_seen: u64, i
             let (number, points) = job.current(Instant::now());
             if let Some(points) = points.filter(|_| number > l.last_seen) {
                 l.last_seen = number;
+                l.quiet = tokio::time::Instant::now() + sse::KEEP_ALIVE;
                 let data =
                     serde_json::to_string(&batch_answer(number, points, job.lease())).expect("serializes");
                 return Some((Bytes::from(format!("event: ask\nid: {number}\ndata: {data}\n\n")), l));
@@ -289,28 +292,10 @@ pub(super) fn events(clients: ClientJobs, job: Arc<ClientJob>, last_seen: u64, i
                 l.rest = Some(final_event(&job, number + 1, l.inline));
                 continue;
             }
-            // A caller may take hours between batches: rather than hold the stream (and a
-            // proxy's connection) open, it ends after a quiet spell, and the listener comes
-            // back with Last-Event-ID, as an EventSource does by itself. Another replica's
-            // batch wakes nobody here: the log is read now and then.
-            let quiet = tokio::time::Instant::now() + sse::KEEP_ALIVE;
-            loop {
-                let look = l
-                    .clients
-                    .refresh_every()
-                    .map_or(quiet, |every| quiet.min(tokio::time::Instant::now() + every));
-                if tokio::time::timeout_at(look, changed.as_mut()).await.is_ok() {
-                    break;
-                }
-                if tokio::time::Instant::now() >= quiet {
-                    return None;
-                }
-                l.clients.refresh(&job).await;
-                let news = matches!(job.current(Instant::now()), (n, Some(_)) if n > l.last_seen);
-                if news || job.is_finished(Instant::now()) {
-                    break;
-                }
+            if tokio::time::Instant::now() >= l.quiet {
+                return None;
             }
+            l.clients.wait(&job, changed, l.quiet).await;
         }
     });
     sse::response(events)

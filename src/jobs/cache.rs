@@ -249,8 +249,7 @@ impl Disk {
 
     fn path(&self, id: &str) -> Option<PathBuf> {
         // Ids are our own hex digests; anything else never names a file.
-        let safe = id.len() == 64 && id.bytes().all(|b| b.is_ascii_hexdigit());
-        safe.then(|| self.dir.join(format!("{id}.mesh")))
+        crate::spec::is_hex_id(id).then(|| self.dir.join(format!("{id}.mesh")))
     }
 }
 

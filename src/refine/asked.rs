@@ -37,6 +37,24 @@ pub enum Told {
     Failed,
 }
 
+impl Told {
+    /// What a value says: F, or a failure (none, or not finite).
+    pub fn of(value: Option<f64>) -> Told {
+        match value {
+            Some(v) if v.is_finite() => Told::Value(v),
+            _ => Told::Failed,
+        }
+    }
+
+    /// F, or `None` for a failure.
+    pub fn value(self) -> Option<f64> {
+        match self {
+            Told::Value(v) => Some(v),
+            Told::Failed => None,
+        }
+    }
+}
+
 /// The values told so far, by point (bit for bit as the engine asked it).
 #[derive(Debug, Clone, Default)]
 pub struct Values {

@@ -16,6 +16,12 @@ pub struct JobKeys {
     pub family: String,
 }
 
+/// Whether `id` has the shape of the ids this service makes (a SHA-256 in hex): anything
+/// else names no job and no file.
+pub fn is_hex_id(id: &str) -> bool {
+    id.len() == 64 && id.bytes().all(|b| b.is_ascii_hexdigit())
+}
+
 /// The lowercase hex SHA-256 id of `spec`.
 pub fn job_id(spec: &JobSpec) -> String {
     job_keys(spec).id

@@ -27,5 +27,5 @@ pub use client::{
     ClientSpec, DEFAULT_BATCH, DEFAULT_LEASE, LEASE_MS, MAX_BATCH, MAX_CLIENT_VERTICES, VERTICES_PER_BATCH,
 };
 pub use job::{JobSpec, MeshSpec, Work};
-pub use key::{JobKeys, job_id, job_keys};
+pub use key::{JobKeys, is_hex_id, job_id, job_keys};
 pub use solution::{Function, SolveSpec};

@@ -279,13 +279,7 @@ impl ClientJob {
             };
             match told {
                 Some(was) if same(*was, value) => {}
-                Some(was) => {
-                    let was = match was {
-                        Told::Value(v) => Some(*v),
-                        Told::Failed => None,
-                    };
-                    return Err(TellError::Conflict { index, id, was, told: value });
-                }
+                Some(was) => return Err(TellError::Conflict { index, id, was: was.value(), told: value }),
                 None if finished => return Err(TellError::Finished { index }),
                 None => {}
             }
@@ -295,15 +289,7 @@ impl ClientJob {
         let mut seen = std::collections::HashSet::new();
         let new: Vec<(u64, Option<f64>)> = (values.iter())
             .filter(|&&(id, _)| state.told[id as usize].is_none() && seen.insert(id))
-            .map(|&(id, value)| {
-                (
-                    id,
-                    match to_told(value) {
-                        Told::Value(v) => Some(v),
-                        Told::Failed => None,
-                    },
-                )
-            })
+            .map(|&(id, value)| (id, Told::of(value).value()))
             .collect();
         Ok((!new.is_empty()).then_some(Entry::Told(new)))
     }
@@ -313,19 +299,15 @@ impl ClientJob {
         let mut state = self.state(now);
         state.applied += 1;
         match entry {
-            // Read when the job was made, or from another version: nothing to change.
-            None | Some(Entry::Made { .. }) => {}
-            Some(Entry::Seeded(values)) => {
-                for &(x, y, value) in values {
-                    state.values.tell(Point::new(x, y), to_told(value));
-                }
-            }
+            // Read when the job was made (`ClientJobs` makes it of them), or from another
+            // version: nothing to change.
+            None | Some(Entry::Made { .. } | Entry::Seeded(_)) => {}
             Some(Entry::Told(values)) => {
                 state.touched = now;
                 let mut first_failure = None;
                 for &(id, value) in values {
                     let Some(None) = state.told.get(id as usize) else { continue };
-                    let told = to_told(value);
+                    let told = Told::of(value);
                     state.failed += u64::from(told == Told::Failed);
                     state.told[id as usize] = Some(told);
                     let point = state.points[id as usize];
@@ -471,17 +453,9 @@ impl ClientJob {
     }
 }
 
-/// What a tell's value says of its point: a number, or a failure (null, or not finite).
-fn to_told(value: Option<f64>) -> Told {
-    match value {
-        Some(v) if v.is_finite() => Told::Value(v),
-        _ => Told::Failed,
-    }
-}
-
 /// Whether `value` says again what `was` said.
 fn same(was: Told, value: Option<f64>) -> bool {
-    match (was, to_told(value)) {
+    match (was, Told::of(value)) {
         (Told::Value(a), Told::Value(b)) => a == b,
         (Told::Failed, Told::Failed) => true,
         _ => false,

@@ -5,6 +5,8 @@
 //! Entries are JSON (serde_json's `float_roundtrip` gives every f64 back bit for bit, which
 //! the replay needs: the mesh depends on the values exactly as told).
 
+use crate::geom::Point;
+use crate::refine::asked::{Told, Values};
 use serde::{Deserialize, Serialize};
 
 /// One entry of a client job's log.
@@ -38,6 +40,22 @@ impl Entry {
     /// The entry as the store keeps it.
     pub(super) fn encode(&self) -> Vec<u8> {
         serde_json::to_vec(self).expect("an entry serializes")
+    }
+
+    /// The entry that seeds a job with `values`, in one order whatever the map's.
+    pub(super) fn seeded(values: &Values) -> Self {
+        let mut seeded: Vec<_> = values.iter().map(|(p, told)| (p.x, p.y, told.value())).collect();
+        seeded.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+        Entry::Seeded(seeded)
+    }
+
+    /// The values of a `seeded` entry.
+    pub(super) fn seeds(seeded: &[(f64, f64, Option<f64>)]) -> Values {
+        let mut values = Values::new();
+        for &(x, y, value) in seeded {
+            values.tell(Point::new(x, y), Told::of(value));
+        }
+        values
     }
 
     /// The entry the store kept, if it reads (an entry of another version may not).

@@ -26,8 +26,8 @@ pub use job::{Asked, CLIENT_IDLE, ClientJob, ClientStatus, TellError};
 
 use super::peers::{Peers, Unavailable};
 use crate::api::ClientJobRequest;
-use crate::refine::asked::{Told, Values};
-use crate::spec::{ClientSpec, Limits};
+use crate::refine::asked::Values;
+use crate::spec::{ClientSpec, Limits, is_hex_id};
 use log::Entry;
 use sha2::{Digest, Sha256};
 use std::collections::HashMap;
@@ -108,12 +108,7 @@ impl ClientJobs {
         let at_ms = nanos.as_millis() as u64;
         let mut entries = vec![Entry::Made { at_ms, request }];
         if !seeds.is_empty() {
-            let mut seeded: Vec<(f64, f64, Option<f64>)> = (seeds.iter())
-                .map(|(p, told)| (p.x, p.y, if let Told::Value(v) = told { Some(v) } else { None }))
-                .collect();
-            // The log's bytes in one order, whatever the map's.
-            seeded.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
-            entries.push(Entry::Seeded(seeded));
+            entries.push(Entry::seeded(&seeds));
         }
         if self.peers.is_shared() {
             let encoded: Vec<Vec<u8>> = entries.iter().map(Entry::encode).collect();
@@ -146,7 +141,7 @@ impl ClientJobs {
             }
             return Ok(Some(job));
         }
-        if !self.peers.is_shared() || !is_job_id(id) {
+        if !self.peers.is_shared() || !is_hex_id(id) {
             return Ok(None);
         }
         let log = self.peers.log(id, 0).await?;
@@ -157,18 +152,27 @@ impl ClientJobs {
     }
 
     /// Reads what other replicas wrote to `job`'s log since this one last did, and sets a
-    /// replay choosing if the job now waits for one: for a listener that waits on a job
-    /// other replicas may be told of.
-    pub async fn refresh(&self, job: &Arc<ClientJob>) {
+    /// replay choosing if the job now waits for one.
+    async fn refresh(&self, job: &Arc<ClientJob>) {
         if let Err(e) = self.sync(job).await {
             tracing::debug!(error = %e, job = %job.id, "a client job's log could not be read");
         }
     }
 
-    /// How often a listener refreshes a job: other replicas' entries come no sooner than
-    /// this; `None` for a replica alone, where every change wakes the listener.
-    pub fn refresh_every(&self) -> Option<Duration> {
-        self.peers.is_shared().then(|| self.peers.sweep_every())
+    /// Waits for `changed` (a change to `job` on this replica) until `until`. Another
+    /// replica's entries wake nobody here: with a shared store the log is read at least every
+    /// sweep meanwhile, and the wait ends after each read, so the caller looks again.
+    pub async fn wait(
+        &self,
+        job: &Arc<ClientJob>,
+        changed: std::pin::Pin<&mut tokio::sync::futures::Notified<'_>>,
+        until: tokio::time::Instant,
+    ) {
+        let every = self.peers.is_shared().then(|| self.peers.sweep_every());
+        let look = every.map_or(until, |every| until.min(tokio::time::Instant::now() + every));
+        if tokio::time::timeout_at(look, changed).await.is_err() {
+            self.refresh(job).await;
+        }
     }
 
     /// Tells `values` (id, F or None for a failure) of `job`, all or none: how many were new.
@@ -287,13 +291,7 @@ impl ClientJobs {
         let created = SystemTime::UNIX_EPOCH + Duration::from_millis(at_ms);
         let now = Instant::now();
         let (seeds, rest) = match rest.split_first().map(|(e, rest)| (Entry::decode(e), rest)) {
-            Some((Some(Entry::Seeded(values)), rest)) => {
-                let mut seeds = Values::new();
-                for (x, y, value) in values {
-                    seeds.tell(crate::geom::Point::new(x, y), value.map_or(Told::Failed, Told::Value));
-                }
-                (seeds, rest)
-            }
+            Some((Some(Entry::Seeded(seeded)), rest)) => (Entry::seeds(&seeded), rest),
             _ => (Values::new(), rest),
         };
         let applied = (log.len() - rest.len()) as u64;
@@ -312,11 +310,6 @@ fn apply_all(job: &ClientJob, entries: &[Vec<u8>], now: Instant) {
         }
         job.apply(entry.as_ref(), now);
     }
-}
-
-/// Whether `id` could name a client job (a SHA-256 in hex): anything else is not looked up.
-fn is_job_id(id: &str) -> bool {
-    id.len() == 64 && id.bytes().all(|b| b.is_ascii_hexdigit())
 }
 
 /// A lock that a panic elsewhere does not poison for everyone else.

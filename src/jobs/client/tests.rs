@@ -26,30 +26,33 @@ fn request(vertices: u64) -> serde_json::Value {
 
 /// Makes a job of `request` on `jobs`, with `seeds`.
 async fn make(jobs: &ClientJobs, request: serde_json::Value, seeds: Values) -> Arc<ClientJob> {
+    let now = Instant::now();
     let spec =
         ClientSpec::from_request(serde_json::from_value(request.clone()).unwrap(), &Limits::NONE).unwrap();
-    jobs.create(request, spec, seeds, Instant::now()).await.unwrap()
+    jobs.create(request, spec, seeds, now).await.unwrap()
 }
 
 /// Plays the caller of job `id` until it ends, the `k`th batch on `replicas[k % len]`: the
 /// result, and how many points were evaluated.
 async fn play(replicas: &[&ClientJobs], id: &str) -> (Arc<RunResult>, u64) {
+    // One instant for every call: the job's clock (leases, idleness) never decides here.
+    let now = Instant::now();
     let mut evaluated = 0;
     for turn in 0.. {
         let jobs = replicas[turn % replicas.len()];
         let job = jobs.get(id).await.unwrap().expect("every replica finds the job");
-        match job.ask(Instant::now()) {
+        match job.ask(now) {
             Asked::Batch { points, .. } => {
                 let told: Vec<_> = points.iter().map(|&(id, p)| (id, Some(f(p.x, p.y)))).collect();
                 evaluated += told.len() as u64;
-                jobs.tell(&job, &told, Instant::now()).await.unwrap();
+                jobs.tell(&job, &told, now).await.unwrap();
             }
             Asked::Wait { .. } => {
                 let changed = job.changed();
                 let _ = tokio::time::timeout(Duration::from_millis(20), changed).await;
             }
             Asked::Finished => {
-                let result = job.status(Instant::now()).result.expect("the job succeeded");
+                let result = job.status(now).result.expect("the job succeeded");
                 return (result, evaluated);
             }
         }
@@ -64,6 +67,8 @@ fn bits(result: &RunResult) -> (Vec<[u64; 3]>, Vec<[u32; 3]>) {
 
 #[tokio::test]
 async fn replicas_take_turns_at_one_job_and_make_the_mesh_one_replica_makes() {
+    // One instant for every call: the job's clock (leases, idleness) never decides here.
+    let now = Instant::now();
     let alone = replica(None, "alone");
     let job = make(&alone, request(120), Values::new()).await;
     let (expected, _) = play(&[&alone], &job.id).await;
@@ -75,15 +80,15 @@ async fn replicas_take_turns_at_one_job_and_make_the_mesh_one_replica_makes() {
     assert_eq!(bits(&shared), bits(&expected), "the same values make the same mesh");
     assert_eq!(shared.vertices.len(), 120);
     // Every replica holds the finished job, with the same counts.
-    let counts: Vec<_> = [&a, &b, &c]
-        .iter()
-        .map(|jobs| jobs.local(&job.id).expect("held").status(Instant::now()).evaluations)
-        .collect();
+    let counts: Vec<_> =
+        [&a, &b, &c].iter().map(|jobs| jobs.local(&job.id).expect("held").status(now).evaluations).collect();
     assert!(counts.windows(2).all(|w| w[0] == w[1]), "{counts:?}");
 }
 
 #[tokio::test]
 async fn a_job_outlives_the_replica_that_made_it() {
+    // One instant for every call: the job's clock (leases, idleness) never decides here.
+    let now = Instant::now();
     let bus = Bus::new(Duration::from_secs(1), 1 << 20);
     let a = replica(Some(&bus), "a");
     let job = make(&a, request(60), Values::new()).await;
@@ -92,28 +97,24 @@ async fn a_job_outlives_the_replica_that_made_it() {
     for _ in 0..2 {
         let job = loop {
             let job = a.get(&id).await.unwrap().unwrap();
-            if matches!(job.current(Instant::now()), (_, Some(_))) {
+            if matches!(job.current(now), (_, Some(_))) {
                 break job;
             }
             tokio::time::sleep(Duration::from_millis(5)).await;
         };
-        let Asked::Batch { points, .. } = job.ask(Instant::now()) else { panic!("a batch is out") };
+        let Asked::Batch { points, .. } = job.ask(now) else { panic!("a batch is out") };
         let told: Vec<_> = points.iter().map(|&(id, p)| (id, Some(f(p.x, p.y)))).collect();
-        a.tell(&job, &told, Instant::now()).await.unwrap();
+        a.tell(&job, &told, now).await.unwrap();
     }
-    let told_on_a = job.status(Instant::now()).evaluations.told;
+    let told_on_a = job.status(now).evaluations.told;
     drop((a, job));
 
     let b = replica(Some(&bus), "b");
     let rebuilt = b.get(&id).await.unwrap().expect("rebuilt from the log");
-    assert_eq!(rebuilt.status(Instant::now()).evaluations.told, told_on_a, "nothing told is lost");
+    assert_eq!(rebuilt.status(now).evaluations.told, told_on_a, "nothing told is lost");
     let (result, evaluated) = play(&[&b], &id).await;
     assert_eq!(result.vertices.len(), 60);
-    assert_eq!(
-        evaluated + told_on_a,
-        rebuilt.status(Instant::now()).evaluations.told,
-        "B asked for no told point"
-    );
+    assert_eq!(evaluated + told_on_a, rebuilt.status(now).evaluations.told, "B asked for no told point");
 
     // A replica alone has no log to rebuild from, and an unknown id is no job.
     assert!(replica(None, "alone").get(&id).await.unwrap().is_none());
@@ -122,39 +123,43 @@ async fn a_job_outlives_the_replica_that_made_it() {
 
 #[tokio::test]
 async fn two_replicas_told_different_values_of_a_point_keep_the_first() {
+    // One instant for every call: the job's clock (leases, idleness) never decides here.
+    let now = Instant::now();
     let bus = Bus::new(Duration::from_secs(1), 1 << 20);
     let (a, b) = (replica(Some(&bus), "a"), replica(Some(&bus), "b"));
     let job_a = make(&a, request(40), Values::new()).await;
     let job_b = b.get(&job_a.id).await.unwrap().unwrap();
-    assert_eq!(a.tell(&job_a, &[(0, Some(1.0))], Instant::now()).await, Ok(1));
+    assert_eq!(a.tell(&job_a, &[(0, Some(1.0))], now).await, Ok(1));
     // B has not read A's entry: its tell meets it in the log and is checked against it.
-    let conflict = b.tell(&job_b, &[(1, Some(2.0)), (0, Some(3.0))], Instant::now()).await;
+    let conflict = b.tell(&job_b, &[(1, Some(2.0)), (0, Some(3.0))], now).await;
     assert_eq!(
         conflict,
         Err(ClientError::Tell(TellError::Conflict { index: 1, id: 0, was: Some(1.0), told: Some(3.0) }))
     );
-    assert_eq!(job_b.status(Instant::now()).evaluations.told, 1, "all or none: point 1 was not told");
-    assert_eq!(b.tell(&job_b, &[(0, Some(1.0))], Instant::now()).await, Ok(0), "a repeat is a no-op");
+    assert_eq!(job_b.status(now).evaluations.told, 1, "all or none: point 1 was not told");
+    assert_eq!(b.tell(&job_b, &[(0, Some(1.0))], now).await, Ok(0), "a repeat is a no-op");
     // A cancellation on B ends the job on A.
-    b.cancel(&job_b, Instant::now()).await.unwrap();
+    b.cancel(&job_b, now).await.unwrap();
     let job_a = a.get(&job_a.id).await.unwrap().unwrap();
-    assert_eq!(job_a.status(Instant::now()).status, "cancelled");
+    assert_eq!(job_a.status(now).status, "cancelled");
 }
 
 #[tokio::test]
 async fn a_store_away_refuses_tells_and_loses_nothing() {
+    // One instant for every call: the job's clock (leases, idleness) never decides here.
+    let now = Instant::now();
     let bus = Bus::new(Duration::from_secs(1), 1 << 20);
     let (a, b) = (replica(Some(&bus), "a"), replica(Some(&bus), "b"));
     let job = make(&a, request(40), Values::new()).await;
     bus.set_up(false);
-    assert_eq!(a.tell(&job, &[(0, Some(1.0))], Instant::now()).await, Err(ClientError::Unreachable));
-    assert_eq!(job.status(Instant::now()).evaluations.told, 0, "a value the store did not take is not told");
+    assert_eq!(a.tell(&job, &[(0, Some(1.0))], now).await, Err(ClientError::Unreachable));
+    assert_eq!(job.status(now).evaluations.told, 0, "a value the store did not take is not told");
     bus.set_up(true);
     // The next operation finds the store again once a ping has (as the registry's sweep does).
     a.peers.ping().await.unwrap();
-    assert_eq!(a.tell(&job, &[(0, Some(1.0))], Instant::now()).await, Ok(1));
+    assert_eq!(a.tell(&job, &[(0, Some(1.0))], now).await, Ok(1));
     let on_b = b.get(&job.id).await.unwrap().unwrap();
-    assert_eq!(on_b.status(Instant::now()).evaluations.told, 1);
+    assert_eq!(on_b.status(now).evaluations.told, 1);
 }
 
 #[tokio::test]

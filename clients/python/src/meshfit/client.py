@@ -231,12 +231,9 @@ class Client:
                 if reason is not None:
                     entry["reason"] = reason
                 values.append(entry)
-            response = self._http.post(
-                f"/v1/jobs/{job_id}/tell", params={"ask": ASK_WAIT_MS}, json={"values": values}, timeout=timeout
-            )
-            if response.status_code >= 400:
-                raise self._error(response)
-            told = response.json()
+            told = self._request(
+                "POST", f"/v1/jobs/{job_id}/tell", params={"ask": ASK_WAIT_MS}, json={"values": values}, timeout=timeout
+            ).json()
             if bar is not None:
                 bar.update(min(told["evaluations"]["told"], bar.total) - bar.n)
             ask = told.get("next") or self._ask(job_id, timeout)
